@@ -1,0 +1,1 @@
+"""brush_env: toothbrush DFM dynamics engine and Gymnasium environments."""
