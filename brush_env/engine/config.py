@@ -1,0 +1,703 @@
+"""Brush and material configs: TOML data files -> validated, frozen dataclasses.
+
+Units everywhere: mm, N, s, tonne. Young's modulus E in MPa (= N/mm^2), density in t/mm^3, lengths
+in mm, angles in rad inside the dataclasses (degrees in the TOML files, keys ending ``_deg``).
+
+Frames: the *head frame* has its origin on the head plane (z = 0, where bristle roots sit), +x along
+the handle (long axis of the head) and +z along the bristles, i.e. from the robot flange toward the
+plate. The head frame is placed in the TCP frame by ``head_offset`` and the fixed-axis
+roll/pitch/yaw ``head_rpy`` (R = Rz(yaw) Ry(pitch) Rx(roll)).
+
+Every bad value raises :class:`ConfigError` naming the key path, the value and the allowed range,
+e.g. ``brush.grid[1].length_mm = -2.0 is out of range: must be > 0 and <= 100 (mm)``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+import os
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+__all__ = [
+    "ConfigError",
+    "Limit",
+    "LIMITS",
+    "Material",
+    "Section",
+    "BristleConfig",
+    "BrushConfig",
+    "configs_dir",
+    "load_materials",
+    "load_brush",
+]
+
+
+class ConfigError(ValueError):
+    """A config value is missing, unknown, of the wrong type or out of range.
+
+    The message names the key path, the bad value and what is allowed (with its unit).
+    """
+
+
+# --------------------------------------------------------------------------------------------------
+# Generic checks
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Limit:
+    """An allowed numeric range with its unit; bounds left None are open (value must be finite)."""
+
+    unit: str
+    gt: float | None = None
+    ge: float | None = None
+    lt: float | None = None
+    le: float | None = None
+
+    def describe(self) -> str:
+        ops = ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
+        parts = [f"{op} {bound:g}" for op, bound in ops if bound is not None] or ["finite"]
+        return f"must be {' and '.join(parts)} ({self.unit})"
+
+    def check(self, path: str, value: float) -> Any:
+        """Return ``value`` if it lies in the range, else raise ConfigError naming ``path``."""
+        ops = ((operator.gt, self.gt), (operator.ge, self.ge), (operator.lt, self.lt),
+               (operator.le, self.le))
+        ok = math.isfinite(value) and all(b is None or cmp(value, b) for cmp, b in ops)
+        if not ok:
+            raise ConfigError(f"{path} = {value!r} is out of range: {self.describe()}")
+        return value
+
+
+#: The allowed ranges, one place for both the loaders and the dataclass constructors.
+LIMITS: dict[str, Limit] = {
+    "E": Limit("MPa", gt=0, le=1e6),
+    "nu": Limit("dimensionless", gt=-1, lt=0.5),
+    "density": Limit("t/mm^3", gt=0, le=1e-7),
+    "damping_ratio": Limit("dimensionless", ge=0, le=2),
+    "section": Limit("mm", gt=0, le=20),
+    "length": Limit("mm", gt=0, le=100),
+    "bodies": Limit("count", ge=1, le=200),
+    "tip_radius": Limit("mm; at most min(5 mm, bristle length)", gt=0, le=5),
+    "pitch": Limit("mm", gt=0, le=50),
+    "count": Limit("count", ge=1, le=1000),
+    "position": Limit("mm, head frame", ge=-100, le=100),
+    "offset": Limit("mm, TCP frame", ge=-1000, le=1000),
+    "angle_deg": Limit("deg", ge=-360, le=360),
+    "angle": Limit("rad", ge=-2 * math.pi, le=2 * math.pi),
+    "direction": Limit("dimensionless direction, head frame"),
+}
+
+_PARALLEL_TOL = 1e-6
+
+
+def _type_error(path: str, value: Any, expected: str) -> ConfigError:
+    got = type(value).__name__
+    if isinstance(value, (list, tuple)):
+        got = f"a {got} of {len(value)}"
+    return ConfigError(f"{path} = {value!r} has the wrong type: expected {expected}, got {got}")
+
+
+def _real(path: str, value: Any, limit: Limit) -> float:
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        raise _type_error(path, value, f"a number ({limit.unit})")
+    return limit.check(path, float(value))
+
+
+def _int(path: str, value: Any, limit: Limit) -> int:
+    if not isinstance(value, numbers.Integral) or isinstance(value, bool):
+        raise _type_error(path, value, f"an integer ({limit.unit})")
+    return limit.check(path, int(value))
+
+
+def _vec(path: str, value: Any, n: int, limit: Limit) -> tuple[float, ...]:
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise _type_error(path, value, f"a list of {n} numbers ({limit.unit})")
+    return tuple(_real(f"{path}[{i}]", v, limit) for i, v in enumerate(value))
+
+
+def _unit(path: str, value: Any) -> np.ndarray:
+    v = np.asarray(_vec(path, value, 3, LIMITS["direction"]))
+    norm = float(np.linalg.norm(v))
+    if norm < 1e-12:
+        raise ConfigError(f"{path} = {list(value)!r} is invalid: must be a non-zero 3-vector")
+    return v / norm
+
+
+def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Unit bristle axis and width direction (Gram-Schmidt against the axis)."""
+    a = _unit(f"{path}.axis", axis)
+    w = _unit(f"{path}.width_dir", width_dir)
+    w = w - a * float(a @ w)
+    if np.linalg.norm(w) < _PARALLEL_TOL:
+        raise ConfigError(
+            f"{path}.width_dir = {list(width_dir)!r} is invalid: must not be parallel to "
+            f"axis = {list(axis)!r} (need |sin(angle)| > {_PARALLEL_TOL:g})"
+        )
+    return tuple(a.tolist()), tuple((w / np.linalg.norm(w)).tolist())
+
+
+def _set(obj: Any, **fields: Any) -> None:
+    for k, v in fields.items():
+        object.__setattr__(obj, k, v)
+
+
+# --------------------------------------------------------------------------------------------------
+# Dataclasses
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear-elastic bristle material.
+
+    E [MPa = N/mm^2], nu [-], density [t/mm^3], damping_ratio [-] (ratio of critical damping used
+    for the stiffness-proportional beam damping).
+    """
+
+    name: str
+    E: float
+    nu: float
+    density: float
+    damping_ratio: float
+    description: str = field(default="", repr=False)
+
+    def __post_init__(self) -> None:
+        p = f"Material({self.name!r})"
+        _set(self, **{k: _real(f"{p}.{k}", getattr(self, k), LIMITS[k]) for k in
+                      ("E", "nu", "density", "damping_ratio")})
+
+    @property
+    def G(self) -> float:
+        """Shear modulus [MPa] = E / (2 (1 + nu))."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+
+SECTION_KINDS = ("rect", "circle")
+
+
+@dataclass(frozen=True)
+class Section:
+    """Constant bristle cross-section [mm].
+
+    rect: ``width`` b along the bristle's local y axis (its ``width_dir``), ``thickness`` h along
+    local z (axis x width_dir). circle: width == thickness == diameter.
+    """
+
+    kind: str
+    width: float
+    thickness: float
+
+    def __post_init__(self) -> None:
+        if self.kind not in SECTION_KINDS:
+            raise ConfigError(
+                f"Section.kind = {self.kind!r} is not allowed (allowed: {', '.join(SECTION_KINDS)})"
+            )
+        b = _real("Section.width", self.width, LIMITS["section"])
+        h = _real("Section.thickness", self.thickness, LIMITS["section"])
+        if self.kind == "circle" and b != h:
+            raise ConfigError(f"Section.thickness = {h!r} must equal width = {b!r} for a circle")
+        _set(self, width=b, thickness=h)
+
+    @classmethod
+    def rect(cls, b: float, h: float) -> Section:
+        """Rectangle b [mm] (local y) x h [mm] (local z)."""
+        return cls("rect", b, h)
+
+    @classmethod
+    def circle(cls, d: float) -> Section:
+        """Circle of diameter d [mm]."""
+        return cls("circle", d, d)
+
+    @property
+    def area(self) -> float:
+        """Area [mm^2]."""
+        b, h = self.width, self.thickness
+        return b * h if self.kind == "rect" else math.pi * b * b / 4.0
+
+    @property
+    def I_y(self) -> float:
+        """Second moment about local y, ∫z² dA [mm^4] (bending that deflects along local z)."""
+        b, h = self.width, self.thickness
+        return b * h**3 / 12.0 if self.kind == "rect" else math.pi * b**4 / 64.0
+
+    @property
+    def I_z(self) -> float:
+        """Second moment about local z, ∫y² dA [mm^4] (bending that deflects along local y)."""
+        b, h = self.width, self.thickness
+        return h * b**3 / 12.0 if self.kind == "rect" else math.pi * b**4 / 64.0
+
+    @property
+    def J(self) -> float:
+        """Saint-Venant torsion constant [mm^4]: circle π d⁴/32; rectangle by Roark's formula."""
+        if self.kind == "circle":
+            return math.pi * self.width**4 / 32.0
+        a, c = max(self.width, self.thickness) / 2.0, min(self.width, self.thickness) / 2.0
+        return a * c**3 * (16.0 / 3.0 - 3.36 * (c / a) * (1.0 - c**4 / (12.0 * a**4)))
+
+    def shear_coeff(self, nu: float) -> float:
+        """Cowper's shear coefficient κ [-] for Poisson ratio ``nu`` (shear area = κ A)."""
+        if self.kind == "rect":
+            return 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu)
+        return 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)
+
+    @property
+    def polar_radius_sq(self) -> float:
+        """(I_y + I_z) / A [mm^2]: axial mass moment of inertia per unit mass."""
+        b, h = self.width, self.thickness
+        return (b * b + h * h) / 12.0 if self.kind == "rect" else b * b / 8.0
+
+
+@dataclass(frozen=True)
+class BristleConfig:
+    """One bristle, in the head frame.
+
+    root [mm] on the head, axis (unit, root -> tip), width_dir (unit, ⟂ axis: the section's width
+    direction, local y), length [mm], bodies (rigid bodies of the discrete flexible model),
+    tip_radius [mm] of the contact sphere, group (name of the layout entry it came from).
+    """
+
+    root: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    width_dir: tuple[float, float, float]
+    length: float
+    section: Section
+    material: Material
+    bodies: int
+    tip_radius: float
+    group: str = ""
+
+    def __post_init__(self) -> None:
+        p = "BristleConfig"
+        if not isinstance(self.section, Section):
+            raise _type_error(f"{p}.section", self.section, "a Section")
+        if not isinstance(self.material, Material):
+            raise _type_error(f"{p}.material", self.material, "a Material")
+        axis, width_dir = _frame(p, self.axis, self.width_dir)
+        length = _real(f"{p}.length", self.length, LIMITS["length"])
+        _set(
+            self,
+            root=_vec(f"{p}.root", self.root, 3, LIMITS["position"]),
+            axis=axis,
+            width_dir=width_dir,
+            length=length,
+            bodies=_int(f"{p}.bodies", self.bodies, LIMITS["bodies"]),
+            tip_radius=_real(f"{p}.tip_radius", self.tip_radius, _tip_limit(length)),
+        )
+
+    @property
+    def thickness_dir(self) -> tuple[float, float, float]:
+        """Unit local z = axis × width_dir (the section's thickness direction), head frame."""
+        return tuple(np.cross(self.axis, self.width_dir).tolist())
+
+
+def _perp_unit(e: np.ndarray, fallback: tuple[float, float]) -> np.ndarray:
+    """Unit 2D normal of edge direction ``e`` (``fallback`` if the edge projects to a point)."""
+    n = float(np.linalg.norm(e))
+    return np.array([e[1], -e[0]]) / n if n > 1e-12 else np.array(fallback)
+
+
+def _tip_limit(length: float) -> Limit:
+    return replace(LIMITS["tip_radius"], le=min(LIMITS["tip_radius"].le, length))
+
+
+def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll) (fixed-axis x-y-z) [rad]."""
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+@dataclass(frozen=True)
+class BrushConfig:
+    """A brush head: its bristles (head frame) and the head's pose in the TCP frame.
+
+    head_offset [mm, TCP frame], head_rpy [rad, fixed-axis roll/pitch/yaw of the head relative to
+    the TCP], bristles, source (file the config came from, plus any overrides).
+    """
+
+    name: str
+    head_offset: tuple[float, float, float]
+    head_rpy: tuple[float, float, float]
+    bristles: tuple[BristleConfig, ...]
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        bristles = tuple(self.bristles)
+        if not bristles:
+            raise ConfigError("BrushConfig.bristles is empty: need at least 1 bristle")
+        for i, b in enumerate(bristles):
+            if not isinstance(b, BristleConfig):
+                raise _type_error(f"BrushConfig.bristles[{i}]", b, "a BristleConfig")
+        _set(
+            self,
+            head_offset=_vec("BrushConfig.head_offset", self.head_offset, 3, LIMITS["offset"]),
+            head_rpy=_vec("BrushConfig.head_rpy", self.head_rpy, 3, LIMITS["angle"]),
+            bristles=bristles,
+        )
+
+    @property
+    def n_bristles(self) -> int:
+        return len(self.bristles)
+
+    @property
+    def max_length(self) -> float:
+        """Longest bristle [mm]."""
+        return max(b.length for b in self.bristles)
+
+    def with_bodies(self, n: int) -> BrushConfig:
+        """Copy with every bristle discretised into ``n`` bodies."""
+        return replace(self, bristles=tuple(replace(b, bodies=n) for b in self.bristles))
+
+    def with_material(self, material: Material) -> BrushConfig:
+        """Copy with every bristle made of ``material``."""
+        return replace(self, bristles=tuple(replace(b, material=material) for b in self.bristles))
+
+    def head_rotation(self) -> np.ndarray:
+        """3x3 rotation of the head frame in the TCP frame, Rz(yaw) Ry(pitch) Rx(roll)."""
+        return _rotation(*self.head_rpy)
+
+    def roots_tcp(self) -> np.ndarray:
+        """(n, 3) bristle root positions [mm] in the TCP frame."""
+        roots = np.array([b.root for b in self.bristles])
+        return np.asarray(self.head_offset) + roots @ self.head_rotation().T
+
+    def axes_tcp(self) -> np.ndarray:
+        """(n, 3) unit bristle axes in the TCP frame."""
+        return np.array([b.axis for b in self.bristles]) @ self.head_rotation().T
+
+    def width_dirs_tcp(self) -> np.ndarray:
+        """(n, 3) unit section width directions in the TCP frame."""
+        return np.array([b.width_dir for b in self.bristles]) @ self.head_rotation().T
+
+    def min_root_gap(self) -> tuple[float, int, int]:
+        """Smallest clearance [mm] between two bristles' root cross-sections, and that pair.
+
+        Footprints are the root cross-sections projected along head z onto the head plane (circles
+        as discs of their diameter). The clearance is the separating-axis gap over the footprints'
+        edge normals and the centre line: exact for rectangles sharing their edge directions,
+        conservative otherwise; <= 0 means the sections overlap. (inf, -1, -1) for one bristle.
+        """
+        n = self.n_bristles
+        centres = np.array([b.root[:2] for b in self.bristles])
+        corners, radii, normals = [], [], []
+        for b in self.bristles:
+            w, t = np.asarray(b.width_dir)[:2], np.asarray(b.thickness_dir)[:2]
+            if b.section.kind == "rect":
+                hw, ht = b.section.width / 2 * w, b.section.thickness / 2 * t
+                corners.append([-hw - ht, hw - ht, hw + ht, -hw + ht])
+                radii.append(0.0)
+                normals.append([_perp_unit(w, (0.0, 1.0)), _perp_unit(t, (1.0, 0.0))])
+            else:
+                corners.append(np.zeros((4, 2)))
+                radii.append(b.section.width / 2)
+                normals.append(np.eye(2))
+        poly = centres[:, None, :] + np.array(corners)  # (n, 4, 2)
+        radii, normals = np.array(radii), np.array(normals)  # (n,), (n, 2, 2)
+        best = (math.inf, -1, -1)
+        for i in range(n - 1):
+            j = np.arange(i + 1, n)
+            d = centres[j] - centres[i]
+            dn = np.linalg.norm(d, axis=1, keepdims=True)
+            line = np.where(dn > 1e-12, d / np.maximum(dn, 1e-12), [1.0, 0.0])
+            axes = np.concatenate([np.broadcast_to(normals[i], (len(j), 2, 2)), normals[j],
+                                   line[:, None, :]], axis=1)  # (m, 5, 2)
+            pi = np.einsum("vd,mad->mav", poly[i], axes)
+            pj = np.einsum("mvd,mad->mav", poly[j], axes)
+            lo_i, hi_i = pi.min(-1) - radii[i], pi.max(-1) + radii[i]
+            lo_j, hi_j = pj.min(-1) - radii[j, None], pj.max(-1) + radii[j, None]
+            gap = np.maximum(lo_j - hi_i, lo_i - hi_j).max(axis=1)
+            k = int(np.argmin(gap))
+            if gap[k] < best[0]:
+                best = (float(gap[k]), i, int(j[k]))
+        return best
+
+
+# --------------------------------------------------------------------------------------------------
+# TOML reading
+# --------------------------------------------------------------------------------------------------
+_REQUIRED = object()
+
+
+class _Table:
+    """A TOML table being read: knows its key path and rejects keys not in ``allowed``."""
+
+    def __init__(self, data: Any, path: str, allowed: tuple[str, ...]):
+        if not isinstance(data, dict):
+            raise _type_error(path, data, "a table")
+        for key in data:
+            if key not in allowed:
+                raise ConfigError(f"{path}: unknown key {key!r} (allowed: {', '.join(allowed)})")
+        self.data, self.path = data, path
+
+    def key(self, key: str) -> str:
+        return f"{self.path}.{key}"
+
+    def get(self, key: str, default: Any, expected: str) -> Any:
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            raise ConfigError(f"{self.path}: missing required key {key!r} ({expected})")
+        return default
+
+    def num(self, key: str, limit: Limit, default: Any = _REQUIRED) -> float:
+        v = self.get(key, default, f"a number that {limit.describe()}")
+        return v if v is None else _real(self.key(key), v, limit)
+
+    def int(self, key: str, limit: Limit, default: Any = _REQUIRED) -> int:
+        v = self.get(key, default, f"an integer that {limit.describe()}")
+        return v if v is None else _int(self.key(key), v, limit)
+
+    def vec(self, key: str, n: int, limit: Limit, default: Any = _REQUIRED) -> tuple[float, ...]:
+        v = self.get(key, default, f"a list of {n} numbers ({limit.unit})")
+        return v if v is None else _vec(self.key(key), v, n, limit)
+
+    def str(self, key: str, default: Any = _REQUIRED, choices: Any = None, what: str = "") -> str:
+        v = self.get(key, default, "a string" + (f" ({what})" if what else ""))
+        if v is None:
+            return v
+        if not isinstance(v, str):
+            raise _type_error(self.key(key), v, "a string")
+        if choices is not None and v not in choices:
+            raise ConfigError(
+                f"{self.key(key)} = {v!r} is not a known {what} (known: {', '.join(choices)})"
+            )
+        return v
+
+
+def configs_dir() -> Path:
+    """The ``configs/`` directory: $BRUSH_ENV_CONFIGS if set, else the repository's ``configs/``."""
+    env = os.environ.get("BRUSH_ENV_CONFIGS")
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "configs"
+
+
+def _read_toml(path: Path) -> dict:
+    with open(path, "rb") as f:
+        try:
+            return tomllib.load(f)
+        except tomllib.TOMLDecodeError as e:
+            raise ConfigError(f"{path}: invalid TOML: {e}") from None
+
+
+def _in_file(path: Path, err: ConfigError) -> ConfigError:
+    return ConfigError(f"{path}: {err}")
+
+
+MATERIAL_KEYS = ("E_MPa", "nu", "density_t_per_mm3", "damping_ratio", "description")
+
+
+def load_materials(path: str | os.PathLike | None = None) -> dict[str, Material]:
+    """Materials by name from a TOML file (default ``configs/materials.toml``).
+
+    Each table ``[<name>]`` has E_MPa [MPa], nu [-], density_t_per_mm3 [t/mm^3], damping_ratio [-]
+    and an optional description.
+    """
+    path = Path(path) if path is not None else configs_dir() / "materials.toml"
+    data = _read_toml(path)
+    try:
+        return {name: _material(name, table) for name, table in data.items()}
+    except ConfigError as e:
+        raise _in_file(path, e) from None
+
+
+def _material(name: str, data: Any) -> Material:
+    t = _Table(data, f"material {name!r}", MATERIAL_KEYS)
+    return Material(
+        name=name,
+        E=t.num("E_MPa", LIMITS["E"]),
+        nu=t.num("nu", LIMITS["nu"]),
+        density=t.num("density_t_per_mm3", LIMITS["density"]),
+        damping_ratio=t.num("damping_ratio", LIMITS["damping_ratio"]),
+        description=t.str("description", ""),
+    )
+
+
+BRUSH_KEYS = ("name", "material", "materials_file", "bodies_per_bristle", "tip_radius_mm",
+              "head_offset_mm", "head_rpy_deg", "sections", "grid", "row", "bristle")
+_EXTRAS = ("axis", "width_dir", "material", "bodies", "tip_radius_mm", "name")
+GROUP_KEYS = {
+    "grid": ("section", "length_mm", "nx", "ny", "pitch_x_mm", "pitch_y_mm", "center_mm") + _EXTRAS,
+    "row": ("section", "length_mm", "n", "start_mm", "step_mm") + _EXTRAS,
+    "bristle": ("section", "length_mm", "root_mm") + _EXTRAS,
+}
+SECTION_KEYS = {"rect": ("kind", "width_mm", "thickness_mm"), "circle": ("kind", "diameter_mm")}
+
+
+def load_brush(
+    path_or_name: str | os.PathLike | None = None,
+    *,
+    materials: Mapping[str, Material] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> BrushConfig:
+    """Load and validate a brush config.
+
+    ``path_or_name``: a path to a TOML file, or a bare name such as ``"default"`` meaning
+    ``configs/brushes/<name>.toml`` (default: ``"default"``). ``materials``: materials by name
+    (default: the file's ``materials_file``, relative to the brush file, else
+    ``configs/materials.toml``). ``overrides``: values merged into the TOML data before validation,
+    as nested tables and/or dotted keys, e.g. ``{"bodies_per_bristle": 3,
+    "sections.outer.thickness_mm": 1.0, "grid[1].length_mm": 11.0}``.
+    """
+    path = _brush_path(path_or_name)
+    data = _read_toml(path)
+    source = str(path)
+    try:
+        if overrides:
+            _apply_overrides(data, overrides)
+            source += f" with overrides {dict(overrides)!r}"
+        t = _Table(data, "brush", BRUSH_KEYS)
+        mfile = t.str("materials_file", None, what="path relative to the brush file")
+        if materials is None:
+            materials = load_materials(path.parent / mfile if mfile else None)
+        brush = _brush(t, dict(materials), source)
+    except ConfigError as e:
+        raise _in_file(path, e) from None
+    gap, i, j = brush.min_root_gap()
+    if gap <= 0:
+        bi, bj = brush.bristles[i], brush.bristles[j]
+        raise ConfigError(
+            f"{path}: brush layout: bristle {i} (group {bi.group!r}) at {bi.root} and bristle {j} "
+            f"(group {bj.group!r}) at {bj.root} overlap at the root: clearance = {gap:.4g}, "
+            f"must be > 0 (mm); check pitch/step/root positions against the section sizes"
+        )
+    return brush
+
+
+def _brush_path(path_or_name: str | os.PathLike | None) -> Path:
+    if path_or_name is None:
+        path_or_name = "default"
+    s = os.fspath(path_or_name)
+    if isinstance(path_or_name, str) and not s.endswith(".toml") and not re.search(r"[\\/]", s):
+        brushes = configs_dir() / "brushes"
+        path = brushes / f"{s}.toml"
+        if not path.is_file():
+            known = sorted(p.stem for p in brushes.glob("*.toml"))
+            raise ConfigError(
+                f"brush {s!r} is not a known brush: no {path} (known: {', '.join(known)})"
+            )
+        return path
+    return Path(s)
+
+
+def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfig:
+    name = t.str("name")
+    default_material = t.str("material", choices=materials, what="material")
+    bodies = t.int("bodies_per_bristle", LIMITS["bodies"])
+    tip_radius = t.num("tip_radius_mm", LIMITS["tip_radius"])
+    head_offset = t.vec("head_offset_mm", 3, LIMITS["offset"], (0.0, 0.0, 0.0))
+    head_rpy = t.vec("head_rpy_deg", 3, LIMITS["angle_deg"], (0.0, 0.0, 0.0))
+    secs = t.get("sections", _REQUIRED, "[sections.<name>] tables")
+    if not isinstance(secs, dict):
+        raise _type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
+    sections = {k: _section(t.key(f"sections.{k}"), v) for k, v in secs.items()}
+    if not sections:
+        raise ConfigError(f"{t.key('sections')}: no sections defined (need at least one)")
+
+    defaults = dict(material=default_material, bodies=bodies, tip_radius=tip_radius)
+    bristles: list[BristleConfig] = []
+    for kind in GROUP_KEYS:
+        entries = t.get(kind, [], f"an array of [[{kind}]] tables")
+        if not isinstance(entries, list):
+            raise _type_error(t.key(kind), entries, f"an array of [[{kind}]] tables")
+        for idx, entry in enumerate(entries):
+            g = _Table(entry, t.key(f"{kind}[{idx}]"), GROUP_KEYS[kind])
+            bristles += _group(kind, idx, g, sections, materials, defaults)
+    if not bristles:
+        raise ConfigError("brush: no bristles: add at least one [[grid]], [[row]] or [[bristle]]")
+    return BrushConfig(name, head_offset, tuple(math.radians(a) for a in head_rpy),
+                       tuple(bristles), source)
+
+
+def _section(path: str, data: Any) -> Section:
+    kind = _Table(data, path, ("kind", "width_mm", "thickness_mm", "diameter_mm")).str(
+        "kind", choices=SECTION_KINDS, what="section kind")
+    t = _Table(data, path, SECTION_KEYS[kind])
+    if kind == "circle":
+        return Section.circle(t.num("diameter_mm", LIMITS["section"]))
+    return Section.rect(t.num("width_mm", LIMITS["section"]), t.num("thickness_mm",
+                                                                     LIMITS["section"]))
+
+
+def _group(kind: str, idx: int, g: _Table, sections: dict[str, Section],
+           materials: dict[str, Material], defaults: dict) -> list[BristleConfig]:
+    """The bristles of one [[grid]], [[row]] or [[bristle]] entry."""
+    section = sections[g.str("section", choices=sections, what="section")]
+    length = g.num("length_mm", LIMITS["length"])
+    material = g.str("material", defaults["material"], choices=materials, what="material")
+    bodies = g.int("bodies", LIMITS["bodies"], defaults["bodies"])
+    if "tip_radius_mm" in g.data:
+        tip = g.num("tip_radius_mm", _tip_limit(length))
+    else:
+        tip = _real(f"brush.tip_radius_mm (used by {g.path})", defaults["tip_radius"],
+                    _tip_limit(length))
+    axis, width_dir = _frame(g.path, g.vec("axis", 3, LIMITS["direction"], (0.0, 0.0, 1.0)),
+                             g.vec("width_dir", 3, LIMITS["direction"], (1.0, 0.0, 0.0)))
+    pos = LIMITS["position"]
+    if kind == "grid":
+        nx, ny = g.int("nx", LIMITS["count"]), g.int("ny", LIMITS["count"])
+        px = g.num("pitch_x_mm", LIMITS["pitch"], None if nx == 1 else _REQUIRED) or 0.0
+        py = g.num("pitch_y_mm", LIMITS["pitch"], None if ny == 1 else _REQUIRED) or 0.0
+        cx, cy = g.vec("center_mm", 2, pos)
+        roots = [(cx + (ix - (nx - 1) / 2) * px, cy + (iy - (ny - 1) / 2) * py, 0.0)
+                 for iy in range(ny) for ix in range(nx)]
+    elif kind == "row":
+        n = g.int("n", LIMITS["count"])
+        sx, sy = g.vec("start_mm", 2, pos)
+        dx, dy = g.vec("step_mm", 2, pos, None if n == 1 else _REQUIRED) or (0.0, 0.0)
+        roots = [(sx + k * dx, sy + k * dy, 0.0) for k in range(n)]
+    else:
+        roots = [g.vec("root_mm", 3, pos)]
+    for k, r in enumerate(roots):
+        for c, v in zip("xyz", r):
+            pos.check(f"{g.path} bristle {k} root {c}", v)
+    group = g.str("name", f"{kind}[{idx}]")
+    return [BristleConfig(r, axis, width_dir, length, section, materials[material], bodies, tip,
+                          group) for r in roots]
+
+
+def _apply_overrides(data: dict, overrides: Mapping[str, Any], prefix: str = "") -> None:
+    """Merge ``overrides`` (nested tables and/or dotted keys with [i] indices) into ``data``."""
+    for dotted, value in overrides.items():
+        parts: list[Any] = [int(p[1:-1]) if p.startswith("[") else p
+                            for p in re.findall(r"\[\d+\]|[^.\[\]]+", str(dotted))]
+        where = f"overrides[{prefix + str(dotted)!r}]"
+        if not parts:
+            raise ConfigError(f"{where}: empty key")
+        node: Any = data
+        for part, nxt in zip(parts[:-1], parts[1:]):
+            node = _child(node, part, where, create={} if isinstance(nxt, str) else None)
+        last = parts[-1]
+        _child(node, last, where, create=None if isinstance(last, int) else {})
+        if isinstance(value, Mapping) and isinstance(node[last], dict):
+            _apply_overrides(node[last], value, prefix + str(dotted) + ".")
+        else:
+            node[last] = value
+
+
+def _child(node: Any, part: Any, where: str, create: Any) -> Any:
+    if isinstance(part, int):
+        if not isinstance(node, list) or not -len(node) <= part < len(node):
+            size = f"{len(node)} entries" if isinstance(node, list) else "not an array"
+            raise ConfigError(f"{where}: index [{part}] does not exist ({size})")
+        return node[part]
+    if not isinstance(node, dict):
+        raise ConfigError(f"{where}: {part!r} is inside a value that is not a table")
+    if part not in node:
+        if create is None:
+            raise ConfigError(f"{where}: {part!r} does not exist")
+        node[part] = create
+    return node[part]

@@ -1,0 +1,615 @@
+"""Implicit time stepping: per-bristle Newton on the block-tridiagonal system (numba kernels).
+
+Scheme: the momentum balance of eq 11 for every body, discretised with the two-step formula
+``y'(t_{n+1}) ~ (c0 y_{n+1} + c1 y_n + c2 y_{n-1}) / h`` applied to positions, velocities, angular
+momenta and the element strains of the damping term: backward Euler ``(1, -1, 0)`` (L-stable,
+first order) or BDF2 ``(3/2, -2, 1/2)`` (L-stable, second order).  Rotations are updated
+multiplicatively, ``R <- exp([dtheta]) R``, and enter the rates through rotation vectors relative
+to ``R_n``.
+
+Each bristle is an open chain, so its Newton matrix is block tridiagonal (6x6 blocks) and is solved
+by block Thomas in O(n).  Newton uses a backtracking line search on the scaled residual.  When
+Newton fails, the bristle alone repeats the step as two half steps (recursively, down to
+``h / 2**max_levels``), with the base pose interpolated (linear position, geodesic rotation).  A
+bristle that still fails is restored to its state at the start of the step and reported.
+
+Bristles are coupled only through the base (kinematic) and tip-tip contact (handled outside, by
+splitting), so ``step_bristles`` loops over bristles without Python overhead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_thomas
+from .contact import tip_load
+
+# status codes per bristle
+OK = 0
+NEWTON_FAILED = 1
+NONFINITE = 2
+
+# layout of the float64 settings vector ``prm``
+P_H = 0  # time step [s]
+P_METHOD = 1  # 0 backward Euler, 1 BDF2
+P_STATIC = 2  # 1: static equilibrium (no inertia, no damping)
+P_RTOL = 3  # Newton tolerance on the residual, relative to the bristle force scale
+P_MAXIT = 4  # Newton iterations per attempt
+P_MAXLEV = 5  # sub-stepping levels (h / 2**levels is the smallest step)
+P_G = 6  # 6, 7, 8: gravity [mm/s^2]
+N_PRM = 9
+
+MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
+
+
+@njit(cache=True)
+def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
+    """Base pose at fraction s of the step: linear in position, geodesic in rotation."""
+    for a in range(3):
+        pout[a] = (1.0 - s) * p0[a] + s * p1[a]
+    _local_rot_into(R1, R0, tmp)  # tmp = log(R1 R0^T)
+    _rotate_left(s * tmp[0], s * tmp[1], s * tmp[2], R0, Rout)
+
+
+@njit(cache=True)
+def _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist, gs,
+              hs, pAb, RAb, tip_args, tip_state, res, rootw, tipF, tipK, sw):
+    """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm).
+
+    Returns the scaled max norm: forces / bristle force scale and moments / (scale * l).  Also
+    fills ``rootw`` (force and moment that the root element applies to the head, at the root node)
+    and ``tipF``/``tipK`` (tip load and its stiffness d F / d p_tip).
+    """
+    e = sw[0, 0:6]
+    out12 = sw[1]
+    w = sw[2:6]
+    th = sw[6, 0:3]
+    pt = sw[6, 3:6]
+    for k in range(n):
+        i = b0 + k
+        m = bp[i, 0]
+        if static:
+            for a in range(3):
+                res[k, a] = -m * gvec[a]
+                res[k, 3 + a] = 0.0
+            continue
+        for a in range(3):
+            vk = (c0 * pos[i, a] + cm[k, a]) * inv_h
+            res[k, a] = m * (c0 * vk + vm[k, a]) * inv_h - m * gvec[a]
+        _local_rot_into(rot[i], Rn[k], th)
+        om0 = (c0 * th[0] + thp[k, 0]) * inv_h
+        om1 = (c0 * th[1] + thp[k, 1]) * inv_h
+        om2 = (c0 * th[2] + thp[k, 2]) * inv_h
+        R = rot[i]
+        ob0 = (R[0, 0] * om0 + R[1, 0] * om1 + R[2, 0] * om2) * bp[i, 1]
+        ob1 = (R[0, 1] * om0 + R[1, 1] * om1 + R[2, 1] * om2) * bp[i, 2]
+        ob2 = (R[0, 2] * om0 + R[1, 2] * om1 + R[2, 2] * om2) * bp[i, 3]
+        for a in range(3):
+            La = R[a, 0] * ob0 + R[a, 1] * ob1 + R[a, 2] * ob2
+            res[k, 3 + a] = (c0 * La + Lm[k, a]) * inv_h
+    for k in range(n):
+        i = b0 + k
+        if k == 0:
+            _element_gen(True, pAb, RAb, 0.0, pAb, pos[i], rot[i], bp[i, 4], K[i], bp[i, 5],
+                         ehist[k], gs[k], hs[k], out12, e, w)
+            for a in range(6):
+                rootw[a] = out12[a]
+        else:
+            _element_gen(False, pos[i - 1], rot[i - 1], bp[i - 1, 4], pAb, pos[i], rot[i],
+                         bp[i, 4], K[i], bp[i, 5], ehist[k], gs[k], hs[k], out12, e, w)
+            for a in range(6):
+                res[k - 1, a] -= out12[a]
+        for a in range(6):
+            res[k, a] -= out12[6 + a]
+    il = b0 + n - 1
+    _node(pos[il], rot[il], bp[il, 4], pt)
+    tip_load(pt, c0, inv_h, static, tip_args, tip_state, tipF, tipK)
+    rx = pt[0] - pos[il, 0]
+    ry = pt[1] - pos[il, 1]
+    rz = pt[2] - pos[il, 2]
+    res[n - 1, 0] -= tipF[0]
+    res[n - 1, 1] -= tipF[1]
+    res[n - 1, 2] -= tipF[2]
+    res[n - 1, 3] -= ry * tipF[2] - rz * tipF[1]
+    res[n - 1, 4] -= rz * tipF[0] - rx * tipF[2]
+    res[n - 1, 5] -= rx * tipF[1] - ry * tipF[0]
+    nrm = 0.0
+    for k in range(n):
+        i = b0 + k
+        fs = bp[i, 7]
+        ls = fs * bp[i, 5]
+        for a in range(3):
+            v1 = abs(res[k, a]) / fs
+            v2 = abs(res[k, 3 + a]) / ls
+            if not np.isfinite(v1) or not np.isfinite(v2):
+                return np.inf
+            if v1 > nrm:
+                nrm = v1
+            if v2 > nrm:
+                nrm = v2
+    return nrm
+
+
+@njit(cache=True)
+def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, tipF, tipK,
+              D, U, L, sw):
+    """Newton matrix d(res)/d(q), q_k = (dc_k, dtheta_k) in world axes (block tridiagonal).
+
+    Inertia blocks m c0^2/h^2 and R J R^T c0^2/h^2 (terms of order omega*h dropped); element
+    blocks by forward differences of the element's generalised forces; tip load blocks from the
+    tip stiffness ``tipK`` and the lever arm.  The Jacobian only steers Newton: the converged
+    state is fixed by the residual alone.
+    """
+    e = sw[0, 0:6]
+    w = sw[2:6]
+    cP = sw[6, 6:9]
+    base = sw[7]
+    pert = sw[1]
+    RP = np.empty((3, 3))
+    for k in range(n):
+        for a in range(6):
+            for b in range(6):
+                D[k, a, b] = 0.0
+                U[k, a, b] = 0.0
+                L[k, a, b] = 0.0
+    if not static:
+        s2 = c0 * c0 * inv_h * inv_h
+        for k in range(n):
+            i = b0 + k
+            R = rot[i]
+            for a in range(3):
+                D[k, a, a] = bp[i, 0] * s2
+                for b in range(3):
+                    D[k, 3 + a, 3 + b] = s2 * (R[a, 0] * bp[i, 1] * R[b, 0]
+                                               + R[a, 1] * bp[i, 2] * R[b, 1]
+                                               + R[a, 2] * bp[i, 3] * R[b, 2])
+    for k in range(n):
+        i = b0 + k
+        hB = bp[i, 4]
+        ln = bp[i, 5]
+        epsx = 1e-7 * ln
+        epsr = 1e-7
+        isroot = k == 0
+        j = i - 1 if k > 0 else i  # index of body A (unused for the root element)
+        hA = bp[j, 4]
+        RAk = RAb if isroot else rot[j]
+        cAk = pAb if isroot else pos[j]
+        _element_gen(isroot, cAk, RAk, hA, pAb, pos[i], rot[i], hB, K[i], ln, ehist[k], gs[k],
+                     hs[k], base, e, w)
+        nside = 1 if isroot else 2
+        for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
+            src = i if side == 0 else j
+            for col in range(6):
+                for a in range(3):
+                    cP[a] = pos[src, a]
+                if col < 3:
+                    cP[col] += epsx
+                    eps = epsx
+                    for a in range(3):
+                        for b in range(3):
+                            RP[a, b] = rot[src, a, b]
+                else:
+                    _rotate_left(epsr if col == 3 else 0.0, epsr if col == 4 else 0.0,
+                                 epsr if col == 5 else 0.0, rot[src], RP)
+                    eps = epsr
+                if side == 0:
+                    _element_gen(isroot, cAk, RAk, hA, pAb, cP, RP, hB, K[i], ln, ehist[k],
+                                 gs[k], hs[k], pert, e, w)
+                else:
+                    _element_gen(False, cP, RP, hA, pAb, pos[i], rot[i], hB, K[i], ln,
+                                 ehist[k], gs[k], hs[k], pert, e, w)
+                for a in range(6):
+                    dA = (pert[a] - base[a]) / eps  # d(force on A)
+                    dB = (pert[6 + a] - base[6 + a]) / eps  # d(force on B)
+                    if side == 0:
+                        D[k, a, col] -= dB
+                        if not isroot:
+                            U[k - 1, a, col] -= dA
+                    else:
+                        D[k - 1, a, col] -= dA
+                        L[k, a, col] -= dB
+    # tip load at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta
+    il = b0 + n - 1
+    k = n - 1
+    r = np.empty(3)
+    for a in range(3):
+        r[a] = bp[il, 4] * rot[il, a, 0]
+    Sr = np.zeros((3, 3))
+    Sr[0, 1] = -r[2]
+    Sr[0, 2] = r[1]
+    Sr[1, 0] = r[2]
+    Sr[1, 2] = -r[0]
+    Sr[2, 0] = -r[1]
+    Sr[2, 1] = r[0]
+    SF = np.zeros((3, 3))
+    SF[0, 1] = -tipF[2]
+    SF[0, 2] = tipF[1]
+    SF[1, 0] = tipF[2]
+    SF[1, 2] = -tipF[0]
+    SF[2, 0] = -tipF[1]
+    SF[2, 1] = tipF[0]
+    KS = tipK @ Sr
+    SrK = Sr @ tipK
+    SrKS = Sr @ KS
+    SFSr = SF @ Sr
+    # residual rows: -F and -(r x F); dF = K (dc - [r]x dth); d(r x F) = [r]x dF + [F]x [r]x dth
+    for a in range(3):
+        for b in range(3):
+            D[k, a, b] -= tipK[a, b]
+            D[k, a, 3 + b] += KS[a, b]
+            D[k, 3 + a, b] -= SrK[a, b]
+            D[k, 3 + a, 3 + b] += SrKS[a, b] - SFSr[a, b]
+
+
+@njit(cache=True)
+def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, pAs, RAs, pAp,
+             RAp, cm, vm, Lm, thp, Rn, ehist, sw):
+    """Constants of one (sub)step: cm = c1 c_n + c2 c_{n-1}, vm, Lm (angular momenta),
+    thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains)."""
+    e = sw[0, 0:6]
+    out12 = sw[1]
+    w = sw[2:6]
+    tmp = sw[6, 0:3]
+    zero6 = sw[6, 6:12]
+    for a in range(6):
+        zero6[a] = 0.0
+    for k in range(n):
+        i = b0 + k
+        for a in range(3):
+            for bb in range(3):
+                Rn[k, a, bb] = rot[i, a, bb]
+            cm[k, a] = c1 * pos[i, a] + c2 * ppos[i, a]
+            vm[k, a] = c1 * vel[i, a] + c2 * pvel[i, a]
+            Lm[k, a] = 0.0
+            thp[k, a] = 0.0
+        for which in range(2):
+            coef = c1 if which == 0 else c2
+            if coef == 0.0:
+                continue
+            RR = rot[i] if which == 0 else prot[i]
+            om = omg[i] if which == 0 else pomg[i]
+            ob0 = (RR[0, 0] * om[0] + RR[1, 0] * om[1] + RR[2, 0] * om[2]) * bp[i, 1]
+            ob1 = (RR[0, 1] * om[0] + RR[1, 1] * om[1] + RR[2, 1] * om[2]) * bp[i, 2]
+            ob2 = (RR[0, 2] * om[0] + RR[1, 2] * om[1] + RR[2, 2] * om[2]) * bp[i, 3]
+            for a in range(3):
+                Lm[k, a] += coef * (RR[a, 0] * ob0 + RR[a, 1] * ob1 + RR[a, 2] * ob2)
+        if c2 != 0.0:
+            _local_rot_into(prot[i], rot[i], tmp)
+            for a in range(3):
+                thp[k, a] = c2 * tmp[a]
+        for a in range(6):
+            ehist[k, a] = 0.0
+        for which in range(2):
+            coef = c1 if which == 0 else c2
+            if coef == 0.0:
+                continue
+            P = pos if which == 0 else ppos
+            Q = rot if which == 0 else prot
+            if k == 0:
+                pa = pAs if which == 0 else pAp
+                Ra = RAs if which == 0 else RAp
+                _element_gen(True, pa, Ra, 0.0, pa, P[i], Q[i], bp[i, 4], K[i], bp[i, 5], zero6,
+                             1.0, 0.0, out12, e, w)
+            else:
+                _element_gen(False, P[i - 1], Q[i - 1], bp[i - 1, 4], pAs, P[i], Q[i], bp[i, 4],
+                             K[i], bp[i, 5], zero6, 1.0, 0.0, out12, e, w)
+            for a in range(6):
+                ehist[k, a] += coef * e[a]
+
+
+@njit(cache=True)
+def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
+    """Apply the Newton correction alpha*dq to one bristle, rebuilding the chain from the root.
+
+    Rotations: R <- exp(alpha dtheta) R.  Positions: each element's translational strain d gets
+    its linearised increment, d <- d + alpha dd, and nodes are rebuilt from the root with the new
+    rotations, p_B = p_A + R_A (l e_x + d).  To first order this is the plain update c += alpha dc
+    (so Newton keeps its quadratic convergence), but a large rotation increment no longer creates
+    spurious axial/shear strain ~ l theta^2/2, which the stiff axial terms would turn into huge
+    residuals.
+    """
+    pAo = np.empty(3)
+    pBo = np.empty(3)
+    dpA = np.empty(3)
+    dpB = np.empty(3)
+    pAn = np.empty(3)
+    dd = np.empty(3)
+    for a in range(3):
+        pAn[a] = pAb[a]
+    for k in range(n):
+        i = b0 + k
+        hB = bp[i, 4]
+        ln = bp[i, 5]
+        _rotate_left(alpha * dq[k, 3], alpha * dq[k, 4], alpha * dq[k, 5], t_rot[k], rot[i])
+        # old nodes and node increments: dp = dc + dtheta x (R r)
+        for a in range(3):
+            pBo[a] = t_pos[k, a] + hB * t_rot[k, a, 0]
+        rB0 = hB * t_rot[k, 0, 0]
+        rB1 = hB * t_rot[k, 1, 0]
+        rB2 = hB * t_rot[k, 2, 0]
+        dpB[0] = dq[k, 0] + dq[k, 4] * rB2 - dq[k, 5] * rB1
+        dpB[1] = dq[k, 1] + dq[k, 5] * rB0 - dq[k, 3] * rB2
+        dpB[2] = dq[k, 2] + dq[k, 3] * rB1 - dq[k, 4] * rB0
+        if k == 0:
+            for a in range(3):
+                pAo[a] = pAb[a]
+                dpA[a] = 0.0
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            RAo = RAb
+            RAn = RAb
+        else:
+            hA = bp[i - 1, 4]
+            RAo = t_rot[k - 1]
+            RAn = rot[i - 1]
+            rA0 = hA * RAo[0, 0]
+            rA1 = hA * RAo[1, 0]
+            rA2 = hA * RAo[2, 0]
+            for a in range(3):
+                pAo[a] = t_pos[k - 1, a] + hA * RAo[a, 0]
+            t0 = dq[k - 1, 3]
+            t1 = dq[k - 1, 4]
+            t2 = dq[k - 1, 5]
+            dpA[0] = dq[k - 1, 0] + t1 * rA2 - t2 * rA1
+            dpA[1] = dq[k - 1, 1] + t2 * rA0 - t0 * rA2
+            dpA[2] = dq[k - 1, 2] + t0 * rA1 - t1 * rA0
+        # dd = R_A^T (d(pB - pA) + (pB - pA) x dtheta_A); new d = old d + alpha dd
+        x0 = pBo[0] - pAo[0]
+        x1 = pBo[1] - pAo[1]
+        x2 = pBo[2] - pAo[2]
+        v0 = dpB[0] - dpA[0] + x1 * t2 - x2 * t1
+        v1 = dpB[1] - dpA[1] + x2 * t0 - x0 * t2
+        v2 = dpB[2] - dpA[2] + x0 * t1 - x1 * t0
+        for a in range(3):
+            dd[a] = (RAo[0, a] * (x0 + alpha * v0) + RAo[1, a] * (x1 + alpha * v1)
+                     + RAo[2, a] * (x2 + alpha * v2))  # = l e_x + d_old + alpha dd (A frame)
+        for a in range(3):
+            pBn = pAn[a] + RAn[a, 0] * dd[0] + RAn[a, 1] * dd[1] + RAn[a, 2] * dd[2]
+            pos[i, a] = pBn - hB * rot[i, a, 0]
+            pAn[a] = pBn
+
+
+@njit(cache=True)
+def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
+            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, rootw):
+    """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
+
+    Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
+    from (pAs, RAs) to (pAe, RAe); (pAp, RAp) is the base at t_{n-1} (BDF2 damping history).
+    On failure the bristle's arrays are left at their start-of-step values.
+    """
+    static = prm[P_STATIC] != 0.0
+    inv_h = 1.0 / h
+    gvec = prm[P_G:P_G + 3]
+    D = np.empty((n, 6, 6))
+    U = np.empty((n, 6, 6))
+    L = np.empty((n, 6, 6))
+    G = np.empty((n, 6, 6))
+    piv = np.empty((n, 6), np.int64)
+    Rn = np.empty((n, 3, 3))
+    s_rot = np.empty((n, 3, 3))
+    t_rot = np.empty((n, 3, 3))
+    sw = np.empty((8, 12))
+    res = np.empty((n, 6))
+    r0 = np.empty((n, 6))
+    dq = np.empty((n, 6))
+    ehist = np.empty((n, 6))
+    cm = np.empty((n, 3))
+    vm = np.empty((n, 3))
+    Lm = np.empty((n, 3))
+    thp = np.empty((n, 3))
+    s_pos = np.empty((n, 3))
+    s_vel = np.empty((n, 3))
+    s_omg = np.empty((n, 3))
+    t_pos = np.empty((n, 3))
+    gs = np.empty(n)
+    hs = np.empty(n)
+    tipF = np.empty(3)
+    tipK = np.empty((3, 3))
+    tmp6 = np.empty(6)
+    th = np.empty(3)
+    if static:
+        c1u = 0.0
+        c2u = 0.0
+    else:
+        c1u = c1
+        c2u = c2
+    _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1u, c2u, pAs, RAs, pAp,
+             RAp, cm, vm, Lm, thp, Rn, ehist, sw)
+    for k in range(n):
+        i = b0 + k
+        beta = 0.0 if static else bp[i, 6]
+        gs[k] = 1.0 + beta * c0 * inv_h
+        hs[k] = beta * inv_h
+        for a in range(3):
+            s_pos[k, a] = pos[i, a]
+            s_vel[k, a] = vel[i, a]
+            s_omg[k, a] = omg[i, a]
+            for bb in range(3):
+                s_rot[k, a, bb] = rot[i, a, bb]
+    # predictor: constant velocity (the base carries the chain; statics keep the current guess)
+    if not static:
+        for k in range(n):
+            i = b0 + k
+            for a in range(3):
+                pos[i, a] = s_pos[k, a] + h * s_vel[k, a]
+            _rotate_left(h * s_omg[k, 0], h * s_omg[k, 1], h * s_omg[k, 2], s_rot[k], rot[i])
+    rtol = prm[P_RTOL]
+    maxit = int(prm[P_MAXIT])
+    nrm = _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist,
+                    gs, hs, pAe, RAe, tip_args, tip_state, res, rootw, tipF, tipK, sw)
+    it = 0
+    ok = nrm <= rtol
+    while not ok and it < maxit and np.isfinite(nrm):
+        it += 1
+        _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, tipF,
+                  tipK, D, U, L, sw)
+        for k in range(n):
+            for a in range(6):
+                r0[k, a] = res[k, a]
+                res[k, a] = -res[k, a]
+        if not block_thomas(n, D, U, L, res, dq, G, piv, tmp6):
+            break
+        # Line search on the directional derivative g(alpha) = dq . r(q + alpha dq) (the
+        # energy-like measure of structural Newton solvers): the residual norm itself is a poor
+        # merit here, because the stiff axial/shear terms react to second-order geometry.
+        g0 = 0.0
+        dmax = 0.0
+        for k in range(n):
+            i = b0 + k
+            for a in range(6):
+                g0 += dq[k, a] * r0[k, a]
+            for a in range(3):
+                t_pos[k, a] = pos[i, a]
+                for bb in range(3):
+                    t_rot[k, a, bb] = rot[i, a, bb]
+                if abs(dq[k, 3 + a]) > dmax:
+                    dmax = abs(dq[k, 3 + a])
+        # cap the rotation increment of one iteration (keeps the log map far from pi)
+        alpha = 1.0 if dmax <= MAX_ROT_STEP else MAX_ROT_STEP / dmax
+        accepted = False
+        for _ls in range(8):
+            _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe)
+            new = _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
+                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, res, rootw, tipF,
+                            tipK, sw)
+            if not np.isfinite(new):
+                alpha *= 0.25
+                continue
+            ga = 0.0
+            for k in range(n):
+                for a in range(6):
+                    ga += dq[k, a] * res[k, a]
+            if new <= rtol or g0 >= 0.0 or ga <= 0.5 * abs(g0):
+                accepted = True
+                break
+            # overshoot (g changed sign): secant estimate of the zero of g, safeguarded
+            alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
+        if not accepted:
+            break
+        nrm = new
+        ok = nrm <= rtol
+    if not ok:
+        for k in range(n):
+            i = b0 + k
+            for a in range(3):
+                pos[i, a] = s_pos[k, a]
+                vel[i, a] = s_vel[k, a]
+                omg[i, a] = s_omg[k, a]
+                for bb in range(3):
+                    rot[i, a, bb] = s_rot[k, a, bb]
+        return False, it
+    # accept: rates from the discrete formula, history shifted
+    for k in range(n):
+        i = b0 + k
+        if static:
+            for a in range(3):
+                vel[i, a] = 0.0
+                omg[i, a] = 0.0
+        else:
+            _local_rot_into(rot[i], Rn[k], th)
+            for a in range(3):
+                vel[i, a] = (c0 * pos[i, a] + cm[k, a]) * inv_h
+                omg[i, a] = (c0 * th[a] + thp[k, a]) * inv_h
+        for a in range(3):
+            ppos[i, a] = s_pos[k, a]
+            pvel[i, a] = s_vel[k, a]
+            pomg[i, a] = s_omg[k, a]
+            for bb in range(3):
+                prot[i, a, bb] = s_rot[k, a, bb]
+    return True, it
+
+
+@njit(cache=True)
+def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
+    """Root node pose in the world: p = p_tcp + R_tcp r, R = R_tcp R_root."""
+    for a in range(3):
+        pout[a] = tp[a] + tR[a, 0] * rp[0] + tR[a, 1] * rp[1] + tR[a, 2] * rp[2]
+        for b in range(3):
+            Rout[a, b] = tR[a, 0] * rR[0, b] + tR[a, 1] * rR[1, b] + tR[a, 2] * rR[2, b]
+
+
+@njit(cache=True)
+def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, hist_ok, tcp_p,
+                  tcp_R, root_p, root_R, prm, tip_args, tip_state, rootw, iters, nsub, status):
+    """Advance every bristle by one step h = prm[P_H] (in place).
+
+    tcp_p (3, 3), tcp_R (3, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1} (rows 0, 1, 2).
+    root_p (nb, 3), root_R (nb, 3, 3): root node pose of each bristle in the TCP frame.
+    tip_args (nb, na), tip_state (nb, ns): tip-load parameters and per-contact state (contact.py).
+    Outputs per bristle: rootw (force, moment of the root element on the head, at the root node,
+    world), iters (Newton iterations), nsub (sub-steps used), status (OK / NEWTON_FAILED).
+    """
+    nb = bstart.shape[0] - 1
+    h = prm[P_H]
+    method = int(prm[P_METHOD])
+    maxlev = int(prm[P_MAXLEV])
+    tp = np.empty(3)
+    tR = np.empty((3, 3))
+    tmp = np.empty(3)
+    pAs = np.empty(3)
+    RAs = np.empty((3, 3))
+    pAe = np.empty(3)
+    RAe = np.empty((3, 3))
+    pAp = np.empty(3)
+    RAp = np.empty((3, 3))
+    for b in range(nb):
+        b0 = bstart[b]
+        n = bstart[b + 1] - b0
+        bk_pos = pos[b0:b0 + n].copy()
+        bk_rot = rot[b0:b0 + n].copy()
+        bk_vel = vel[b0:b0 + n].copy()
+        bk_omg = omg[b0:b0 + n].copy()
+        bk_ppos = ppos[b0:b0 + n].copy()
+        bk_prot = prot[b0:b0 + n].copy()
+        bk_pvel = pvel[b0:b0 + n].copy()
+        bk_pomg = pomg[b0:b0 + n].copy()
+        bk_tip = tip_state[b].copy()
+        s = 0.0
+        level = 0
+        tot = 0
+        nsteps = 0
+        status[b] = 0
+        _tcp_to_base(tcp_p[0], tcp_R[0], root_p[b], root_R[b], pAp, RAp)
+        while s < 1.0 - 1e-12:
+            ds = 0.5**level
+            if s + ds > 1.0:
+                ds = 1.0 - s
+            whole = level == 0 and s == 0.0
+            if method == 1 and whole and hist_ok[b] != 0:
+                c0, c1, c2 = 1.5, -2.0, 0.5
+            else:
+                c0, c1, c2 = 1.0, -1.0, 0.0
+            _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s, tp, tR, tmp)
+            _tcp_to_base(tp, tR, root_p[b], root_R[b], pAs, RAs)
+            _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
+            _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
+            ok, it = _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0,
+                             c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
+                             tip_state[b], rootw[b])
+            tot += it
+            if ok:
+                s += ds
+                nsteps += 1
+                # after a success, try a larger sub-step again when aligned
+                if level > 0 and abs(s / (2.0 * ds) - np.floor(s / (2.0 * ds) + 0.5)) < 1e-9:
+                    level -= 1
+            else:
+                level += 1
+                if level > maxlev:
+                    status[b] = 1
+                    pos[b0:b0 + n] = bk_pos
+                    rot[b0:b0 + n] = bk_rot
+                    vel[b0:b0 + n] = bk_vel
+                    omg[b0:b0 + n] = bk_omg
+                    ppos[b0:b0 + n] = bk_ppos
+                    prot[b0:b0 + n] = bk_prot
+                    pvel[b0:b0 + n] = bk_pvel
+                    pomg[b0:b0 + n] = bk_pomg
+                    tip_state[b] = bk_tip
+                    break
+        iters[b] = tot
+        nsub[b] = nsteps
+        hist_ok[b] = 1 if (nsteps == 1 and status[b] == 0) else 0

@@ -1,0 +1,351 @@
+"""The engine's face: ``Simulator(brush, settings)`` driven by the TCP pose, reporting the TCP wrench.
+
+A designer's script::
+
+    from brush_env.engine import Simulator, SimSettings, load_brush
+    sim = Simulator(load_brush("default"), SimSettings(dt=1e-3))
+    sim.reset(tcp_p, tcp_R)
+    for p, R in poses:
+        out = sim.step(p, R)
+        print(out.time, out.tcp_force)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import integrator as itg
+from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
+from .contact import N_TIP_ARGS, N_TIP_STATE
+from .config import BrushConfig, ConfigError
+
+G_EARTH = 9810.0  # [mm/s^2]
+INTEGRATORS = {"euler": 0, "bdf2": 1}
+
+
+class SimulationDivergence(RuntimeError):
+    """Raised when Newton fails on the smallest sub-step; the state is left as before the step."""
+
+    def __init__(self, time: float, bristles, reason: str):
+        self.time = time
+        self.bristles = list(int(b) for b in bristles)
+        self.reason = reason
+        super().__init__(f"simulation diverged at t = {time:.6g} s in bristle(s) "
+                         f"{self.bristles[:10]}: {reason}")
+
+
+def _check(name, value, lo, hi, unit, lo_open=True, hi_open=False):
+    ok_lo = value > lo if lo_open else value >= lo
+    ok_hi = value < hi if hi_open else value <= hi
+    if not (ok_lo and ok_hi and np.isfinite(value)):
+        lb = "(" if lo_open else "["
+        rb = ")" if hi_open else "]"
+        raise ConfigError(f"{name} = {value!r} is out of range: must be in {lb}{lo}, {hi}{rb} {unit}")
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Numerical settings of the engine.
+
+    dt [s] time step; integrator "euler" (backward Euler) or "bdf2"; newton_rtol: Newton tolerance
+    on the residual relative to each bristle's force scale E I / L^2 [-]; newton_max_iter per
+    attempt; max_substep_levels: a failing step is retried as halves down to dt / 2**levels;
+    gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off).
+    """
+
+    dt: float = 1e-3
+    integrator: str = "bdf2"
+    newton_rtol: float = 1e-8
+    newton_max_iter: int = 15
+    max_substep_levels: int = 8
+    gravity: tuple = (0.0, 0.0, -G_EARTH)
+
+    def __post_init__(self):
+        _check("settings.dt", self.dt, 0.0, 0.1, "s")
+        if self.integrator not in INTEGRATORS:
+            raise ConfigError(f"settings.integrator = {self.integrator!r}: must be one of "
+                              f"{sorted(INTEGRATORS)}")
+        _check("settings.newton_rtol", self.newton_rtol, 0.0, 1e-2, "(relative)")
+        _check("settings.newton_max_iter", self.newton_max_iter, 1, 200, "", lo_open=False)
+        _check("settings.max_substep_levels", self.max_substep_levels, 0, 30, "", lo_open=False)
+        if len(self.gravity) != 3 or not np.all(np.isfinite(self.gravity)):
+            raise ConfigError(f"settings.gravity = {self.gravity!r}: must be 3 finite numbers "
+                              "(mm/s^2)")
+
+
+@dataclass
+class Model:
+    """Static arrays of a brush (see _kernels for the layout)."""
+
+    bstart: np.ndarray  # (nb+1,) int64
+    bp: np.ndarray  # (N, 8)
+    K: np.ndarray  # (N, 6, 6)
+    root_p: np.ndarray  # (nb, 3) root node in the TCP frame [mm]
+    root_R: np.ndarray  # (nb, 3, 3) bristle frame in the TCP frame
+    seg_len: np.ndarray  # (N,) [mm]
+    tip_radius: np.ndarray  # (nb,) [mm]
+    length: np.ndarray  # (nb,) [mm]
+
+    @property
+    def n_bristles(self) -> int:
+        return len(self.bstart) - 1
+
+    @property
+    def n_bodies(self) -> int:
+        return int(self.bstart[-1])
+
+
+def build_model(brush: BrushConfig) -> Model:
+    """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping)."""
+    nbod = [b.bodies for b in brush.bristles]
+    bstart = np.zeros(len(nbod) + 1, np.int64)
+    bstart[1:] = np.cumsum(nbod)
+    N = int(bstart[-1])
+    bp = np.zeros((N, 8))
+    K = np.zeros((N, 6, 6))
+    seg = np.zeros(N)
+    R_head = brush.head_rotation()
+    root_p = np.zeros((len(nbod), 3))
+    root_R = np.zeros((len(nbod), 3, 3))
+    for j, br in enumerate(brush.bristles):
+        sec, mat = br.section, br.material
+        n = br.bodies
+        l = br.length / n
+        A, Iy, Iz, J = sec.area, sec.I_y, sec.I_z, sec.J
+        kappa = sec.shear_coeff(mat.nu)
+        Kel = timoshenko_stiffness(mat.E, mat.G, A, Iy, Iz, J, kappa, l)
+        m, Jb = segment_inertia(mat.density, A, Iy, Iz, l)
+        Imin = min(Iy, Iz)
+        beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A,
+                                                             br.length)
+        fscale = mat.E * Imin / br.length**2
+        sl = slice(bstart[j], bstart[j + 1])
+        K[sl] = Kel
+        bp[sl, 0] = m
+        bp[sl, 1:4] = Jb
+        bp[sl, 4] = 0.5 * l
+        bp[sl, 5] = l
+        bp[sl, 6] = beta
+        bp[sl, 7] = fscale
+        seg[sl] = l
+        root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
+        root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir)
+    return Model(bstart, bp, K, root_p, root_R, seg,
+                 np.array([b.tip_radius for b in brush.bristles]),
+                 np.array([b.length for b in brush.bristles]))
+
+
+@dataclass
+class State:
+    """Complete dynamic state; ``copy()`` and ``Simulator.set_state`` restore it exactly.
+
+    pos (N,3) [mm] body centres of mass, rot (N,3,3) body->world, vel (N,3) [mm/s],
+    omg (N,3) [rad/s] world; p* the same at the previous step (BDF2 history); hist_ok (nb,) whether
+    the previous step is a full step (else the next step starts with backward Euler);
+    tcp_p (3,3) [mm] / tcp_R (3,3,3): TCP pose at t_{n-1}, t_n (row 0, 1; row 2 is scratch);
+    tip_state (nb, ns): per-contact state; time [s]; steps.
+    """
+
+    pos: np.ndarray
+    rot: np.ndarray
+    vel: np.ndarray
+    omg: np.ndarray
+    ppos: np.ndarray
+    prot: np.ndarray
+    pvel: np.ndarray
+    pomg: np.ndarray
+    hist_ok: np.ndarray
+    tcp_p: np.ndarray
+    tcp_R: np.ndarray
+    tip_state: np.ndarray
+    time: float = 0.0
+    steps: int = 0
+
+    def copy(self) -> "State":
+        return State(**{k: (v.copy() if isinstance(v, np.ndarray) else v)
+                        for k, v in self.__dict__.items()})
+
+
+@dataclass
+class StepResult:
+    """Outputs after a step (world frame unless stated).
+
+    tcp_force [N], tcp_moment [N*mm] about the TCP: the wrench the TCP (robot) applies to the brush,
+    i.e. the constraint reaction of the prescribed base motion (in the static case exactly minus
+    the sum of external loads and their moments).  ``*_tcp`` are the same in the TCP frame.
+    tip_pos (nb,3) [mm], tip_vel (nb,3) [mm/s]; iterations (Newton, all bristles), substeps.
+    """
+
+    time: float
+    tcp_force: np.ndarray
+    tcp_moment: np.ndarray
+    tcp_force_tcp: np.ndarray
+    tcp_moment_tcp: np.ndarray
+    tip_pos: np.ndarray
+    tip_vel: np.ndarray
+    iterations: int
+    substeps: int
+    extra: dict = field(default_factory=dict)
+
+
+class Simulator:
+    """Discrete flexible multibody brush driven by a prescribed TCP pose (see module docstring)."""
+
+    def __init__(self, brush: BrushConfig, settings: SimSettings | None = None):
+        self.brush = brush
+        self.settings = settings or SimSettings()
+        self.model = build_model(brush)
+        nb = self.model.n_bristles
+        self.tip_args = np.zeros((nb, N_TIP_ARGS))
+        self._rootw = np.zeros((nb, 6))
+        self._iters = np.zeros(nb, np.int64)
+        self._nsub = np.zeros(nb, np.int64)
+        self._status = np.zeros(nb, np.int64)
+        self.state: State | None = None
+        self._prm = self._make_prm(static=False)
+
+    # ------------------------------------------------------------------ set-up
+    def _make_prm(self, static: bool) -> np.ndarray:
+        s = self.settings
+        prm = np.zeros(itg.N_PRM)
+        prm[itg.P_H] = s.dt
+        prm[itg.P_METHOD] = INTEGRATORS[s.integrator]
+        prm[itg.P_STATIC] = 1.0 if static else 0.0
+        prm[itg.P_RTOL] = s.newton_rtol
+        prm[itg.P_MAXIT] = s.newton_max_iter
+        prm[itg.P_MAXLEV] = s.max_substep_levels
+        prm[itg.P_G:itg.P_G + 3] = s.gravity
+        return prm
+
+    def reset(self, tcp_p=None, tcp_R=None, time: float = 0.0) -> StepResult:
+        """Straight, unstressed bristles at rest on a TCP at pose (tcp_p [mm], tcp_R)."""
+        tcp_p = np.zeros(3) if tcp_p is None else np.asarray(tcp_p, float)
+        tcp_R = np.eye(3) if tcp_R is None else np.asarray(tcp_R, float)
+        self._check_pose(tcp_p, tcp_R)
+        m = self.model
+        N, nb = m.n_bodies, m.n_bristles
+        pos = np.zeros((N, 3))
+        rot = np.zeros((N, 3, 3))
+        for j in range(nb):
+            Rw = tcp_R @ m.root_R[j]
+            root_w = tcp_p + tcp_R @ m.root_p[j]
+            for k, i in enumerate(range(m.bstart[j], m.bstart[j + 1])):
+                pos[i] = root_w + (k + 0.5) * m.seg_len[i] * Rw[:, 0]
+                rot[i] = Rw
+        z = np.zeros((N, 3))
+        self.state = State(pos, rot, z.copy(), z.copy(), pos.copy(), rot.copy(), z.copy(),
+                           z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 3),
+                           np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0)
+        self._rootw[:] = 0.0
+        return self._result(0, 0)
+
+    @staticmethod
+    def _check_pose(p, R):
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"tcp_p = {p!r}: must be 3 finite numbers (mm)")
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or \
+                np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
+            raise ValueError(f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, "
+                             "tolerance 1e-6)")
+
+    def set_tip_forces(self, forces) -> None:
+        """Dead external loads on the tips [N, world], shape (nb, 3)."""
+        f = np.asarray(forces, float)
+        if f.shape != (self.model.n_bristles, 3) or not np.all(np.isfinite(f)):
+            raise ValueError(f"tip forces must be finite with shape ({self.model.n_bristles}, 3)"
+                             f", got shape {f.shape}")
+        self.tip_args[:, 0:3] = f
+
+    def get_state(self) -> State:
+        return self.state.copy()
+
+    def set_state(self, state: State) -> None:
+        self.state = state.copy()
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, tcp_p, tcp_R) -> StepResult:
+        """Advance one step of ``settings.dt`` to the TCP pose (tcp_p [mm], tcp_R) at t + dt."""
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before step()")
+        tcp_p = np.asarray(tcp_p, float)
+        tcp_R = np.asarray(tcp_R, float)
+        self._check_pose(tcp_p, tcp_R)
+        return self._advance(tcp_p, tcp_R, self._prm, st.time + self.settings.dt)
+
+    def solve_static(self, tcp_p=None, tcp_R=None, increments: int = 1) -> StepResult:
+        """Static equilibrium at the given (or current) TCP pose under the current tip loads.
+
+        The external tip loads are applied in ``increments`` equal load steps (continuation for
+        large deflections).  Velocities are set to zero.
+        """
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before solve_static()")
+        tcp_p = st.tcp_p[1].copy() if tcp_p is None else np.asarray(tcp_p, float)
+        tcp_R = st.tcp_R[1].copy() if tcp_R is None else np.asarray(tcp_R, float)
+        self._check_pose(tcp_p, tcp_R)
+        prm = self._make_prm(static=True)
+        prm[itg.P_MAXLEV] = 0
+        full = self.tip_args.copy()
+        try:
+            for k in range(1, increments + 1):
+                self.tip_args[:] = full * (k / increments)
+                res = self._advance(tcp_p, tcp_R, prm, st.time)
+        finally:
+            self.tip_args[:] = full
+        self.state.hist_ok[:] = 0
+        return res
+
+    def _advance(self, tcp_p, tcp_R, prm, t_new) -> StepResult:
+        st = self.state
+        snapshot = st.copy()
+        st.tcp_p[2] = tcp_p
+        st.tcp_R[2] = tcp_R
+        m = self.model
+        itg.step_bristles(m.bstart, m.bp, m.K, st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot,
+                          st.pvel, st.pomg, st.hist_ok, st.tcp_p, st.tcp_R, m.root_p, m.root_R,
+                          prm, self.tip_args, st.tip_state, self._rootw, self._iters,
+                          self._nsub, self._status)
+        bad = np.flatnonzero(self._status)
+        if bad.size == 0 and not (np.all(np.isfinite(st.pos)) and np.all(np.isfinite(self._rootw))):
+            bad = np.arange(m.n_bristles)
+        if bad.size:
+            self.state = snapshot
+            raise SimulationDivergence(t_new, bad, "Newton did not converge on the smallest "
+                                       f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})")
+        st.tcp_p[0] = st.tcp_p[1]
+        st.tcp_R[0] = st.tcp_R[1]
+        st.tcp_p[1] = tcp_p
+        st.tcp_R[1] = tcp_R
+        st.time = t_new
+        st.steps += 1
+        return self._result(int(self._iters.sum()), int(self._nsub.sum()))
+
+    # ------------------------------------------------------------------ outputs
+    def tip_positions(self) -> np.ndarray:
+        """Tip node (sphere centre) of every bristle [mm, world], (nb, 3)."""
+        st, m = self.state, self.model
+        last = m.bstart[1:] - 1
+        return st.pos[last] + m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
+
+    def tip_velocities(self) -> np.ndarray:
+        st, m = self.state, self.model
+        last = m.bstart[1:] - 1
+        r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
+        return st.vel[last] + np.cross(st.omg[last], r)
+
+    def _result(self, iters: int, nsub: int) -> StepResult:
+        st = self.state
+        p_tcp, R_tcp = st.tcp_p[1], st.tcp_R[1]
+        m = self.model
+        root_w = p_tcp + m.root_p @ R_tcp.T
+        # the root elements push on the head with rootw; the robot holds the (massless) head
+        F_on_head = self._rootw[:, 0:3]
+        M_on_head = self._rootw[:, 3:6] + np.cross(root_w - p_tcp, F_on_head)
+        F = -F_on_head.sum(axis=0)
+        M = -M_on_head.sum(axis=0)
+        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, self.tip_positions(),
+                          self.tip_velocities(), iters, nsub)
