@@ -1,0 +1,16 @@
+"""brush_env.engine: the discrete flexible multibody (DFM) toothbrush engine (numpy + numba only).
+
+Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator``, ``SimSettings``,
+``load_brush``/``load_scene`` and the trajectory library.
+"""
+
+from .config import (BristleConfig, BrushConfig, ConfigError, Material, Section, configs_dir,
+                     load_brush, load_materials)
+from .scene import Plane, Scene, load_scene
+from .simulator import SimSettings, SimulationDivergence, Simulator, State, StepResult
+
+__all__ = [
+    "BristleConfig", "BrushConfig", "ConfigError", "Material", "Section", "configs_dir",
+    "load_brush", "load_materials", "SimSettings", "SimulationDivergence", "Simulator", "State",
+    "StepResult", "Plane", "Scene", "load_scene",
+]

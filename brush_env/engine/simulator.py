@@ -20,6 +20,7 @@ from . import integrator as itg
 from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
 from .contact import N_TIP_ARGS, N_TIP_STATE
 from .config import BrushConfig, ConfigError
+from .scene import Scene
 
 G_EARTH = 9810.0  # [mm/s^2]
 INTEGRATORS = {"euler": 0, "bdf2": 1}
@@ -175,7 +176,10 @@ class StepResult:
     tcp_force [N], tcp_moment [N*mm] about the TCP: the wrench the TCP (robot) applies to the brush,
     i.e. the constraint reaction of the prescribed base motion (in the static case exactly minus
     the sum of external loads and their moments).  ``*_tcp`` are the same in the TCP frame.
-    tip_pos (nb,3) [mm], tip_vel (nb,3) [mm/s]; iterations (Newton, all bristles), substeps.
+    tip_pos (nb,3) [mm], tip_vel (nb,3) [mm/s] of the tip nodes (sphere centres);
+    contact per tip (zero without surfaces): tip_normal_force (nb,) [N], tip_tangential_force
+    (nb,3) [N, world], tip_in_contact (nb,) bool, tip_sliding (nb,) bool, tip_penetration (nb,)
+    [mm], tip_contact_point (nb,3) [mm]; iterations (Newton, all bristles), substeps.
     """
 
     time: float
@@ -187,13 +191,23 @@ class StepResult:
     tip_vel: np.ndarray
     iterations: int
     substeps: int
+    tip_normal_force: np.ndarray = None
+    tip_tangential_force: np.ndarray = None
+    tip_in_contact: np.ndarray = None
+    tip_sliding: np.ndarray = None
+    tip_penetration: np.ndarray = None
+    tip_contact_point: np.ndarray = None
     extra: dict = field(default_factory=dict)
 
 
 class Simulator:
     """Discrete flexible multibody brush driven by a prescribed TCP pose (see module docstring)."""
 
-    def __init__(self, brush: BrushConfig, settings: SimSettings | None = None):
+    def __init__(self, scene, settings: SimSettings | None = None):
+        if isinstance(scene, BrushConfig):
+            scene = Scene(scene)
+        self.scene = scene
+        brush = scene.brush
         self.brush = brush
         self.settings = settings or SimSettings()
         self.model = build_model(brush)
@@ -347,5 +361,8 @@ class Simulator:
         M_on_head = self._rootw[:, 3:6] + np.cross(root_w - p_tcp, F_on_head)
         F = -F_on_head.sum(axis=0)
         M = -M_on_head.sum(axis=0)
-        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, self.tip_positions(),
-                          self.tip_velocities(), iters, nsub)
+        nb = m.n_bristles
+        tips = self.tip_positions()
+        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, tips,
+                          self.tip_velocities(), iters, nsub, np.zeros(nb), np.zeros((nb, 3)),
+                          np.zeros(nb, bool), np.zeros(nb, bool), np.zeros(nb), tips.copy())

@@ -1,0 +1,50 @@
+"""Modal analysis of one bristle, linearised about the simulator's current (equilibrium) state.
+
+Stiffness: the static Newton matrix of the kernels (the same element forces the time stepper uses,
+so this checks the model, not a second implementation); mass: blockdiag(m I, R J R^T) per body
+(eq 11).  Solves K phi = omega^2 M phi densely (6n x 6n; n is at most a few dozen).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import integrator as itg
+
+
+def bristle_stiffness_mass(sim, bristle: int = 0):
+    """Dense tangent stiffness K [N/mm, N, N*mm] and mass M [t, t*mm^2] of one bristle."""
+    st, m = sim.state, sim.model
+    b0, b1 = int(m.bstart[bristle]), int(m.bstart[bristle + 1])
+    n = b1 - b0
+    pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[bristle]
+    RA = st.tcp_R[1] @ m.root_R[bristle]
+    D, U, L = (np.zeros((n, 6, 6)) for _ in range(3))
+    zero6 = np.zeros((n, 6))
+    tipF = np.zeros(3)
+    tipK = np.zeros((3, 3))
+    itg._jacobian(b0, n, m.bp, m.K, st.pos, st.rot, True, 1.0, 1.0, zero6, np.ones(n),
+                  np.zeros(n), pA, RA, tipF, tipK, D, U, L, np.zeros((8, 12)))
+    K = np.zeros((6 * n, 6 * n))
+    M = np.zeros((6 * n, 6 * n))
+    for k in range(n):
+        i = b0 + k
+        K[6 * k:6 * k + 6, 6 * k:6 * k + 6] = D[k]
+        if k + 1 < n:
+            K[6 * k:6 * k + 6, 6 * k + 6:6 * k + 12] = U[k]
+        if k > 0:
+            K[6 * k:6 * k + 6, 6 * k - 6:6 * k] = L[k]
+        R = st.rot[i]
+        M[6 * k:6 * k + 3, 6 * k:6 * k + 3] = m.bp[i, 0] * np.eye(3)
+        M[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = R @ np.diag(m.bp[i, 1:4]) @ R.T
+    return K, M
+
+
+def natural_frequencies(sim, bristle: int = 0, n_modes: int = 6) -> np.ndarray:
+    """Lowest natural frequencies [Hz] of one bristle about the current state (base clamped)."""
+    K, M = bristle_stiffness_mass(sim, bristle)
+    Ks = 0.5 * (K + K.T)  # the finite-difference tangent is symmetric up to ~1e-7
+    Lc = np.linalg.cholesky(M)
+    Li = np.linalg.inv(Lc)
+    w2 = np.linalg.eigvalsh(Li @ Ks @ Li.T)
+    return np.sqrt(np.clip(np.sort(w2)[:n_modes], 0.0, None)) / (2.0 * np.pi)

@@ -1,0 +1,66 @@
+"""Scenes: a brush plus the surfaces it can touch and which contact groups exist.
+
+Scene files live in ``configs/scenes/*.toml``::
+
+    name = "flat_plate"
+    brush = "default"                 # name in configs/brushes or a path
+    tip_tip = true                    # tip-tip contact between neighbouring bristles (Table 3)
+    [[surface]]
+    kind = "plane"                    # "plane" | "mesh_plate" | "cylinder"
+    point_mm = [0, 0, 0]
+    normal = [0, 0, 1]
+
+Contact laws default to the paper's Tables 2 and 3 (see ``contact.py``).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .config import BrushConfig, ConfigError, configs_dir, load_brush
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Infinite plane through ``point`` [mm] with unit outward ``normal`` (world)."""
+
+    point: tuple = (0.0, 0.0, 0.0)
+    normal: tuple = (0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A brush and its environment.  ``surfaces`` empty means a free brush (no contact)."""
+
+    brush: BrushConfig
+    surfaces: tuple = field(default_factory=tuple)
+    tip_tip: bool = True
+    name: str = ""
+
+
+def load_scene(path_or_name=None, *, brush=None) -> Scene:
+    """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the file's."""
+    p = Path(path_or_name) if path_or_name and ("/" in str(path_or_name) or
+                                                 str(path_or_name).endswith(".toml")) \
+        else configs_dir() / "scenes" / f"{path_or_name or 'flat_plate'}.toml"
+    if not p.exists():
+        raise ConfigError(f"scene {str(path_or_name)!r}: no such file {p}")
+    data = tomllib.loads(p.read_text())
+    allowed = {"name", "brush", "tip_tip", "surface"}
+    for k in data:
+        if k not in allowed:
+            raise ConfigError(f"{p}: unknown key {k!r} (allowed: {', '.join(sorted(allowed))})")
+    if brush is None:
+        brush = load_brush(data.get("brush", "default"))
+    elif not isinstance(brush, BrushConfig):
+        brush = load_brush(brush)
+    surfaces = []
+    for j, s in enumerate(data.get("surface", [])):
+        kind = s.get("kind", "plane")
+        if kind == "plane":
+            surfaces.append(Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1)))))
+        else:
+            raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of ['plane']")
+    return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem))
