@@ -1,21 +1,279 @@
-"""Tip loads: dead external forces (and, with the contact model, eq 6-10 penalty contact).
+"""Tip contact: penalty normal law (eq 6), stick-slip friction (eq 7-10, Table 1), tip-tip (Table 3).
 
-``tip_args`` row layout per bristle (float64): [0:3] external dead force on the tip [N, world].
+All kernels act on one bristle's tip sphere (centre ``pt`` at the tip node, radius R).
+
+Normal law (eq 6, printed garbled; intended form as in Adams' IMPACT): for penetration delta > 0
+``Fn = k delta^m1 + c sign(ddelta) |ddelta|^m2 delta^m3``, clamped at Fn >= 0 (no adhesion);
+Fn = 0 for delta <= 0.  delta is measured along the surface normal from the sphere's closest point.
+
+Friction (eq 7-10, our reading of Table 1, documented in docs/model.md):
+    F_t = -(1 - beta) mu_s Fn g(|Delta| / Delta_max) Delta_hat  -  mu_d Fn s(|v| / v_d) v_hat
+with beta = step(|v|, -v_s, -1, v_s, 1) (0 at rest, 1 for |v| >= v_s), g(x) = step(x, -1, -1, 1, 1)
+(0 at x = 0, 1 at x = 1: the printed step of F_s between -Delta_max and +Delta_max) and s(x) the same
+step (the printed step of F_d between -v_t and +v_t).  v is the tangential slip velocity of the tip
+and Delta the stiction deformation: a per-contact state created at contact onset, advanced with the
+tangential tip displacement of each step, bounded by Delta_max, kept across steps and dropped on
+separation.  So a tip at rest holds up to mu_s Fn (reached at |Delta| = Delta_max), and a sliding
+tip (|v| >= max(v_s, v_d)) carries exactly mu_d Fn against its slip.
+
+Tip-tip contact (Table 3): the same normal law between two tip spheres along the line of centres,
+no friction.  The partner tip is held at its latest position (Gauss-Seidel splitting across
+bristles, see integrator.step_bristles).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
-A_FEXT = 0  # 0:3 external force [N]
-N_TIP_ARGS = 3
-N_TIP_STATE = 1
+# --- tip_args row (per bristle, float64)
+A_FEXT = 0  # 0:3 external dead force [N, world]
+A_RADIUS = 3  # tip sphere radius [mm]
+N_TIP_ARGS = 4
+
+# --- tip_state row (per bristle, float64)
+S_DELTA = 0  # 0:3 stiction deformation Delta [mm, world] (committed)
+S_HIST = 3  # 3:6 c1 p_n + c2 p_{n-1} of the tip node (rate history) [mm]
+S_PN = 6  # 6:9 tip node at the step start [mm]
+S_FN = 9  # normal force of the last evaluation [N]
+S_FT = 10  # 10:13 tangential (friction) force [N, world]
+S_SLIDE = 13  # 1 if sliding (|v| > v_s)
+S_PEN = 14  # penetration [mm]
+S_CP = 15  # 15:18 contact point [mm]
+S_DNEW = 18  # 18:21 trial stiction deformation of the last evaluation
+S_FTT = 21  # tip-tip normal force magnitude (sum) [N]
+N_TIP_STATE = 22
+
+# --- contact parameter vector cp (per scene)
+C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
+C_MUS, C_MUD, C_VS, C_VD, C_DMAX = 5, 6, 7, 8, 9  # friction (Table 2)
+C_KT, C_M1T, C_CT, C_M2T, C_M3T = 10, 11, 12, 13, 14  # tip-tip normal law (Table 3)
+N_CP = 15
+
+# --- surface rows surf (ns, 8): kind, point (3), normal/axis (3), radius
+SURF_PLANE = 0.0
+SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
+N_SURF = 8
+
+
+def paper_contact_params() -> np.ndarray:
+    """Tables 2 and 3 of the paper, in mm, N, s."""
+    cp = np.zeros(N_CP)
+    cp[[C_K, C_M1, C_C, C_M2, C_M3]] = (100.0, 1.3, 0.2, 1.0, 2.0)
+    cp[[C_MUS, C_MUD, C_VS, C_VD, C_DMAX]] = (0.8, 0.76, 1.2, 1.5, 0.1)
+    cp[[C_KT, C_M1T, C_CT, C_M2T, C_M3T]] = (100.0, 1.3, 0.2, 1.0, 2.0)
+    return cp
 
 
 @njit(cache=True)
-def tip_load(pt, c0, inv_h, static, args, state, F, Kt):
-    """Total load on the tip node at position ``pt`` [mm]: force F [N] and dF/dpt [N/mm]."""
+def step10(x, x0, h0, x1, h1):
+    """Eq 10: cubic step from h0 (x <= x0) to h1 (x >= x1)."""
+    if x <= x0:
+        return h0
+    if x >= x1:
+        return h1
+    u = (x - x0) / (x1 - x0)
+    return h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)
+
+
+@njit(cache=True)
+def step10_dx(x, x0, h0, x1, h1):
+    if x <= x0 or x >= x1:
+        return 0.0
+    u = (x - x0) / (x1 - x0)
+    return (h1 - h0) * 6.0 * u * (1.0 - u) / (x1 - x0)
+
+
+@njit(cache=True)
+def normal_law(delta, ddelta, k, m1, c, m2, m3):
+    """Eq 6 for delta > 0: returns (Fn, dFn/ddelta, dFn/d(ddelta)); Fn clamped >= 0."""
+    if delta <= 0.0:
+        return 0.0, 0.0, 0.0
+    el = k * delta**m1
+    kel = k * m1 * delta ** (m1 - 1.0)
+    ad = abs(ddelta)
+    sg = 1.0 if ddelta > 0.0 else (-1.0 if ddelta < 0.0 else 0.0)
+    dm = delta**m3
+    damp = c * sg * ad**m2 * dm
+    F = el + damp
+    if F <= 0.0:
+        return 0.0, 0.0, 0.0
+    dF_dd = kel + c * sg * ad**m2 * m3 * delta ** (m3 - 1.0)
+    dF_dv = c * m2 * ad ** (m2 - 1.0) * dm if ad > 0.0 or m2 == 1.0 else 0.0
+    return F, dF_dd, dF_dv
+
+
+@njit(cache=True)
+def _surface_gap(surf, pt, nrm, cpt):
+    """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point."""
+    kind = surf[0]
+    if kind == SURF_PLANE:
+        for a in range(3):
+            nrm[a] = surf[4 + a]
+        d = 0.0
+        for a in range(3):
+            d += (pt[a] - surf[1 + a]) * nrm[a]
+        for a in range(3):
+            cpt[a] = pt[a] - d * nrm[a]
+        return d
+    # cylinder (outer surface)
+    rel0 = pt[0] - surf[1]
+    rel1 = pt[1] - surf[2]
+    rel2 = pt[2] - surf[3]
+    ax = rel0 * surf[4] + rel1 * surf[5] + rel2 * surf[6]
+    r0 = rel0 - ax * surf[4]
+    r1 = rel1 - ax * surf[5]
+    r2 = rel2 - ax * surf[6]
+    rr = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if rr < 1e-12:
+        rr = 1e-12
+    nrm[0] = r0 / rr
+    nrm[1] = r1 / rr
+    nrm[2] = r2 / rr
+    for a in range(3):
+        cpt[a] = surf[1 + a] + ax * surf[4 + a] + surf[7] * nrm[a]
+    return rr - surf[7]
+
+
+@njit(cache=True)
+def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, F, Kt):
+    """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
+
+    Sums the dead external force, the tip-surface contact (eq 6-10) of the deepest surface and the
+    tip-tip contacts (Table 3) with the partner tips listed in pair_idx[pair_ptr[b]:pair_ptr[b+1]]
+    (partners held at tips[j, 0:3] with velocity tips[j, 3:6]).  Stores the contact outputs and the
+    trial stiction deformation in ``state``.  Kt is the Newton tangent (normal stiffness and
+    damping, isotropic tangential friction stiffness; the dependence of friction on Fn is omitted).
+    """
+    R = args[A_RADIUS]
+    vt = np.empty(3)
     for a in range(3):
         F[a] = args[A_FEXT + a]
-        for b in range(3):
-            Kt[a, b] = 0.0
+        for bb in range(3):
+            Kt[a, bb] = 0.0
+        # tip velocity from the discrete rate formula (zero for statics)
+        vt[a] = 0.0 if static else (c0 * pt[a] + state[S_HIST + a]) * inv_h
+    state[S_FN] = 0.0
+    state[S_FT] = 0.0
+    state[S_FT + 1] = 0.0
+    state[S_FT + 2] = 0.0
+    state[S_SLIDE] = 0.0
+    state[S_PEN] = 0.0
+    state[S_FTT] = 0.0
+    for a in range(3):
+        state[S_DNEW + a] = 0.0
+        state[S_CP + a] = pt[a]
+    # ---- tip-surface: the deepest surface
+    nrm = np.empty(3)
+    cpt = np.empty(3)
+    best = 1e300
+    ibest = -1
+    for s in range(surf.shape[0]):
+        gap = _surface_gap(surf[s], pt, nrm, cpt)
+        if gap < best:
+            best = gap
+            ibest = s
+    if ibest >= 0 and best < R:
+        _surface_gap(surf[ibest], pt, nrm, cpt)
+        delta = R - best
+        vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
+        Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])
+        for a in range(3):
+            state[S_CP + a] = cpt[a]
+        state[S_PEN] = delta
+        if Fn > 0.0:
+            state[S_FN] = Fn
+            # normal force and tangent: delta = R - n.(pt - p0) -> d delta/d pt = -n;
+            # d(ddelta)/d pt = -(c0/h) n
+            kk = kn + (0.0 if static else cn * c0 * inv_h)
+            for a in range(3):
+                F[a] += Fn * nrm[a]
+                for bb in range(3):
+                    Kt[a, bb] -= kk * nrm[a] * nrm[bb]
+            # ---- friction (eq 7-10)
+            mus = cp[C_MUS]
+            if mus > 0.0 or cp[C_MUD] > 0.0:
+                # slip velocity and stiction deformation in the tangent plane
+                vs = np.empty(3)
+                for a in range(3):
+                    vs[a] = vt[a] - vn * nrm[a]
+                vmag = np.sqrt(vs[0] ** 2 + vs[1] ** 2 + vs[2] ** 2)
+                dn = np.empty(3)
+                for a in range(3):
+                    dn[a] = state[S_DELTA + a] + pt[a] - state[S_PN + a]
+                dnn = dn[0] * nrm[0] + dn[1] * nrm[1] + dn[2] * nrm[2]
+                for a in range(3):
+                    dn[a] -= dnn * nrm[a]
+                dmag = np.sqrt(dn[0] ** 2 + dn[1] ** 2 + dn[2] ** 2)
+                dmax = cp[C_DMAX]
+                if dmag > dmax:
+                    for a in range(3):
+                        dn[a] *= dmax / dmag
+                    dmag = dmax
+                for a in range(3):
+                    state[S_DNEW + a] = dn[a]
+                v_s = cp[C_VS]
+                v_d = cp[C_VD]
+                beta = step10(vmag, -v_s, -1.0, v_s, 1.0)
+                gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
+                gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
+                fst = (1.0 - beta) * mus * Fn * gst  # stiction force magnitude
+                fsl = cp[C_MUD] * Fn * gsl  # sliding force magnitude
+                ft = np.zeros(3)
+                if dmag > 0.0:
+                    for a in range(3):
+                        ft[a] -= fst * dn[a] / dmag
+                if vmag > 0.0:
+                    for a in range(3):
+                        ft[a] -= fsl * vs[a] / vmag
+                for a in range(3):
+                    F[a] += ft[a]
+                    state[S_FT + a] = ft[a]
+                state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
+                # tangent: d|Delta|/dpt and d|v|/dpt act along the tangent plane
+                kst = 0.0
+                if dmag < dmax:
+                    kst = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0) \
+                        / dmax
+                ksl = 0.0
+                if not static:
+                    ksl = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d \
+                        * c0 * inv_h
+                    if vmag > 1e-12:
+                        ksl = max(ksl, fsl / vmag * c0 * inv_h)
+                kt = kst + ksl
+                for a in range(3):
+                    for bb in range(3):
+                        Kt[a, bb] -= kt * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+    # ---- tip-tip contact, no friction (Table 3)
+    if pair_ptr.shape[0] > b + 1:
+        for q in range(pair_ptr[b], pair_ptr[b + 1]):
+            j = pair_idx[q]
+            d0 = pt[0] - tips[j, 0]
+            d1 = pt[1] - tips[j, 1]
+            d2 = pt[2] - tips[j, 2]
+            dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            rj = tips[j, 6]
+            delta = R + rj - dist
+            if delta <= 0.0 or dist < 1e-12:
+                continue
+            u0 = d0 / dist
+            u1 = d1 / dist
+            u2 = d2 / dist
+            rv = 0.0
+            if not static:
+                rv = (u0 * (vt[0] - tips[j, 3]) + u1 * (vt[1] - tips[j, 4])
+                      + u2 * (vt[2] - tips[j, 5]))
+            Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T],
+                                    cp[C_M3T])
+            if Fn <= 0.0:
+                continue
+            state[S_FTT] += Fn
+            kk = kn + (0.0 if static else cn * c0 * inv_h)
+            F[0] += Fn * u0
+            F[1] += Fn * u1
+            F[2] += Fn * u2
+            u = (u0, u1, u2)
+            for a in range(3):
+                for bb in range(3):
+                    Kt[a, bb] -= kk * u[a] * u[bb]

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_thomas
-from .contact import tip_load
+from .contact import S_DELTA, S_DNEW, S_HIST, S_PN, tip_load
 
 # status codes per bristle
 OK = 0
@@ -53,8 +53,8 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
 
 
 @njit(cache=True)
-def _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist, gs,
-              hs, pAb, RAb, tip_args, tip_state, res, rootw, tipF, tipK, sw):
+def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist, gs,
+              hs, pAb, RAb, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw):
     """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm).
 
     Returns the scaled max norm: forces / bristle force scale and moments / (scale * l).  Also
@@ -104,7 +104,9 @@ def _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, 
             res[k, a] -= out12[6 + a]
     il = b0 + n - 1
     _node(pos[il], rot[il], bp[il, 4], pt)
-    tip_load(pt, c0, inv_h, static, tip_args, tip_state, tipF, tipK)
+    surf, cp, tips, pair_ptr, pair_idx = ctx
+    tip_load(b, pt, c0, inv_h, static, tip_args, tip_state, surf, cp, tips, pair_ptr, pair_idx,
+             tipF, tipK)
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
     rz = pt[2] - pos[il, 2]
@@ -372,8 +374,8 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
 
 
 @njit(cache=True)
-def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
-            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, rootw):
+def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
+            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
@@ -429,6 +431,13 @@ def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c
             s_omg[k, a] = omg[i, a]
             for bb in range(3):
                 s_rot[k, a, bb] = rot[i, a, bb]
+    # tip node history for the contact rate and the stiction deformation
+    il = b0 + n - 1
+    for a in range(3):
+        ptn = pos[il, a] + bp[il, 4] * rot[il, a, 0]
+        ptp = ppos[il, a] + bp[il, 4] * prot[il, a, 0]
+        tip_state[S_PN + a] = ptn
+        tip_state[S_HIST + a] = c1u * ptn + c2u * ptp
     # predictor: constant velocity (the base carries the chain; statics keep the current guess)
     if not static:
         for k in range(n):
@@ -438,8 +447,8 @@ def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c
             _rotate_left(h * s_omg[k, 0], h * s_omg[k, 1], h * s_omg[k, 2], s_rot[k], rot[i])
     rtol = prm[P_RTOL]
     maxit = int(prm[P_MAXIT])
-    nrm = _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist,
-                    gs, hs, pAe, RAe, tip_args, tip_state, res, rootw, tipF, tipK, sw)
+    nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
+                    ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw)
     it = 0
     ok = nrm <= rtol
     while not ok and it < maxit and np.isfinite(nrm):
@@ -472,9 +481,9 @@ def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c
         accepted = False
         for _ls in range(8):
             _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe)
-            new = _residual(b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
-                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, res, rootw, tipF,
-                            tipK, sw)
+            new = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm,
+                            thp, Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res,
+                            rootw, tipF, tipK, sw)
             if not np.isfinite(new):
                 alpha *= 0.25
                 continue
@@ -501,7 +510,9 @@ def _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c
                 for bb in range(3):
                     rot[i, a, bb] = s_rot[k, a, bb]
         return False, it
-    # accept: rates from the discrete formula, history shifted
+    # accept: commit the stiction deformation, rates from the discrete formula, shift history
+    for a in range(3):
+        tip_state[S_DELTA + a] = tip_state[S_DNEW + a]
     for k in range(n):
         i = b0 + k
         if static:
@@ -533,12 +544,17 @@ def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
 
 @njit(cache=True)
 def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, hist_ok, tcp_p,
-                  tcp_R, root_p, root_R, prm, tip_args, tip_state, rootw, iters, nsub, status):
+                  tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, rootw, iters, nsub,
+                  status):
     """Advance every bristle by one step h = prm[P_H] (in place).
 
     tcp_p (3, 3), tcp_R (3, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1} (rows 0, 1, 2).
     root_p (nb, 3), root_R (nb, 3, 3): root node pose of each bristle in the TCP frame.
     tip_args (nb, na), tip_state (nb, ns): tip-load parameters and per-contact state (contact.py).
+    ctx = (surf, cp, tips, pair_ptr, pair_idx): surfaces, contact law parameters, every tip's
+    node position/velocity/radius (nb, 7) and the tip-tip partner lists (CSR).  Bristles are
+    solved in order; each one sees its partners' latest tips (one Gauss-Seidel sweep), and its
+    own entry in ``tips`` is updated as soon as it has been advanced.
     Outputs per bristle: rootw (force, moment of the root element on the head, at the root node,
     world), iters (Newton iterations), nsub (sub-steps used), status (OK / NEWTON_FAILED).
     """
@@ -586,9 +602,9 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAs, RAs)
             _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
-            ok, it = _newton(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0,
-                             c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
-                             tip_state[b], rootw[b])
+            ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm,
+                             c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
+                             tip_state[b], ctx, rootw[b])
             tot += it
             if ok:
                 s += ds
@@ -612,4 +628,12 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
                     break
         iters[b] = tot
         nsub[b] = nsteps
+        tips = ctx[2]
+        il = b0 + n - 1
+        hl = bp[il, 4]
+        for a in range(3):
+            tips[b, a] = pos[il, a] + hl * rot[il, a, 0]
+        tips[b, 3] = vel[il, 0] + omg[il, 1] * hl * rot[il, 2, 0] - omg[il, 2] * hl * rot[il, 1, 0]
+        tips[b, 4] = vel[il, 1] + omg[il, 2] * hl * rot[il, 0, 0] - omg[il, 0] * hl * rot[il, 2, 0]
+        tips[b, 5] = vel[il, 2] + omg[il, 0] * hl * rot[il, 1, 0] - omg[il, 1] * hl * rot[il, 0, 0]
         hist_ok[b] = 1 if (nsteps == 1 and status[b] == 0) else 0

@@ -19,6 +19,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
 
 
@@ -29,6 +31,24 @@ class Plane:
     point: tuple = (0.0, 0.0, 0.0)
     normal: tuple = (0.0, 0.0, 1.0)
 
+    def kernel_row(self):
+        n = np.asarray(self.normal, float)
+        return np.r_[0.0, self.point, n / np.linalg.norm(n), 0.0]
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Outer surface of an infinite cylinder (a tooth-like convex patch): a point on its axis
+    [mm], the axis direction and the radius [mm]."""
+
+    point: tuple = (0.0, 0.0, -5.0)
+    axis: tuple = (1.0, 0.0, 0.0)
+    radius: float = 5.0
+
+    def kernel_row(self):
+        a = np.asarray(self.axis, float)
+        return np.r_[1.0, self.point, a / np.linalg.norm(a), self.radius]
+
 
 @dataclass(frozen=True)
 class Scene:
@@ -38,6 +58,7 @@ class Scene:
     surfaces: tuple = field(default_factory=tuple)
     tip_tip: bool = True
     name: str = ""
+    tip_travel_fraction: float = 0.6
 
 
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
@@ -61,6 +82,10 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
         kind = s.get("kind", "plane")
         if kind == "plane":
             surfaces.append(Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1)))))
+        elif kind == "cylinder":
+            surfaces.append(Cylinder(tuple(s.get("point_mm", (0, 0, -5))),
+                                     tuple(s.get("axis", (1, 0, 0))), float(s.get("radius_mm", 5.0))))
         else:
-            raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of ['plane']")
+            raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of "
+                              "['plane', 'cylinder']")
     return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem))

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import integrator as itg
 from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
+from . import contact as ct
 from .contact import N_TIP_ARGS, N_TIP_STATE
 from .config import BrushConfig, ConfigError
 from .scene import Scene
@@ -213,6 +214,13 @@ class Simulator:
         self.model = build_model(brush)
         nb = self.model.n_bristles
         self.tip_args = np.zeros((nb, N_TIP_ARGS))
+        self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
+        self.contact_params = ct.paper_contact_params()
+        self.surfaces = _surface_rows(scene.surfaces)
+        self.pair_ptr, self.pair_idx = tip_pairs(self.model, scene) if scene.tip_tip else \
+            (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        self._tips = np.zeros((nb, 7))
+        self._tips[:, 6] = self.model.tip_radius
         self._rootw = np.zeros((nb, 6))
         self._iters = np.zeros(nb, np.int64)
         self._nsub = np.zeros(nb, np.int64)
@@ -253,6 +261,8 @@ class Simulator:
                            z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 3),
                            np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0)
         self._rootw[:] = 0.0
+        self._tips[:, 0:3] = self.tip_positions()
+        self._tips[:, 3:6] = 0.0
         return self._result(0, 0)
 
     @staticmethod
@@ -277,6 +287,8 @@ class Simulator:
 
     def set_state(self, state: State) -> None:
         self.state = state.copy()
+        self._tips[:, 0:3] = self.tip_positions()
+        self._tips[:, 3:6] = self.tip_velocities()
 
     # ------------------------------------------------------------------ stepping
     def step(self, tcp_p, tcp_R) -> StepResult:
@@ -321,13 +333,13 @@ class Simulator:
         m = self.model
         itg.step_bristles(m.bstart, m.bp, m.K, st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot,
                           st.pvel, st.pomg, st.hist_ok, st.tcp_p, st.tcp_R, m.root_p, m.root_R,
-                          prm, self.tip_args, st.tip_state, self._rootw, self._iters,
-                          self._nsub, self._status)
+                          prm, self.tip_args, st.tip_state, self._ctx(), self._rootw,
+                          self._iters, self._nsub, self._status)
         bad = np.flatnonzero(self._status)
         if bad.size == 0 and not (np.all(np.isfinite(st.pos)) and np.all(np.isfinite(self._rootw))):
             bad = np.arange(m.n_bristles)
         if bad.size:
-            self.state = snapshot
+            self.set_state(snapshot)
             raise SimulationDivergence(t_new, bad, "Newton did not converge on the smallest "
                                        f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})")
         st.tcp_p[0] = st.tcp_p[1]
@@ -337,6 +349,14 @@ class Simulator:
         st.time = t_new
         st.steps += 1
         return self._result(int(self._iters.sum()), int(self._nsub.sum()))
+
+    def _ctx(self):
+        return (self.surfaces, self.contact_params, self._tips, self.pair_ptr, self.pair_idx)
+
+    @property
+    def n_tip_pairs(self) -> int:
+        """Number of tip-tip pairs kept for this scene (each counted once)."""
+        return len(self.pair_idx) // 2
 
     # ------------------------------------------------------------------ outputs
     def tip_positions(self) -> np.ndarray:
@@ -361,8 +381,41 @@ class Simulator:
         M_on_head = self._rootw[:, 3:6] + np.cross(root_w - p_tcp, F_on_head)
         F = -F_on_head.sum(axis=0)
         M = -M_on_head.sum(axis=0)
-        nb = m.n_bristles
-        tips = self.tip_positions()
-        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, tips,
-                          self.tip_velocities(), iters, nsub, np.zeros(nb), np.zeros((nb, 3)),
-                          np.zeros(nb, bool), np.zeros(nb, bool), np.zeros(nb), tips.copy())
+        ts = st.tip_state
+        fn = ts[:, ct.S_FN].copy()
+        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, self.tip_positions(),
+                          self.tip_velocities(), iters, nsub, fn, ts[:, ct.S_FT:ct.S_FT + 3].copy(),
+                          fn > 0.0, (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
+                          np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0),
+                          ts[:, ct.S_CP:ct.S_CP + 3].copy(),
+                          extra={"tip_tip_force": ts[:, ct.S_FTT].copy()})
+
+
+def _surface_rows(surfaces) -> np.ndarray:
+    """Kernel rows (kind, point, normal/axis, radius) of the scene's surfaces."""
+    rows = np.zeros((len(surfaces), ct.N_SURF))
+    for j, srf in enumerate(surfaces):
+        rows[j] = srf.kernel_row()
+    return rows
+
+
+def tip_pairs(model: Model, scene, travel_fraction: float | None = None):
+    """Tip-tip pairs the scene can bring together, as CSR lists (each pair listed for both tips).
+
+    Two tips can touch only if their roots are closer than the sum of the tips' largest travels
+    plus the two sphere radii.  A tip's travel is bounded by its bristle length (it swings about
+    its root), times ``scene.tip_travel_fraction`` (default 0.6: a bristle pressed onto a plate
+    and dragged leans over but does not fold back, so its tip stays within ~0.6 L of the root
+    line; documented choice, checked against the full pair set in tests).
+    """
+    frac = getattr(scene, "tip_travel_fraction", 0.6) if travel_fraction is None else \
+        travel_fraction
+    nb = model.n_bristles
+    roots = model.root_p
+    reach = frac * model.length + model.tip_radius
+    d = np.linalg.norm(roots[:, None, :] - roots[None, :, :], axis=2)
+    ok = (d <= reach[:, None] + reach[None, :]) & ~np.eye(nb, dtype=bool)
+    ptr = np.zeros(nb + 1, np.int64)
+    ptr[1:] = np.cumsum(ok.sum(axis=1))
+    idx = np.nonzero(ok)[1].astype(np.int64)
+    return ptr, idx
