@@ -94,6 +94,8 @@ LIMITS: dict[str, Limit] = {
     "position": Limit("mm, head frame", ge=-100, le=100),
     "offset": Limit("mm, TCP frame", ge=-1000, le=1000),
     "angle_deg": Limit("deg", ge=-360, le=360),
+    "lean_deg": Limit("deg", ge=-10, le=10),
+    "lean": Limit("rad", ge=-math.radians(10), le=math.radians(10)),
     "angle": Limit("rad", ge=-2 * math.pi, le=2 * math.pi),
     "direction": Limit("dimensionless direction, head frame"),
 }
@@ -335,8 +337,10 @@ class BrushConfig:
     head_rpy: tuple[float, float, float]
     bristles: tuple[BristleConfig, ...]
     source: str = ""
+    lean: float = 0.0  # [rad] initial lean of every bristle toward its thickness direction
 
     def __post_init__(self) -> None:
+        LIMITS["lean"].check("BrushConfig.lean", self.lean)
         bristles = tuple(self.bristles)
         if not bristles:
             raise ConfigError("BrushConfig.bristles is empty: need at least 1 bristle")
@@ -527,7 +531,7 @@ def _material(name: str, data: Any) -> Material:
 
 
 BRUSH_KEYS = ("name", "material", "materials_file", "bodies_per_bristle", "tip_radius_mm",
-              "head_offset_mm", "head_rpy_deg", "sections", "grid", "row", "bristle")
+              "head_offset_mm", "head_rpy_deg", "lean_deg", "sections", "grid", "row", "bristle")
 _EXTRAS = ("axis", "width_dir", "material", "bodies", "tip_radius_mm", "name")
 GROUP_KEYS = {
     "grid": ("section", "length_mm", "nx", "ny", "pitch_x_mm", "pitch_y_mm", "center_mm") + _EXTRAS,
@@ -600,6 +604,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     tip_radius = t.num("tip_radius_mm", LIMITS["tip_radius"])
     head_offset = t.vec("head_offset_mm", 3, LIMITS["offset"], (0.0, 0.0, 0.0))
     head_rpy = t.vec("head_rpy_deg", 3, LIMITS["angle_deg"], (0.0, 0.0, 0.0))
+    lean = t.num("lean_deg", LIMITS["lean_deg"], 0.0)
     secs = t.get("sections", _REQUIRED, "[sections.<name>] tables")
     if not isinstance(secs, dict):
         raise _type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
@@ -619,7 +624,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     if not bristles:
         raise ConfigError("brush: no bristles: add at least one [[grid]], [[row]] or [[bristle]]")
     return BrushConfig(name, head_offset, tuple(math.radians(a) for a in head_rpy),
-                       tuple(bristles), source)
+                       tuple(bristles), source, math.radians(lean))
 
 
 def _section(path: str, data: Any) -> Section:

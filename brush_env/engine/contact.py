@@ -8,7 +8,8 @@ Fn = 0 for delta <= 0.  delta is measured along the surface normal from the sphe
 
 Friction (eq 7-10, our reading of Table 1, documented in docs/model.md):
     F_t = -(1 - beta) mu_s Fn g(|Delta| / Delta_max) Delta_hat  -  mu_d Fn s(|v| / v_d) v_hat
-with beta = step(|v|, -v_s, -1, v_s, 1) (0 at rest, 1 for |v| >= v_s), g(x) = step(x, -1, -1, 1, 1)
+with beta = step(|v|, 0, 0, v_s, 1) (0 at rest, 1 for |v| >= v_s; C1 variant of the printed
+step(|v|, -v_s, -1, v_s, 1), see the kernel), g(x) = step(x, -1, -1, 1, 1)
 (0 at x = 0, 1 at x = 1: the printed step of F_s between -Delta_max and +Delta_max) and s(x) the same
 step (the printed step of F_d between -v_t and +v_t).  v is the tangential slip velocity of the tip
 and Delta the stiction deformation: a per-contact state created at contact onset, advanced with the
@@ -55,6 +56,8 @@ SURF_PLANE = 0.0
 SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
 N_SURF = 8
 
+DELTA_TANGENT_FLOOR = 1e-3  # [mm] smallest penetration used for the normal-law tangent
+
 
 def paper_contact_params() -> np.ndarray:
     """Tables 2 and 3 of the paper, in mm, N, s."""
@@ -90,7 +93,9 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
     if delta <= 0.0:
         return 0.0, 0.0, 0.0
     el = k * delta**m1
-    kel = k * m1 * delta ** (m1 - 1.0)
+    # the tangent of k delta^m1 vanishes at delta -> 0 (m1 > 1); Newton then overshoots at contact
+    # onset.  The tangent (not the force) uses at least the slope at DELTA_TANGENT_FLOOR.
+    kel = k * m1 * max(delta, DELTA_TANGENT_FLOOR) ** (m1 - 1.0)
     ad = abs(ddelta)
     sg = 1.0 if ddelta > 0.0 else (-1.0 if ddelta < 0.0 else 0.0)
     dm = delta**m3
@@ -214,7 +219,10 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                     state[S_DNEW + a] = dn[a]
                 v_s = cp[C_VS]
                 v_d = cp[C_VD]
-                beta = step10(vmag, -v_s, -1.0, v_s, 1.0)
+                # beta: C1 form step(|v|, 0, 0, v_s, 1).  The printed step(|v|, -v_s, -1, v_s, 1)
+                # has the same end values but a kink at v = 0 (slope 1.5/v_s in |v|), which makes
+                # Newton cycle around v = 0 for a sticking tip.
+                beta = step10(vmag, 0.0, 0.0, v_s, 1.0)
                 gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
                 gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
                 fst = (1.0 - beta) * mus * Fn * gst  # stiction force magnitude
@@ -230,21 +238,26 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                     F[a] += ft[a]
                     state[S_FT + a] = ft[a]
                 state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
-                # tangent: d|Delta|/dpt and d|v|/dpt act along the tangent plane
-                kst = 0.0
-                if dmag < dmax:
-                    kst = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0) \
-                        / dmax
+                # Newton tangent of F_t w.r.t. pt (dDelta/dpt = P_t, dv/dpt = (c0/h) P_t):
+                # an isotropic, symmetric secant-or-slope stiffness in the tangent plane.  The exact
+                # tangent vanishes along a saturated law (|v| > v_d or |Delta| = Delta_max), which
+                # makes Newton overshoot and flip the slip direction every iteration; the secant
+                # f/|x| keeps the iteration contractive.  The Fn-coupling and beta(|v|) terms
+                # are left out (non-symmetric, small).  Only Newton's path depends on this.
+                rate = 0.0 if static else c0 * inv_h
+                kst = (1.0 - beta) * mus * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
+                if dmag > 0.0:
+                    kst = max(kst * (dmag < dmax), fst / dmag)
                 ksl = 0.0
-                if not static:
-                    ksl = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d \
-                        * c0 * inv_h
-                    if vmag > 1e-12:
-                        ksl = max(ksl, fsl / vmag * c0 * inv_h)
-                kt = kst + ksl
+                if rate > 0.0:
+                    ksl = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
+                    if vmag > 0.0:
+                        ksl = max(cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
+                                  / v_d, fsl / vmag)
+                    ksl *= rate
                 for a in range(3):
                     for bb in range(3):
-                        Kt[a, bb] -= kt * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+                        Kt[a, bb] -= (kst + ksl) * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
     # ---- tip-tip contact, no friction (Table 3)
     if pair_ptr.shape[0] > b + 1:
         for q in range(pair_ptr[b], pair_ptr[b + 1]):

@@ -438,13 +438,20 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         ptp = ppos[il, a] + bp[il, 4] * prot[il, a, 0]
         tip_state[S_PN + a] = ptn
         tip_state[S_HIST + a] = c1u * ptn + c2u * ptp
-    # predictor: constant velocity (the base carries the chain; statics keep the current guess)
-    if not static:
-        for k in range(n):
-            i = b0 + k
-            for a in range(3):
-                pos[i, a] = s_pos[k, a] + h * s_vel[k, a]
-            _rotate_left(h * s_omg[k, 0], h * s_omg[k, 1], h * s_omg[k, 2], s_rot[k], rot[i])
+    # predictor: the start configuration carried rigidly by the base's motion over the step
+    # (T = base_end o base_start^-1): a driven, nearly quasi-static chain starts Newton close
+    Tr = np.empty((3, 3))
+    for a in range(3):
+        for bb in range(3):
+            Tr[a, bb] = RAe[a, 0] * RAs[bb, 0] + RAe[a, 1] * RAs[bb, 1] + RAe[a, 2] * RAs[bb, 2]
+    for k in range(n):
+        i = b0 + k
+        for a in range(3):
+            pos[i, a] = pAe[a] + Tr[a, 0] * (s_pos[k, 0] - pAs[0]) \
+                + Tr[a, 1] * (s_pos[k, 1] - pAs[1]) + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
+            for bb in range(3):
+                rot[i, a, bb] = Tr[a, 0] * s_rot[k, 0, bb] + Tr[a, 1] * s_rot[k, 1, bb] \
+                    + Tr[a, 2] * s_rot[k, 2, bb]
     rtol = prm[P_RTOL]
     maxit = int(prm[P_MAXIT])
     nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
@@ -491,7 +498,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
             for k in range(n):
                 for a in range(6):
                     ga += dq[k, a] * res[k, a]
-            if new <= rtol or g0 >= 0.0 or ga <= 0.5 * abs(g0):
+            if new <= rtol or g0 >= 0.0 or ga <= 0.5 * abs(g0) or new < 0.9 * nrm:
                 accepted = True
                 break
             # overshoot (g changed sign): secant estimate of the zero of g, safeguarded

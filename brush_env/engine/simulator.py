@@ -60,7 +60,7 @@ class SimSettings:
     dt: float = 1e-3
     integrator: str = "bdf2"
     newton_rtol: float = 1e-8
-    newton_max_iter: int = 15
+    newton_max_iter: int = 40
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)
 
@@ -133,7 +133,10 @@ def build_model(brush: BrushConfig) -> Model:
         bp[sl, 7] = fscale
         seg[sl] = l
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
-        root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir)
+        # lean: rotate about the width axis so the tip moves toward the thickness direction
+        c, s_ = np.cos(brush.lean), np.sin(brush.lean)
+        Ry = np.array([[c, 0.0, s_], [0.0, 1.0, 0.0], [-s_, 0.0, c]])
+        root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
     return Model(bstart, bp, K, root_p, root_R, seg,
                  np.array([b.tip_radius for b in brush.bristles]),
                  np.array([b.length for b in brush.bristles]))
