@@ -1,0 +1,261 @@
+"""Evaluate a policy on BrushEnv: returns, coverage, force-limit violations, per-term rewards.
+
+    python -m agents.evaluate --policy reference --episodes 5 --out runs/eval_reference
+    python -m agents.evaluate --policy random --episodes 5 --out runs/eval_random
+    python -m agents.evaluate --policy runs/ppo/model.zip --episodes 5 --out runs/eval_ppo --video
+
+``--policy`` is ``reference`` (agents/reference.py), ``random`` (uniform actions) or the path of
+a stable-baselines3 model saved by ``agents/train.py`` (its ``meta.json`` names the algorithm and
+the env settings; a ``vecnormalize.pkl`` beside it normalises the observations as in training).
+Episode i is reset with seed ``--seed + i``, so two policies see the same start poses and plate
+offsets.  Writes to ``--out``:
+
+* ``summary.json``: every setting, per-episode metrics and their mean/std;
+* ``table.md``: the per-episode table (also printed);
+* ``forces.png``: total plate normal force over time per episode, with the safe and hard limits;
+* ``coverage.png``: fraction of the patch cleaned over time per episode;
+* ``episode_000.gif`` with ``--video``: the first episode's ``rgb_array`` frames.
+
+Metrics per episode: ``return``, ``coverage`` (final fraction), ``steps``, ``termination``,
+``time_above_force_limit`` [s] (total normal force above ``total_force_limit``),
+``peak_normal_force`` [N], ``peak_tip_force`` [N], ``hard_limit_hit`` (bool) and
+``reward_<term>`` sums.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import brush_env  # noqa: F401  (registers the ids)
+from agents.reference import RandomPolicy, ReferencePolicy
+
+ENV_ID = "brush_env/FlatPlate-v0"
+REWARD_TERMS = ("coverage", "total_force", "tip_force", "termination")
+
+
+def parse_env_kw(items) -> dict:
+    """``KEY=VALUE`` strings -> dict; values parsed as TOML (``3``, ``0.5``, ``"tiny_env"``,
+    ``[1, 2]``, ``true``), falling back to the raw string."""
+    out = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ValueError(f"--env-kw {item!r}: expected KEY=VALUE")
+        k, v = item.split("=", 1)
+        try:
+            out[k.strip()] = tomllib.loads(f"x = {v}")["x"]
+        except tomllib.TOMLDecodeError:
+            out[k.strip()] = v
+    return out
+
+
+def load_policy(spec: str, env: gym.Env, seed: int = 0):
+    """(policy with SB3-style predict, obs_transform) for 'reference', 'random' or a model path."""
+    if spec == "reference":
+        return ReferencePolicy.for_env(env), None
+    if spec == "random":
+        return RandomPolicy(env.action_space, seed=seed), None
+    path = Path(spec)
+    if not path.exists() and path.with_suffix(".zip").exists():
+        path = path.with_suffix(".zip")
+    if not path.exists():
+        raise FileNotFoundError(f"--policy {spec!r}: not 'reference', 'random' or an existing "
+                                "model file")
+    from stable_baselines3 import PPO, SAC
+
+    meta_path = path.parent / "meta.json"
+    algo = json.loads(meta_path.read_text()).get("algo") if meta_path.exists() else None
+    classes = {"ppo": PPO, "sac": SAC}
+    model = None
+    for name in ([algo] if algo in classes else list(classes)):
+        try:
+            model = classes[name].load(path, device="cpu")
+            break
+        except Exception:  # noqa: BLE001 - try the next algorithm class
+            continue
+    if model is None:
+        raise ValueError(f"{path}: not a PPO or SAC model saved by stable-baselines3")
+    transform = None
+    vn_path = path.parent / "vecnormalize.pkl"
+    if vn_path.exists():
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        vn = VecNormalize.load(str(vn_path), DummyVecEnv([lambda: env]))
+        vn.training = False
+        transform = vn.normalize_obs
+    return model, transform
+
+
+def run_episode(env, policy, seed: int, transform=None, video: bool = False,
+                deterministic: bool = True) -> tuple[dict, dict, list]:
+    """One episode; returns (metrics, time series, frames)."""
+    obs, info = env.reset(seed=seed)
+    u = env.unwrapped
+    cfg = u.config
+    series = {"time": [0.0], "total_normal_force": [0.0], "peak_normal_force": [0.0],
+              "coverage": [0.0]}
+    frames = [env.render()] if video else []
+    terms = dict.fromkeys(REWARD_TERMS, 0.0)
+    ret, steps, above, peak_f, peak_tip = 0.0, 0, 0.0, 0.0, 0.0
+    termination = None
+    episode_start = np.ones(1, bool)
+    while True:
+        o = transform(obs) if transform is not None else obs
+        action, _ = policy.predict(o, episode_start=episode_start, deterministic=deterministic)
+        episode_start[:] = False
+        obs, reward, terminated, truncated, info = env.step(action)
+        ret += reward
+        steps += 1
+        for k, v in info["reward_terms"].items():
+            terms[k] += v
+        above += info["time_above_force_limit"]
+        peak_f = max(peak_f, info["peak_normal_force"])
+        peak_tip = max(peak_tip, info["peak_tip_force"])
+        series["time"].append(info["time"])
+        series["total_normal_force"].append(info["total_normal_force"])
+        series["peak_normal_force"].append(info["peak_normal_force"])
+        series["coverage"].append(info["coverage"])
+        if video:
+            frames.append(env.render())
+        if terminated or truncated:
+            termination = info["termination"]
+            break
+    metrics = {"seed": seed, "return": ret, "coverage": info["coverage"], "steps": steps,
+               "termination": termination, "time_above_force_limit": above,
+               "peak_normal_force": peak_f, "peak_tip_force": peak_tip,
+               "hard_limit_hit": bool(peak_f > cfg.hard_force_limit)}
+    metrics.update({f"reward_{k}": v for k, v in terms.items()})
+    return metrics, series, frames
+
+
+def _table(rows: list[dict]) -> str:
+    cols = ["seed", "return", "coverage", "steps", "termination", "time_above_force_limit",
+            "peak_normal_force", "peak_tip_force"] + [f"reward_{k}" for k in REWARD_TERMS]
+    head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
+
+    def fmt(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    return head + "\n".join("| " + " | ".join(fmt(r[c]) for c in cols) + " |" for r in rows)
+
+
+def _plots(out: Path, all_series: list[dict], cfg) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for i, s in enumerate(all_series):
+        ax.plot(s["time"], s["total_normal_force"], lw=1, label=f"episode {i}")
+    ax.axhline(cfg.total_force_limit, color="orange", ls="--", label="safe limit")
+    ax.axhline(cfg.hard_force_limit, color="red", ls=":", label="hard limit")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("total normal force [N]")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out / "forces.png", dpi=120)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for i, s in enumerate(all_series):
+        ax.plot(s["time"], np.asarray(s["coverage"]) * 100, lw=1, label=f"episode {i}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("patch cleaned [%]")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out / "coverage.png", dpi=120)
+    plt.close(fig)
+
+
+def _save_gif(path: Path, frames: list, fps: float) -> None:
+    from PIL import Image
+
+    imgs = [Image.fromarray(f) for f in frames]
+    imgs[0].save(path, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)
+
+
+def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, video: bool = False,
+             config: str = "flat_plate", env_kwargs: dict | None = None,
+             deterministic: bool = True, quiet: bool = False) -> dict:
+    """Run ``episodes`` episodes of ``policy`` and write the outputs (module docstring)."""
+    if episodes < 1:
+        raise ValueError(f"episodes = {episodes!r} is out of range: must be >= 1")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = dict(env_kwargs or {})
+    meta = Path(policy).parent / "meta.json"
+    if policy not in ("reference", "random") and meta.is_file():
+        # a trained model is evaluated on the env it was trained on, unless overridden
+        trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))
+        config = trained.pop("config", config)
+        env_kwargs = {**trained, **env_kwargs}
+    env = gym.make(ENV_ID, config=config, render_mode="rgb_array" if video else None,
+                   **env_kwargs)
+    pol, transform = load_policy(policy, env, seed=seed)
+    rows, all_series = [], []
+    t0 = time.perf_counter()
+    for i in range(episodes):
+        m, s, frames = run_episode(env, pol, seed + i, transform, video and i == 0,
+                                   deterministic)
+        rows.append(m)
+        all_series.append(s)
+        if frames:
+            _save_gif(out / "episode_000.gif", frames, env.unwrapped.metadata["render_fps"])
+    wall = time.perf_counter() - t0
+    cfg = env.unwrapped.config
+    env.close()
+    keys = [k for k, v in rows[0].items() if isinstance(v, (int, float)) and k != "seed"]
+    agg = {k: {"mean": float(np.mean([r[k] for r in rows])),
+               "std": float(np.std([r[k] for r in rows]))} for k in keys}
+    summary = {"policy": policy, "episodes": episodes, "seed": seed, "config": config,
+               "env_kwargs": env_kwargs, "env_settings": _jsonable(cfg.__dict__),
+               "wall_time_s": wall, "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
+               "mean": {k: v["mean"] for k, v in agg.items()},
+               "std": {k: v["std"] for k, v in agg.items()}, "per_episode": rows}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    table = _table(rows)
+    (out / "table.md").write_text(table + "\n")
+    _plots(out, all_series, cfg)
+    if not quiet:
+        print(table)
+        print(f"mean return {agg['return']['mean']:.3f} +- {agg['return']['std']:.3f}, "
+              f"coverage {100 * agg['coverage']['mean']:.2f} %, written to {out}")
+    return summary
+
+
+def _jsonable(d: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m agents.evaluate",
+                                description=__doc__.split("\n")[0])
+    p.add_argument("--policy", required=True, help="reference | random | PATH to a SB3 model")
+    p.add_argument("--episodes", type=int, default=5)
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
+    p.add_argument("--video", action="store_true", help="write episode_000.gif")
+    p.add_argument("--config", default="flat_plate", help="env config name or TOML path")
+    p.add_argument("--env-kw", action="append", metavar="KEY=VALUE",
+                   help="env setting override, repeatable (e.g. brush=\"tiny_env\")")
+    p.add_argument("--stochastic", action="store_true", help="sample SB3 policy actions")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    evaluate(args.policy, args.episodes, args.out, seed=args.seed, video=args.video,
+             config=args.config, env_kwargs=parse_env_kw(args.env_kw),
+             deterministic=not args.stochastic)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

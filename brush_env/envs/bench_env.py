@@ -1,0 +1,199 @@
+"""``brush-env bench env``: BrushEnv steps per second under the reference policy.
+
+One env in this process, and a vector of envs (``gymnasium.vector.AsyncVectorEnv``, one process
+per env).  The policy is the press-then-circle reference (``brush_env.envs.reference``), so the
+steps include contact once the brush is pressed.  Episodes restart when they end (the time limit,
+or a termination, counted in ``terminations``).  Cold start (env construction, first reset and
+first step: numba's cache load or JIT compile) is timed apart and excluded from the rates.
+
+Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, all envs),
+``wall_s``, ``steps_per_s`` (all envs together), ``steps_per_s_per_env``,
+``real_time_factor`` (simulated seconds per wall-clock second, all envs together),
+``engine_steps_per_s``, ``cold_start_s``, ``terminations``, and the settings (``brush``,
+``n_bristles``, ``bodies_per_bristle``, ``engine_dt``, ``frame_skip``, ``control_hz``).
+
+    brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
+                        [--engine-dt 0.004] [--frame-skip 10] [--json]
+
+Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
+first: ``add_arguments`` skips options the parser already has); ``run(args)`` prints and returns
+0; ``bench_env(dict) -> list[dict]`` is the function behind both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+__all__ = ["bench_env", "add_arguments", "run"]
+
+ENV_ID = "brush_env/FlatPlate-v0"
+DEFAULTS = {"steps": 300, "n_envs": [1, 2], "brush": "default", "bodies": 3,
+            "engine_dt": 0.004, "frame_skip": 10, "config": "flat_plate"}
+
+
+def _env_kwargs(a: dict) -> dict:
+    return {"config": a["config"], "brush": a["brush"], "bodies_per_bristle": a["bodies"],
+            "engine_dt": a["engine_dt"], "frame_skip": a["frame_skip"]}
+
+
+class _Reference:
+    """Reference controllers for a batch of envs, planned per env at k = 0."""
+
+    def __init__(self, env):
+        from .action import make_action_type
+        from .reference import CircleReference
+
+        u = env.unwrapped
+        self.layout, self.horizon = u.layout, u.horizon
+        self.make = lambda: CircleReference(u.layout, make_action_type(u.config), u.dt,
+                                            u.horizon)
+        self.ctrl = []
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.atleast_2d(obs)
+        while len(self.ctrl) < len(obs):
+            self.ctrl.append(self.make())
+        k = self.layout.elapsed_steps(obs, self.horizon)
+        p, R = self.layout.tcp_pose(obs)
+        return np.stack([c.act(int(k[i]), p[i], R[i]) for i, c in enumerate(self.ctrl)])
+
+
+def _single(a: dict) -> dict:
+    import gymnasium as gym
+
+    import brush_env  # noqa: F401
+
+    t0 = time.perf_counter()
+    env = gym.make(ENV_ID, **_env_kwargs(a))
+    policy = _Reference(env)
+    obs, _ = env.reset(seed=0)
+    obs, *_ = env.step(policy(obs)[0])
+    cold = time.perf_counter() - t0
+    obs, _ = env.reset(seed=0)
+    terminations, seed = 0, 0
+    t0 = time.perf_counter()
+    for _ in range(a["steps"]):
+        obs, _, term, trunc, _ = env.step(policy(obs)[0])
+        if term or trunc:
+            terminations += int(term)
+            seed += 1
+            obs, _ = env.reset(seed=seed)
+    wall = time.perf_counter() - t0
+    row = _row("single", 1, a["steps"], wall, cold, terminations, env.unwrapped, a)
+    env.close()
+    return row
+
+
+def _vector(a: dict, n: int) -> dict:
+    import gymnasium as gym
+
+    import brush_env  # noqa: F401
+
+    kw = _env_kwargs(a)
+    t0 = time.perf_counter()
+    venv = gym.vector.AsyncVectorEnv([lambda: gym.make(ENV_ID, **kw) for _ in range(n)])
+    probe = gym.make(ENV_ID, **kw)
+    policy = _Reference(probe)
+    obs, _ = venv.reset(seed=list(range(n)))
+    obs, *_ = venv.step(policy(obs))
+    cold = time.perf_counter() - t0
+    obs, _ = venv.reset(seed=list(range(n)))
+    steps = max(1, a["steps"] // n)
+    terminations = 0
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        obs, _, term, trunc, _ = venv.step(policy(obs))
+        terminations += int(np.sum(term))
+    wall = time.perf_counter() - t0
+    row = _row("vector", n, steps * n, wall, cold, terminations, probe.unwrapped, a)
+    venv.close()
+    probe.close()
+    return row
+
+
+def _row(mode, n, steps, wall, cold, terminations, u, a) -> dict:
+    return {"mode": mode, "n_envs": n, "steps": steps, "wall_s": wall,
+            "steps_per_s": steps / wall, "steps_per_s_per_env": steps / wall / n,
+            "real_time_factor": steps * u.dt / wall,
+            "engine_steps_per_s": steps * u.config.frame_skip / wall, "cold_start_s": cold,
+            "terminations": terminations, "brush": a["brush"], "n_bristles": u.n_bristles,
+            "bodies_per_bristle": a["bodies"], "engine_dt": u.config.engine_dt,
+            "frame_skip": u.config.frame_skip, "control_hz": 1.0 / u.dt}
+
+
+def bench_env(args: dict) -> list[dict]:
+    """Run the benchmark; ``args`` keys as ``DEFAULTS`` (missing keys take the defaults).
+    ``n_envs`` lists the vector sizes: 1 means the single in-process env."""
+    a = {**DEFAULTS, **{k: v for k, v in args.items() if v is not None}}
+    unknown = set(a) - set(DEFAULTS) - {"json", "command", "bench", "func", "which"}
+    if unknown:
+        raise ValueError(f"bench env: unknown argument(s) {sorted(unknown)} (known: "
+                         f"{sorted(DEFAULTS)})")
+    if int(a["steps"]) < 1:
+        raise ValueError(f"steps = {a['steps']!r} is out of range: must be >= 1")
+    rows = []
+    for n in a["n_envs"]:
+        if int(n) < 1:
+            raise ValueError(f"n_envs = {n!r} is out of range: must be >= 1")
+        rows.append(_single(a) if int(n) == 1 else _vector(a, int(n)))
+    return rows
+
+
+_OPTIONS = (
+    ("--steps", dict(type=int, default=DEFAULTS["steps"],
+                     help="env steps per measurement (all envs together)")),
+    ("--n-envs", dict(type=int, nargs="+", default=DEFAULTS["n_envs"],
+                      help="vector sizes to measure; 1 = one in-process env")),
+    ("--brush", dict(default=DEFAULTS["brush"])),
+    ("--bodies", dict(type=int, default=DEFAULTS["bodies"],
+                      help="bodies per bristle (0: the brush file's)")),
+    ("--engine-dt", dict(type=float, default=DEFAULTS["engine_dt"])),
+    ("--frame-skip", dict(type=int, default=DEFAULTS["frame_skip"])),
+    ("--config", dict(default=DEFAULTS["config"], help="env config name or TOML path")),
+    ("--json", dict(action="store_true", help="one JSON object per row on stdout")),
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options, skipping any the parser already has (e.g. a parent's ``--json``)."""
+    have = {s for a in p._actions for s in a.option_strings}
+    for flag, kw in _OPTIONS:
+        if flag not in have:
+            p.add_argument(flag, **kw)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the table (or, with ``--json``, one JSON object per row, as ``bench engine``).
+    Options missing from ``args`` take the defaults, so a parent parser need not add them all."""
+    rows = bench_env({k: getattr(args, k, None) for k in DEFAULTS})
+    if getattr(args, "json", False):
+        for r in rows:
+            print(json.dumps(r))
+        return 0
+    print("| mode | envs | steps/s | steps/s/env | real-time x | engine steps/s | cold start s "
+          "| terminations |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['mode']} | {r['n_envs']} | {r['steps_per_s']:.1f} | "
+              f"{r['steps_per_s_per_env']:.1f} | {r['real_time_factor']:.2f} | "
+              f"{r['engine_steps_per_s']:.0f} | {r['cold_start_s']:.2f} | {r['terminations']} |")
+    r = rows[0]
+    print(f"brush {r['brush']} ({r['n_bristles']} bristles x {r['bodies_per_bristle']} bodies), "
+          f"engine dt {r['engine_dt']} s x frame_skip {r['frame_skip']} = "
+          f"{r['control_hz']:.4g} Hz control")
+    return 0
+
+
+def main(argv=None) -> int:  # standalone: python -m brush_env.envs.bench_env
+    p = argparse.ArgumentParser(prog="python -m brush_env.envs.bench_env",
+                                description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,200 @@
+"""Observation types: the named, scaled blocks of BrushEnv's observation, as a Box or a Dict.
+
+``ObservationLayout`` is the single source of the layout: block names, shapes, bounds, units and
+scales, in order.  ``BoxObservation`` concatenates the blocks into one float32 vector (C order);
+``DictObservation`` gives one float32 Box per block.  Every value is divided by its scale and
+clipped to its block's bounds, so observations always lie in the space (the clip only bites in
+extreme states, e.g. the step that leaves the workspace).
+
+Frames: "TCP frame" is the tool frame (z along the bristles, towards the plate); "base frame" is
+the robot base (z up).  Positions are relative to the *nominal* patch centre on the nominal plate
+surface; the actual plate is offset by the (unobserved) ``plate_offset`` drawn at reset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+
+from .config import EnvConfig
+
+__all__ = ["Block", "ObservationLayout", "BoxObservation", "DictObservation",
+           "make_observation_type"]
+
+
+@dataclass(frozen=True)
+class Block:
+    """One named part of the observation: shape, bounds (after scaling), unit and scaling."""
+
+    name: str
+    shape: tuple
+    low: float
+    high: float
+    unit: str
+    scaling: str
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape))
+
+
+class ObservationLayout:
+    """Blocks of the observation for a brush of ``n_bristles`` tips (see the env docstring).
+
+    ``values(...)`` turns physical quantities into the scaled, clipped blocks; ``block(obs,
+    name)`` reads a block back from a Box or Dict observation; ``tcp_pose`` and
+    ``elapsed_steps`` undo the scaling of the blocks a scripted policy needs.
+    """
+
+    def __init__(self, cfg: EnvConfig, n_bristles: int, max_length: float):
+        nb, m = int(n_bristles), cfg.coarse_map_size
+        self.cfg = cfg
+        self.n_bristles = nb
+        self.max_length = float(max_length)
+        h = max(abs(cfg.workspace_height[0]), abs(cfg.workspace_height[1]))
+        self.position_scale = np.array([cfg.workspace_xy, cfg.workspace_xy, h])
+        self.v_max = np.asarray(cfg.max_linear_speed, float)
+        self.w_max = np.asarray(cfg.max_angular_speed, float)
+        L = self.max_length
+        self.blocks = (
+            Block("tip_deflection", (nb, 3), -2.0, 2.0, "mm / L",
+                  f"tip minus its rest position, TCP frame, / L = {L:g} mm"),
+            Block("tip_velocity", (nb, 3), -10.0, 10.0, "mm/s / v_tip",
+                  "tip velocity relative to the rigidly moving head, TCP frame, "
+                  f"/ tip_velocity_scale = {cfg.tip_velocity_scale:g} mm/s"),
+            Block("tip_normal_force", (nb,), 0.0, 10.0, "N / f_tip",
+                  f"plate normal force on each tip / tip_force_limit = {cfg.tip_force_limit:g} N"),
+            Block("tip_contact", (nb,), 0.0, 1.0, "flag", "1 if the tip touches the plate"),
+            Block("tcp_force", (3,), -5.0, 5.0, "N / F_s",
+                  f"force the TCP applies to the brush, TCP frame, / force_scale = "
+                  f"{cfg.force_scale:g} N"),
+            Block("tcp_moment", (3,), -5.0, 5.0, "N mm / M_s",
+                  f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm"),
+            Block("tcp_position", (3,), -1.5, 1.5, "mm / ws",
+                  "TCP x, y about the nominal patch centre and z - L above the nominal plate, "
+                  f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm"),
+            Block("tcp_orientation", (6,), -1.0, 1.0, "-",
+                  "first two columns of the TCP rotation matrix (TCP x and y axes in the base "
+                  "frame)"),
+            Block("tcp_twist", (6,), -1.0, 1.0, "-",
+                  "commanded TCP velocity (v, w), base frame, / (max_linear_speed, "
+                  "max_angular_speed): the last action"),
+            Block("coverage_fraction", (1,), 0.0, 1.0, "-", "fraction of patch cells cleaned"),
+            Block("coverage_map", (m, m), 0.0, 1.0, "-",
+                  f"fraction cleaned per block of the {m} x {m} grid over the patch; row i runs "
+                  "along +y, column j along +x"),
+            Block("time_remaining", (1,), 0.0, 1.0, "-", "1 - elapsed steps / max_episode_steps"),
+        )
+        self.index = {b.name: b for b in self.blocks}
+        self.slices = {}
+        start = 0
+        for b in self.blocks:
+            self.slices[b.name] = slice(start, start + b.size)
+            start += b.size
+        self.size = start
+        self.low = np.concatenate([np.full(b.size, b.low, np.float32) for b in self.blocks])
+        self.high = np.concatenate([np.full(b.size, b.high, np.float32) for b in self.blocks])
+
+    # ------------------------------------------------------------------ physical -> scaled
+    def values(self, *, p, R, v, w, tip_pos, tip_vel, rest_tips, tip_force, tip_contact,
+               tcp_force_tcp, tcp_moment_tcp, p_obs, coverage_fraction, coverage_map,
+               time_remaining) -> dict[str, np.ndarray]:
+        """Scaled, clipped float32 blocks from physical values (mm, s, N; base frame unless
+        stated).  ``p, R``: TCP pose (engine frame); ``v, w``: commanded twist; ``rest_tips``:
+        (nb, 3) tip rest positions in the TCP frame; ``p_obs``: TCP position about the nominal
+        patch centre with z above the nominal plate."""
+        cfg = self.cfg
+        rel = tip_pos - p
+        defl = (rel @ R - rest_tips) / self.max_length
+        vrel = (tip_vel - v - np.cross(w, rel)) @ R / cfg.tip_velocity_scale
+        pos = (np.asarray(p_obs, float) - [0.0, 0.0, self.max_length]) / self.position_scale
+        raw = {
+            "tip_deflection": defl,
+            "tip_velocity": vrel,
+            "tip_normal_force": tip_force / cfg.tip_force_limit,
+            "tip_contact": tip_contact.astype(float),
+            "tcp_force": tcp_force_tcp / cfg.force_scale,
+            "tcp_moment": tcp_moment_tcp / cfg.moment_scale,
+            "tcp_position": pos,
+            "tcp_orientation": np.concatenate([R[:, 0], R[:, 1]]),
+            "tcp_twist": np.concatenate([v / self.v_max, w / self.w_max]),
+            "coverage_fraction": [coverage_fraction],
+            "coverage_map": coverage_map,
+            "time_remaining": [time_remaining],
+        }
+        out = {}
+        for b in self.blocks:
+            a = np.asarray(raw[b.name], dtype=float).reshape(b.shape)
+            out[b.name] = np.clip(a, b.low, b.high).astype(np.float32)
+        return out
+
+    # ------------------------------------------------------------------ scaled -> physical
+    def block(self, obs, name: str) -> np.ndarray:
+        """Block ``name`` of a Box (flat, or batched (n, size)) or Dict observation (scaled)."""
+        if isinstance(obs, dict):
+            return np.asarray(obs[name])
+        obs = np.asarray(obs)
+        b = self.index[name]
+        return obs[..., self.slices[name]].reshape(obs.shape[:-1] + b.shape)
+
+    def tcp_pose(self, obs) -> tuple[np.ndarray, np.ndarray]:
+        """TCP position [mm] (about the nominal patch centre; z above the nominal plate) and
+        rotation matrix from an observation (float32 precision: ~1e-5 mm, ~1e-7 rad)."""
+        pos = self.block(obs, "tcp_position").astype(float) * self.position_scale
+        pos[..., 2] += self.max_length
+        c = self.block(obs, "tcp_orientation").astype(float)
+        x = c[..., 0:3] / np.linalg.norm(c[..., 0:3], axis=-1, keepdims=True)
+        y = c[..., 3:6] - x * np.sum(x * c[..., 3:6], axis=-1, keepdims=True)
+        y /= np.linalg.norm(y, axis=-1, keepdims=True)
+        z = np.cross(x, y)
+        return pos, np.stack([x, y, z], axis=-1)
+
+    def elapsed_steps(self, obs, horizon: int) -> np.ndarray:
+        """Control steps since reset, recovered from ``time_remaining`` (exact for horizons up
+        to ~10^6 steps)."""
+        r = self.block(obs, "time_remaining").astype(float)[..., 0]
+        return np.rint((1.0 - r) * horizon).astype(int)
+
+    def table(self) -> str:
+        """Markdown table of the layout (index range, name, shape, bounds, unit, scaling)."""
+        rows = ["| Index | Block | Shape | Bounds | Unit | Meaning and scaling |",
+                "|---|---|---|---|---|---|"]
+        for b in self.blocks:
+            s = self.slices[b.name]
+            rows.append(f"| {s.start}-{s.stop - 1} | `{b.name}` | {b.shape} | "
+                        f"[{b.low:g}, {b.high:g}] | {b.unit} | {b.scaling} |")
+        return "\n".join(rows)
+
+
+class BoxObservation:
+    """One flat float32 Box: the blocks concatenated in layout order (C order within a block)."""
+
+    def __init__(self, layout: ObservationLayout):
+        self.layout = layout
+
+    def space(self) -> spaces.Box:
+        lay = self.layout
+        return spaces.Box(lay.low.copy(), lay.high.copy(), shape=(lay.size,), dtype=np.float32)
+
+    def observe(self, values: dict[str, np.ndarray]) -> np.ndarray:
+        return np.concatenate([values[b.name].ravel() for b in self.layout.blocks])
+
+
+class DictObservation:
+    """A ``spaces.Dict`` of float32 Boxes, one per block, keyed by block name."""
+
+    def __init__(self, layout: ObservationLayout):
+        self.layout = layout
+
+    def space(self) -> spaces.Dict:
+        return spaces.Dict({b.name: spaces.Box(b.low, b.high, shape=b.shape, dtype=np.float32)
+                            for b in self.layout.blocks})
+
+    def observe(self, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {b.name: values[b.name] for b in self.layout.blocks}
+
+
+def make_observation_type(cfg: EnvConfig, layout: ObservationLayout):
+    return (BoxObservation if cfg.observation_mode == "box" else DictObservation)(layout)

@@ -1,0 +1,132 @@
+"""The paper's press-then-circle motion as a tracking controller on BrushEnv observations.
+
+Pure numpy, no SB3: ``agents/reference.py`` wraps it as an SB3-style policy, and ``brush-env
+bench env`` drives the env with it.  The plan (engine-side trajectories of
+``brush_env.engine.trajectory``), built from the TCP pose of the first observation:
+
+1. **Approach** (quintic, MoveJ stand-in) from the start pose to ``hover`` mm above P0, the
+   circle's start point ``center + radius * (cos start_angle, sin start_angle)``, turning to the
+   paper's orientation ``R_START`` (yaw 0) in 6-D mode (3-D mode keeps the start orientation).
+   Its duration is at least ``approach_time`` and long enough that the quintic's peak speed stays
+   under 80 % of the action limits.
+2. **Press** (quintic) ``hover + press_depth`` mm along the bristle axis in ``press_time``: the
+   paper's 3 mm press, measured from the *nominal* plate (the plate offset is not observed).
+3. **Circle** of ``radius`` (paper: 20 mm) about the nominal patch centre at ``speed`` with a
+   trapezoidal profile of acceleration ``accel``, counter-clockwise from P0 (Figure 6), for as
+   many turns as the episode allows; the exact circle (not the four-point MoveL path).
+
+Tracking law at step k (time t_k = k dt, pose (p, R) from the observation):
+``v = (P(t_k+1) - P(t_k)) / dt + kp (P(t_k) - p)`` and
+``w = log(R(t_k+1) R(t_k)^T) / dt + kr log(R(t_k) R^T)`` — the feed-forward is the exact mean
+velocity over the step, the proportional term removes drift (float32 observations, clipping).
+The action is the twist divided by the env's limits, clipped to [-1, 1].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from brush_env.engine.trajectory import R0 as R_START
+from brush_env.engine.trajectory import Approach, Circle, Press, Sequence
+
+from .action import TcpVelocityAction
+from .observation import ObservationLayout
+
+__all__ = ["CircleReference", "log_so3"]
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector of a rotation matrix (angle < pi)."""
+    c = min(1.0, max(-1.0, 0.5 * (np.trace(R) - 1.0)))
+    th = math.acos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if th < 1e-9:
+        return 0.5 * v
+    return th / (2.0 * math.sin(th)) * v
+
+
+class CircleReference:
+    """Plans and tracks the press-then-circle motion for one episode at a time.
+
+    ``layout``/``action_type``/``dt``/``horizon`` come from the env (``BrushEnv.layout``,
+    ``.action_type``, ``.dt``, ``.horizon``).  Geometry in mm about the nominal patch centre,
+    speeds in mm/s, times in s, gains in 1/s.
+    """
+
+    def __init__(self, layout: ObservationLayout, action_type: TcpVelocityAction, dt: float,
+                 horizon: int, *, radius: float = 20.0, speed: float = 30.0,
+                 accel: float = 100.0, press_depth: float = 3.0, hover: float = 1.0,
+                 approach_time: float = 1.5, press_time: float = 1.0,
+                 center=(0.0, 0.0), start_angle: float = math.pi, clockwise: bool = False,
+                 kp: float = 5.0, kr: float = 5.0):
+        for name, val in (("radius", radius), ("speed", speed), ("accel", accel),
+                          ("approach_time", approach_time), ("press_time", press_time),
+                          ("dt", dt)):
+            if not (math.isfinite(val) and val > 0):
+                raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
+        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp),
+                          ("kr", kr)):
+            if not (math.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
+        if speed > 0.8 * float(min(action_type.v_max[:2])):
+            raise ValueError(f"speed = {speed!r} mm/s is out of range: must be <= 80 % of the "
+                             f"env's max_linear_speed in x, y ({list(action_type.v_max[:2])})")
+        self.layout, self.action_type = layout, action_type
+        self.dt, self.horizon = float(dt), int(horizon)
+        self.radius, self.speed, self.accel = radius, speed, accel
+        self.press_depth, self.hover = press_depth, hover
+        self.approach_time, self.press_time = approach_time, press_time
+        self.center = np.array([center[0], center[1]], float)
+        self.start_angle, self.clockwise = start_angle, clockwise
+        self.kp, self.kr = kp, kr
+        self.L = layout.max_length
+        self.trajectory = None
+        self.circle = None
+
+    @property
+    def rotates(self) -> bool:
+        return self.action_type.dim == 6
+
+    def plan(self, p0: np.ndarray, R0: np.ndarray) -> None:
+        """Build the trajectory from the start pose (base frame) and sample it on the step grid."""
+        R_goal = R_START if self.rotates else R0
+        ang = self.start_angle
+        P0 = np.array([self.center[0] + self.radius * math.cos(ang),
+                       self.center[1] + self.radius * math.sin(ang), self.L + self.hover])
+        d = np.abs(P0 - p0)
+        rot = np.abs(log_so3(R_goal @ R0.T))
+        t_app = max(self.approach_time,
+                    float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
+                    float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates
+                    else 0.0)
+        approach = Approach((p0, R0), (P0, R_goal), t_app)
+        press = Press((P0, R_goal), self.hover + self.press_depth, self.press_time)
+        z_c = self.L - self.press_depth
+        t_left = max(self.horizon * self.dt - t_app - self.press_time, 1.0)
+        turns = max(0.25, t_left * self.speed / (2.0 * math.pi * self.radius) + 0.25)
+        self.circle = Circle((self.center[0], self.center[1], z_c), self.radius, self.speed,
+                             self.accel, turns=turns, start_angle=ang, R=R_goal,
+                             clockwise=self.clockwise)
+        self.trajectory = Sequence([approach, press, self.circle])
+        self.circle_start = t_app + self.press_time
+        times = np.arange(self.horizon + 2) * self.dt
+        self._P, self._R, _, _ = self.trajectory.sample(times)
+
+    def desired(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Planned pose at step k (held at the last sample beyond the horizon)."""
+        k = min(max(int(k), 0), len(self._P) - 1)
+        return self._P[k], self._R[k]
+
+    def act(self, k: int, p: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """Action at step k for the observed pose (p [mm], R); plans first at k == 0."""
+        if k == 0 or self.trajectory is None:
+            self.plan(p, R)
+        k0 = min(max(int(k), 0), len(self._P) - 2)
+        P0, P1 = self._P[k0], self._P[k0 + 1]
+        R0, R1 = self._R[k0], self._R[k0 + 1]
+        v = (P1 - P0) / self.dt + self.kp * (P0 - p)
+        w = log_so3(R1 @ R0.T) / self.dt + self.kr * log_so3(R0 @ R.T) if self.rotates \
+            else np.zeros(3)
+        return self.action_type.normalise(v, w)

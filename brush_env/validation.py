@@ -1,0 +1,317 @@
+"""``brush-env validate``: the discrete beam model against closed-form references.
+
+One straight bristle is clamped at the origin along world x, its section width along world y
+(so local x, y, z = world x, y, z); gravity is off.  Units: mm, N, s, tonne, E in MPa.
+
+* ``validate cantilever --alpha A --bodies N``: dead tip load P = A E I / L^2 perpendicular to the
+  axis, static solve.  Bending about the thin direction (load along local z, I = I_y = b h^3/12)
+  unless ``--plane wide`` (load along local y, I = I_z = h b^3/12).  Reference: linear Timoshenko
+  (with shear) for A <= 0.1, the exact elastica (inextensible, unshearable) above.
+* ``validate frequency --bodies N``: first bending frequency (thin direction) against
+  Euler-Bernoulli.
+* ``validate all``: the acceptance suite (table, non-zero exit on any failure).
+
+Geometry defaults are the paper's inner bristle (L = 10, b = 1.8, h = 0.8 mm, L/h = 12.5).  The
+elastica and Euler-Bernoulli references neglect shear, axial strain and rotary inertia, so the
+suite checks them on a slender bristle (L = 40, b = 1.0, h = 0.5 mm, L/h = 80).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .engine import BristleConfig, BrushConfig, Material, Section, SimSettings, Simulator
+from .engine import reference as ref
+from .engine.modal import bristle_stiffness_mass, natural_frequencies
+
+LINEAR_ALPHA_MAX = 0.1  # alpha <= this: linear Timoshenko reference
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Straight rectangular bristle: length, width b, thickness h [mm]; E [MPa]; nu [-];
+    density [t/mm^3]."""
+
+    length: float = 10.0
+    width: float = 1.8
+    thickness: float = 0.8
+    E: float = 7.0
+    nu: float = 0.48
+    density: float = 1.15e-9
+
+    @property
+    def material(self) -> Material:
+        return Material(name="validation", E=self.E, nu=self.nu, density=self.density,
+                        damping_ratio=0.1)
+
+    @property
+    def section(self) -> Section:
+        return Section.rect(self.width, self.thickness)
+
+    def brush(self, bodies: int) -> BrushConfig:
+        """One bristle, root at the origin, axis +x, width +y (TCP = head = world at reset)."""
+        br = BristleConfig(root=(0.0, 0.0, 0.0), axis=(1.0, 0.0, 0.0), width_dir=(0.0, 1.0, 0.0),
+                           length=self.length, section=self.section, material=self.material,
+                           bodies=bodies, tip_radius=min(0.2, self.length))
+        return BrushConfig(name="validation", head_offset=(0.0, 0.0, 0.0),
+                           head_rpy=(0.0, 0.0, 0.0), bristles=(br,))
+
+    def simulator(self, bodies: int, settings: SimSettings | None = None) -> Simulator:
+        """A simulator holding this bristle, reset at the identity TCP pose (default settings:
+        gravity off)."""
+        sim = Simulator(self.brush(bodies), settings or SimSettings(gravity=(0.0, 0.0, 0.0)))
+        sim.reset()
+        return sim
+
+    def label(self, bodies: int) -> str:
+        return (f"L={self.length:g} b={self.width:g} h={self.thickness:g} E={self.E:g} "
+                f"nu={self.nu:g} n={bodies}")
+
+
+PAPER_INNER = Geometry()
+SLENDER = Geometry(length=40.0, width=1.0, thickness=0.5)
+
+
+def _rel(computed: float, reference: float) -> float:
+    return (computed - reference) / reference
+
+
+def _cmp(computed: dict, reference: dict) -> dict:
+    return {k: _rel(computed[k], reference[k]) for k in reference}
+
+
+def cantilever(alpha: float, bodies: int, geom: Geometry = PAPER_INNER,
+               increments: int | None = None, plane: str = "thin") -> dict:
+    """Static tip of a clamped bristle under a dead transverse tip load P = alpha E I / L^2 [N].
+
+    plane "thin": load along local z, I = I_y; "wide": load along local y, I = I_z.  Returns a
+    JSON-able dict: settings, reference_kind, computed / reference / rel_error each holding
+    v_over_L (deflection along the load / L), h_over_L (shortening along the axis / L) and
+    tip_angle_rad (rotation of the last body's axis).
+    """
+    if plane not in ("thin", "wide"):
+        raise ValueError(f"plane = {plane!r}: must be 'thin' or 'wide'")
+    if not alpha > 0.0:
+        raise ValueError(f"alpha = {alpha!r}: must be > 0")
+    c = 2 if plane == "thin" else 1  # world (= local) component of the load
+    sec, mat, L = geom.section, geom.material, geom.length
+    I = sec.I_y if plane == "thin" else sec.I_z
+    EI = mat.E * I
+    P = alpha * EI / L**2
+    increments = increments or max(1, math.ceil(alpha))
+    sim = geom.simulator(bodies)
+    F = np.zeros((1, 3))
+    F[0, c] = P
+    sim.set_tip_forces(F)
+    out = sim.solve_static(increments=increments)
+    tip = out.tip_pos[0]
+    R = sim.state.rot[sim.model.bstart[1] - 1]
+    computed = {"v_over_L": float(tip[c] / L), "h_over_L": float(1.0 - tip[0] / L),
+                "tip_angle_rad": float(math.atan2(R[c, 0], R[0, 0]))}
+    if alpha <= LINEAR_ALPHA_MAX:
+        kind = "timoshenko"
+        tim = ref.timoshenko_cantilever_tip(P, L, mat.E, mat.G, I, sec.area,
+                                            sec.shear_coeff(mat.nu))
+        reference = {"v_over_L": tim["v"] / L, "h_over_L": alpha**2 / 15.0,
+                     "tip_angle_rad": tim["theta"]}
+        note = ("linear Timoshenko beam with shear (Cowper kappa); h_over_L is the elastica's "
+                "small-alpha value alpha^2/15 (second order, absent from linear theory)")
+    else:
+        kind = "elastica"
+        reference = ref.elastica_cantilever(alpha)
+        note = ("exact elastica (Bisshopp-Drucker): inextensible, unshearable, dead load; "
+                "meaningful for slender bristles (L/h >= 50)")
+    settings = {**asdict(geom), "bodies": bodies, "alpha": alpha, "plane": plane,
+                "increments": increments, "P_N": P, "EI_Nmm2": EI,
+                "slenderness": L / (sec.thickness if plane == "thin" else sec.width)}
+    return {"check": "cantilever", "settings": settings, "reference_kind": kind,
+            "reference_note": note, "computed": computed, "reference": reference,
+            "rel_error": _cmp(computed, reference), "newton_iterations": out.iterations}
+
+
+MODE_KINDS = ("axial", "bend_wide", "bend_thin", "torsion")  # dominant motion of a mode
+
+
+def classified_modes(sim: Simulator, bristle: int = 0) -> tuple[np.ndarray, list[str]]:
+    """All natural frequencies [Hz] of a straight bristle lying along world x (ascending) and the
+    kind of each mode: the motion holding most of its kinetic energy (axial: x translation,
+    bend_wide: y translation + z rotation, bend_thin: z translation + y rotation, torsion: x
+    rotation).  Same K, M as modal.natural_frequencies.
+    """
+    K, M = bristle_stiffness_mass(sim, bristle)
+    Lc = np.linalg.cholesky(M)
+    Li = np.linalg.inv(Lc)
+    w2, V = np.linalg.eigh(Li @ (0.5 * (K + K.T)) @ Li.T)
+    phi = Li.T @ V  # M-orthonormal mode shapes
+    energy = (phi * (M @ phi)).reshape(-1, 6, phi.shape[1]).sum(axis=0)  # (6 dofs, modes)
+    share = np.stack([energy[0], energy[1] + energy[5], energy[2] + energy[4], energy[3]])
+    kinds = [MODE_KINDS[i] for i in np.argmax(share, axis=0)]
+    return np.sqrt(np.clip(w2, 0.0, None)) / (2.0 * np.pi), kinds
+
+
+def frequency(bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin") -> dict:
+    """First bending frequency [Hz] (modal analysis of the model) against Euler-Bernoulli.
+
+    plane "thin" (I_y: the lowest mode of a flat bristle) or "wide" (I_z); the mode is picked by
+    its shape (lowest mode whose motion is bending in that plane), not by its frequency.
+    """
+    sec, mat = geom.section, geom.material
+    I = sec.I_y if plane == "thin" else sec.I_z
+    fref = float(ref.euler_bernoulli_cantilever_frequencies(geom.length, mat.E, I, mat.density,
+                                                            sec.area, 1)[0])
+    sim = geom.simulator(bodies)
+    f, kinds = classified_modes(sim)
+    fc = float(f[kinds.index("bend_" + plane)])
+    settings = {**asdict(geom), "bodies": bodies, "plane": plane}
+    return {"check": "frequency", "settings": settings, "computed_hz": fc, "reference_hz": fref,
+            "rel_error": _rel(fc, fref),
+            "lowest_modes_hz": [float(x) for x in natural_frequencies(sim, 0, 6)]}
+
+
+def axial(bodies: int, geom: Geometry = PAPER_INNER, strain: float = 1e-4) -> dict:
+    """Tip elongation [mm] under an axial tip load P = strain E A [N] against P L / (E A)."""
+    sec, mat = geom.section, geom.material
+    P = strain * mat.E * sec.area
+    sim = geom.simulator(bodies)
+    sim.set_tip_forces(np.array([[P, 0.0, 0.0]]))
+    u = float(sim.solve_static().tip_pos[0, 0] - geom.length)
+    uref = ref.axial_tip(P, geom.length, mat.E, sec.area)
+    return {"check": "axial", "settings": {**asdict(geom), "bodies": bodies, "P_N": P},
+            "computed_mm": u, "reference_mm": uref, "rel_error": _rel(u, uref)}
+
+
+def torsion(bodies: int, geom: Geometry = PAPER_INNER) -> dict:
+    """Tip twist compliance [rad/(N mm)] from the model's tangent stiffness against L / (G J).
+
+    The engine has no tip moments, so a unit torque about the axis is applied to the last body
+    through the inverse of the static tangent stiffness (modal.bristle_stiffness_mass).
+    """
+    sec, mat = geom.section, geom.material
+    K, _ = bristle_stiffness_mass(geom.simulator(bodies), 0)
+    c = float(np.linalg.solve(K, np.eye(len(K))[:, 6 * bodies - 3])[6 * bodies - 3])
+    cref = ref.torsion_tip(1.0, geom.length, mat.G, sec.J)
+    return {"check": "torsion", "settings": {**asdict(geom), "bodies": bodies},
+            "computed_rad_per_Nmm": c, "reference_rad_per_Nmm": cref, "rel_error": _rel(c, cref)}
+
+
+# --------------------------------------------------------------------------- the suite
+@dataclass
+class Check:
+    """One row of ``validate all``: |error| <= limit passes."""
+
+    check: str
+    settings: str
+    computed: float
+    reference: float
+    error: float
+    limit: float
+
+    @property
+    def passed(self) -> bool:
+        return bool(abs(self.error) <= self.limit)
+
+
+def suite() -> list[Check]:
+    """The engine-core acceptance criteria (issue "engine core", Done-when)."""
+    rows = []
+    for plane in ("thin", "wide"):
+        for alpha in (0.01, 0.1):
+            r = cantilever(alpha, 6, PAPER_INNER, plane=plane)
+            s = f"{PAPER_INNER.label(6)} alpha={alpha:g} {plane}"
+            for key in ("v_over_L", "tip_angle_rad"):
+                rows.append(Check(f"timoshenko {key}", s, r["computed"][key],
+                                  r["reference"][key], r["rel_error"][key], 0.005))
+    for alpha in (1.0, 2.0, 5.0, 10.0):
+        for bodies, lim_v, lim_h in ((6, 0.02, 0.03), (24, 0.003, 0.005)):
+            r = cantilever(alpha, bodies, SLENDER)
+            s = f"{SLENDER.label(bodies)} alpha={alpha:g}"
+            for key, lim in (("v_over_L", lim_v), ("h_over_L", lim_h)):
+                rows.append(Check(f"elastica {key}", s, r["computed"][key], r["reference"][key],
+                                  r["rel_error"][key], lim))
+    r = axial(6, PAPER_INNER)
+    rows.append(Check("axial u [mm]", f"{PAPER_INNER.label(6)} P={r['settings']['P_N']:.3g}",
+                      r["computed_mm"], r["reference_mm"], r["rel_error"], 0.001))
+    r = torsion(6, PAPER_INNER)
+    rows.append(Check("torsion compliance [1/(N mm)]", PAPER_INNER.label(6),
+                      r["computed_rad_per_Nmm"], r["reference_rad_per_Nmm"], r["rel_error"],
+                      0.001))
+    for bodies, lim in ((6, 0.03), (24, 0.005)):
+        r = frequency(bodies, SLENDER)
+        rows.append(Check("first frequency [Hz]", SLENDER.label(bodies), r["computed_hz"],
+                          r["reference_hz"], r["rel_error"], lim))
+    return rows
+
+
+def format_table(rows: list[Check]) -> str:
+    head = ("check", "settings", "computed", "reference", "error", "limit", "result")
+    body = [(r.check, r.settings, f"{r.computed:.6g}", f"{r.reference:.6g}", f"{r.error:+.3e}",
+             f"{r.limit:.1%}", "PASS" if r.passed else "FAIL") for r in rows]
+    w = [max(len(x[i]) for x in [head, *body]) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w[i]) for i, c in enumerate(x)).rstrip() for x in [head, *body]]
+    lines.insert(1, "  ".join("-" * n for n in w))
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- CLI
+def _geometry_args(p) -> None:
+    g = PAPER_INNER
+    p.add_argument("--bodies", type=int, default=6, help="rigid bodies per bristle (default 6)")
+    p.add_argument("--length", type=float, default=g.length, help="L [mm] (default %(default)s)")
+    p.add_argument("--width", type=float, default=g.width, help="b [mm] (default %(default)s)")
+    p.add_argument("--thickness", type=float, default=g.thickness,
+                   help="h [mm] (default %(default)s)")
+    p.add_argument("--E", type=float, default=g.E, help="Young's modulus [MPa] (default 7)")
+    p.add_argument("--nu", type=float, default=g.nu, help="Poisson ratio (default 0.48)")
+    p.add_argument("--plane", choices=("thin", "wide"), default="thin",
+                   help="bending about the thin (load along h) or wide direction")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def add_arguments(parser) -> None:
+    sub = parser.add_subparsers(dest="case", required=True)
+    p = sub.add_parser("cantilever", help="static tip load, against Timoshenko / elastica")
+    p.add_argument("--alpha", type=float, required=True, help="load P L^2 / (E I) [-]")
+    p.add_argument("--increments", type=int, default=None,
+                   help="load steps of the static solve (default ceil(alpha))")
+    _geometry_args(p)
+    p = sub.add_parser("frequency", help="first bending frequency, against Euler-Bernoulli")
+    _geometry_args(p)
+    p = sub.add_parser("all", help="the acceptance suite; exit 1 on any failure")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def run(args) -> int:
+    if args.case == "all":
+        rows = suite()
+        ok = all(r.passed for r in rows)
+        if args.json:
+            print(json.dumps({"passed": ok, "checks": [{**asdict(r), "passed": r.passed}
+                                                       for r in rows]}, indent=1))
+        else:
+            print(format_table(rows))
+            print(f"\n{sum(r.passed for r in rows)}/{len(rows)} checks passed")
+        return 0 if ok else 1
+    geom = Geometry(args.length, args.width, args.thickness, args.E, args.nu)
+    if args.case == "cantilever":
+        res = cantilever(args.alpha, args.bodies, geom, args.increments, args.plane)
+        if args.json:
+            print(json.dumps(res, indent=1))
+        else:
+            print(f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
+                  f"reference: {res['reference_kind']} ({res['reference_note']})")
+            for k in res["computed"]:
+                print(f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
+                      f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}")
+        return 0
+    res = frequency(args.bodies, geom, args.plane)
+    if args.json:
+        print(json.dumps(res, indent=1))
+    else:
+        print(f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
+              f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
+              f"rel. error {res['rel_error']:+.3e}")
+    return 0

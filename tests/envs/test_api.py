@@ -1,0 +1,134 @@
+"""Gymnasium / SB3 API conformance of every registered id, registration, vector envs."""
+
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import brush_env
+
+from .conftest import ENV_ID, TINY
+
+VARIANTS = [{}, {"observation_mode": "dict"}, {"action_mode": "3d"}]
+
+
+@pytest.mark.parametrize("env_id", sorted(brush_env.ENV_IDS))
+@pytest.mark.parametrize("variant", VARIANTS, ids=["box-6d", "dict", "3d"])
+def test_gymnasium_check_env(env_id, variant):
+    env = gym.make(env_id, **TINY, **variant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any checker warning fails the test
+        check_env(env.unwrapped)  # unwrapped: the checker warns about wrappers otherwise
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", sorted(brush_env.ENV_IDS))
+@pytest.mark.parametrize("variant", VARIANTS, ids=["box-6d", "dict", "3d"])
+def test_sb3_check_env(env_id, variant):
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make(env_id, **TINY, **variant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # Justified: the Dict variant keeps the per-tip blocks as (nb, 3) and the coverage map as
+        # (m, m) on purpose (that is what a Dict is for); SB3's MultiInputPolicy flattens every
+        # non-image Box (CombinedExtractor -> nn.Flatten), so the shapes are handled.  The Box
+        # variant (the registered default) raises no warning at all.
+        warnings.filterwarnings("ignore", message=r"Your observation \w+ has an unconventional "
+                                "shape", category=UserWarning)
+        sb3_check_env(env.unwrapped, warn=True)
+    env.close()
+
+
+def test_make_with_module_prefix_in_fresh_subprocess():
+    code = (
+        "import sys, gymnasium as gym\n"
+        "assert 'brush_env' not in sys.modules\n"
+        "env = gym.make('brush_env:brush_env/FlatPlate-v0', brush='tiny_env')\n"
+        "obs, info = env.reset(seed=0)\n"
+        "obs, r, term, trunc, info = env.step(env.action_space.sample())\n"
+        "assert obs.shape == env.observation_space.shape\n"
+        "print('OK', env.spec.max_episode_steps)\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "OK 300"
+
+
+def test_import_registers_without_loading_envs():
+    code = ("import sys, brush_env, gymnasium as gym\n"
+            "assert 'brush_env/FlatPlate-v0' in gym.registry\n"
+            "assert 'brush_env.envs.flat_plate' not in sys.modules\n"
+            "print('OK')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60)
+    assert res.returncode == 0 and res.stdout.strip() == "OK", res.stderr
+
+
+def test_registration_is_idempotent():
+    import importlib
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # re-registering would warn "Overriding environment"
+        importlib.reload(brush_env)
+        brush_env._register()
+    assert gym.spec(ENV_ID).entry_point == "brush_env.envs.flat_plate:BrushEnv"
+
+
+def test_subproc_vec_env_steps():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    venv = make_vec_env("brush_env:brush_env/FlatPlate-v0", n_envs=2, seed=0,
+                        vec_env_cls=SubprocVecEnv, env_kwargs=TINY)
+    try:
+        obs = venv.reset()
+        assert obs.shape == (2,) + venv.observation_space.shape
+        for _ in range(3):
+            obs, rew, done, infos = venv.step(np.zeros((2, 6), np.float32))
+        assert obs.shape[0] == 2 and rew.shape == (2,) and len(infos) == 2
+        assert not np.array_equal(obs[0], obs[1])  # different seeds, different start poses
+        assert set(infos[0]["reward_terms"]) == {"coverage", "total_force", "tip_force",
+                                                 "termination"}
+    finally:
+        venv.close()
+
+
+@pytest.mark.parametrize("engine_dt,frame_skip", [(0.004, 10), (0.002, 5), (0.005, 7)])
+def test_dt_and_render_fps(make_env, engine_dt, frame_skip):
+    env = make_env(engine_dt=engine_dt, frame_skip=frame_skip)
+    u = env.unwrapped
+    assert u.dt == pytest.approx(engine_dt * frame_skip)
+    assert u.metadata["render_fps"] == pytest.approx(1.0 / u.dt)
+    assert u.sim.settings.dt == engine_dt
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.zeros(6, np.float32))
+    assert info["time"] == pytest.approx(u.dt)
+
+
+def test_time_limit_from_make_overrides_config(make_env):
+    """gym.make's max_episode_steps (the TimeLimit) is what time_remaining counts down."""
+    env = make_env(max_episode_steps=4)
+    assert env.unwrapped.horizon == 300  # the config's, until a reset through the TimeLimit
+    env.reset(seed=0)
+    assert env.unwrapped.horizon == 4
+    for k in range(4):
+        obs, _, term, trunc, _ = env.step(np.zeros(6, np.float32))
+        assert not term
+        assert trunc == (k == 3)
+    assert env.unwrapped.layout.block(obs, "time_remaining")[0] == 0.0
+
+
+def test_horizon_without_time_limit_is_the_config_value():
+    from brush_env.envs import BrushEnv
+
+    env = BrushEnv(brush="tiny_env", max_episode_steps=7)
+    obs, _ = env.reset(seed=0)
+    assert env.horizon == 7
+    obs, *_ = env.step(np.zeros(6, np.float32))
+    assert env.layout.block(obs, "time_remaining")[0] == pytest.approx(6 / 7)

@@ -1,0 +1,304 @@
+"""BrushEnv behaviour: determinism, bounds, reward terms, episode end, actions, config errors."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from brush_env.engine import ConfigError, SimulationDivergence
+from brush_env.envs import BrushEnv
+from brush_env.envs.flat_plate import REWARD_TERMS
+
+from .conftest import ENV_ID, NO_CONTACT, TINY
+
+ZERO = np.zeros(6, np.float32)
+
+
+def _actions(n, dim=6, seed=0, z_bias=0.0):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-1, 1, (n, dim)).astype(np.float32)
+    a[:, 2] = np.clip(a[:, 2] + z_bias, -1, 1)
+    return a
+
+
+def _rollout(env, seed, actions, options=None):
+    obs, info = env.reset(seed=seed, options=options)
+    out = [(obs, 0.0, False, False, info)]
+    for a in actions:
+        step = env.step(a)
+        out.append(step)
+        if step[2] or step[3]:
+            break
+    return out
+
+
+# ---------------------------------------------------------------- determinism
+def test_seeded_episode_is_bit_for_bit_reproducible(make_env):
+    acts = _actions(25, z_bias=-0.6)  # presses towards the plate: contact if the engine has it
+    a = _rollout(make_env(), 7, acts)
+    b = _rollout(make_env(), 7, acts)
+    env = make_env()
+    _rollout(env, 3, acts[:5])  # a different episode first: reset must clear everything
+    c = _rollout(env, 7, acts)
+    for run in (b, c):
+        assert len(run) == len(a)
+        for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(a, run):
+            assert o1.tobytes() == o2.tobytes()
+            assert r1 == r2 and t1 == t2 and u1 == u2
+            assert i1.get("reward_terms") == i2.get("reward_terms")
+            assert np.array_equal(i1["tcp_position"], i2["tcp_position"])
+
+
+def test_seeds_randomise_start_pose_and_plate_offset_within_ranges(make_env):
+    env = make_env()
+    cfg = env.unwrapped.config
+    L = env.unwrapped.L
+    starts, offsets, yaws = [], [], []
+    for seed in range(20):
+        obs, info = env.reset(seed=seed)
+        starts.append(info["tcp_position"])
+        offsets.append(info["plate_offset"])
+        _, R = env.unwrapped.layout.tcp_pose(obs)
+        yaws.append(math.degrees(math.atan2(R[1, 0], R[0, 0])))
+    starts, offsets = np.array(starts), np.array(offsets)
+    assert len({tuple(s) for s in starts}) == 20
+    assert np.all(np.abs(starts[:, :2] - cfg.start_center) <= cfg.start_xy_range)
+    h = starts[:, 2] - L
+    assert np.all((h >= cfg.start_height[0]) & (h <= cfg.start_height[1]))
+    assert np.all(np.abs(offsets) <= np.array(cfg.plate_offset_range))
+    assert np.all(np.abs(yaws) <= cfg.start_yaw_range_deg + 1e-4)
+
+
+# ---------------------------------------------------------------- bounds, rewards
+@pytest.mark.parametrize("mode", ["box", "dict"])
+def test_observations_within_bounds_over_random_episode(make_env, mode):
+    env = make_env(observation_mode=mode, max_episode_steps=40)
+    space = env.observation_space
+    for seed in (0, 1):
+        for obs, *_ in _rollout(env, seed, _actions(40, seed=seed, z_bias=-0.3)):
+            assert space.contains(obs)
+            values = obs.values() if mode == "dict" else [obs]
+            assert all(v.dtype == np.float32 and np.all(np.isfinite(v)) for v in values)
+
+
+def test_reward_terms_sum_to_reward(make_env):
+    env = make_env(max_episode_steps=40)
+    n = 0
+    for seed in (0, 1, 2):
+        for obs, r, term, trunc, info in _rollout(env, seed, _actions(40, seed=seed,
+                                                                      z_bias=-0.5))[1:]:
+            terms = info["reward_terms"]
+            assert tuple(terms) == REWARD_TERMS
+            assert r == pytest.approx(sum(terms.values()), abs=1e-12)
+            assert terms["coverage"] >= 0.0
+            assert terms["total_force"] <= 0.0 and terms["tip_force"] <= 0.0
+            assert terms["termination"] == (-env.unwrapped.config.termination_penalty
+                                            if term else 0.0)
+            n += 1
+    assert n > 0
+
+
+def test_coverage_reward_is_weighted_new_cells(make_env):
+    """coverage term = coverage_weight * new cells / cells, checked by driving the stamp."""
+    env = make_env(coverage_weight=50.0)
+    env.reset(seed=0)
+    u = env.unwrapped
+    before = u.coverage.count
+    _, _, _, _, info = env.step(ZERO)
+    new = u.coverage.count - before
+    assert info["reward_terms"]["coverage"] == pytest.approx(50.0 * new / u.coverage.total)
+    assert info["coverage"] == u.coverage.fraction
+
+
+# ---------------------------------------------------------------- kinematics of the actions
+def test_twist_is_integrated_exactly(make_env):
+    env = make_env(max_episode_steps=50)
+    u = env.unwrapped
+    obs, info = env.reset(seed=0, options={**NO_CONTACT, "yaw_deg": 0.0})
+    p0 = info["tcp_position"].copy()
+    a = np.array([0.4, -0.2, 0.5, 0.0, 0.0, 0.3], np.float32)
+    n = 10
+    for _ in range(n):
+        obs, _, term, _, info = env.step(a)
+        assert not term
+    v = a[:3].astype(float) * np.array(u.config.max_linear_speed)
+    assert np.allclose(info["tcp_position"], p0 + v * u.dt * n, atol=1e-9)
+    _, R = u.layout.tcp_pose(obs)
+    yaw = math.atan2(R[1, 0], R[0, 0])
+    assert yaw == pytest.approx(0.3 * u.config.max_angular_speed[2] * u.dt * n, abs=1e-5)
+    assert np.allclose(u.layout.block(obs, "tcp_twist"), a, atol=1e-6)
+
+
+def test_translational_mode_keeps_orientation(make_env):
+    env = make_env(action_mode="3d")
+    assert env.action_space.shape == (3,)
+    obs0, _ = env.reset(seed=4, options=NO_CONTACT)
+    for _ in range(5):
+        obs, *_ = env.step(np.array([0.5, 0.5, 0.2], np.float32))
+    lay = env.unwrapped.layout
+    assert np.array_equal(lay.block(obs, "tcp_orientation"), lay.block(obs0, "tcp_orientation"))
+
+
+# ---------------------------------------------------------------- bad actions, API misuse
+def test_bad_actions_raise_with_shape_and_value(make_env):
+    env = make_env()
+    u = env.unwrapped
+    with pytest.raises(RuntimeError, match="reset"):
+        u.step(ZERO)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(5,\).*\(6,\)"):
+        u.step(np.zeros(5, np.float32))
+    with pytest.raises(ValueError, match="not finite"):
+        u.step(np.array([0, np.nan, 0, 0, 0, 0], np.float32))
+    with pytest.raises(ValueError, match="not finite"):
+        u.step(np.array([0, 0, np.inf, 0, 0, 0]))
+    with pytest.raises(ValueError, match="not numeric"):
+        u.step("up")
+    # finite values outside [-1, 1] are clipped, as the docs say
+    _, _, _, _, info = u.step(np.array([5.0, 0, 0, 0, 0, 0]))
+    obs, *_ = u.step(ZERO)
+    assert u.layout.block(obs, "tcp_twist")[0] == 0.0
+
+
+def test_reset_options_are_validated(make_env):
+    env = make_env()
+    with pytest.raises(ValueError, match="unknown"):
+        env.reset(seed=0, options={"tcp_pos": [0, 0, 12]})
+    with pytest.raises(ValueError, match="plate_offset"):
+        env.reset(seed=0, options={"plate_offset": [0, 0]})
+    _, info = env.reset(seed=0, options={"tcp_position": [1.0, 2.0, 12.0],
+                                         "plate_offset": [0.0, 0.0, 0.0]})
+    assert np.allclose(info["tcp_position"], [1.0, 2.0, 12.0])
+
+
+# ---------------------------------------------------------------- episode end
+def test_leaving_the_workspace_terminates(make_env):
+    env = make_env()
+    env.reset(seed=0, options=NO_CONTACT)
+    for k in range(500):
+        _, r, term, trunc, info = env.step(np.array([0, 0, 1, 0, 0, 0], np.float32))
+        if term:
+            break
+    assert term and not trunc and info["termination"] == "workspace"
+    assert info["tcp_position"][2] - env.unwrapped.L > env.unwrapped.config.workspace_height[1]
+    assert info["reward_terms"]["termination"] == -env.unwrapped.config.termination_penalty
+    with pytest.raises(RuntimeError, match="terminated"):
+        env.unwrapped.step(ZERO)
+
+
+def test_tilting_too_far_terminates(make_env):
+    env = make_env(max_tilt_deg=5.0)
+    env.reset(seed=0, options=NO_CONTACT)
+    for _ in range(50):
+        *_, term, _, info = env.step(np.array([0, 0, 0, 1, 0, 0], np.float32))
+        if term:
+            break
+    assert info["termination"] == "workspace"
+
+
+class _Faulty:
+    """Wraps the engine: raises SimulationDivergence on call ``fail_at`` or scales the tip
+    forces from call ``force_from`` on (to exercise the env's logic without real contact)."""
+
+    def __init__(self, sim, fail_at=None, force_from=None, force=1.0):
+        self.sim, self.calls = sim, 0
+        self.fail_at, self.force_from, self.force = fail_at, force_from, force
+
+    def __call__(self, p, R):
+        self.calls += 1
+        if self.fail_at is not None and self.calls >= self.fail_at:
+            raise SimulationDivergence(self.sim.state.time, [0], "injected for the test")
+        out = self._step(p, R)
+        if self.force_from is not None and self.calls >= self.force_from:
+            out.tip_normal_force = np.full_like(out.tip_normal_force, self.force)
+            out.tip_in_contact = np.ones_like(out.tip_in_contact)
+            out.tip_contact_point = out.tip_pos.copy()
+        return out
+
+
+def _inject(env, **kw):
+    sim = env.unwrapped.sim
+    fault = _Faulty(sim, **kw)
+    fault._step = sim.step
+    sim.step = fault
+    return fault
+
+
+def test_divergence_terminates_and_keeps_the_last_converged_state(make_env):
+    env = make_env()
+    u = env.unwrapped
+    env.reset(seed=0)
+    obs0, *_ = env.step(ZERO)
+    state = u.sim.get_state()
+    _inject(env, fail_at=4)  # fails on the 4th engine step of the next control step
+    obs, r, term, trunc, info = env.step(np.array([0.5, 0, 0, 0, 0, 0], np.float32))
+    assert term and not trunc
+    assert info["termination"] == "divergence" and "injected" in info["divergence"]
+    assert info["reward_terms"]["termination"] == -u.config.termination_penalty
+    # three engine steps went through: the state is theirs, consistent with the observation
+    assert u.sim.state.steps == state.steps + 3
+    assert np.allclose(u.sim.state.tcp_p[1], u._p)
+    assert info["time"] == pytest.approx(state.time + 3 * u.config.engine_dt)
+    assert env.observation_space.contains(obs)
+
+
+def test_hard_force_limit_terminates_within_the_step(make_env):
+    env = make_env(hard_force_limit=2.0)
+    u = env.unwrapped
+    env.reset(seed=0)
+    fault = _inject(env, force_from=3, force=1.0)  # 4 tips x 1 N = 4 N > 2 N from call 3 on
+    _, r, term, _, info = env.step(ZERO)
+    assert term and info["termination"] == "force_limit"
+    assert fault.calls == 3  # the protective stop ends the control step at once
+    assert info["peak_normal_force"] == pytest.approx(4.0)
+
+
+def test_force_penalties_integrate_the_excess(make_env):
+    cfg_kw = dict(total_force_limit=1.0, total_force_weight=2.0, tip_force_limit=0.1,
+                  tip_force_weight=3.0, hard_force_limit=100.0,
+                  tip_force_window=(0.0, 10.0))
+    env = make_env(**cfg_kw)
+    u = env.unwrapped
+    env.reset(seed=0, options={"tcp_position": [0.0, 0.0, 12.0]})
+    _inject(env, force_from=1, force=0.5)  # total 2 N, 0.4 N above each tip limit in total
+    _, r, term, _, info = env.step(ZERO)
+    T = u.dt
+    assert not term
+    assert info["reward_terms"]["total_force"] == pytest.approx(-2.0 * (2.0 - 1.0) * T)
+    assert info["reward_terms"]["tip_force"] == pytest.approx(-3.0 * 4 * (0.5 - 0.1) * T)
+    assert info["time_above_force_limit"] == pytest.approx(T)
+    assert info["reward_terms"]["coverage"] > 0.0  # effective tips clean under themselves
+    assert r == pytest.approx(sum(info["reward_terms"].values()))
+
+
+# ---------------------------------------------------------------- config validation
+@pytest.mark.parametrize("kw,match", [
+    ({"frame_skip": 0}, r"frame_skip = 0 is out of range: must be in \[1, 1000\]"),
+    ({"engine_dt": -1e-3}, r"engine_dt = -0.001 is out of range: must be in \(0, 0.02\]"),
+    ({"action_mode": "7d"}, r"action_mode = '7d' is not allowed: must be one of '6d', '3d'"),
+    ({"max_linear_speed": [10, 10]}, r"max_linear_speed = \[10, 10\].*list of 3 numbers"),
+    ({"tip_force_window": [0.3, 0.1]}, r"tip_force_window = \[0.3, 0.1\] is invalid"),
+    ({"frame_skp": 3}, r"unknown env override 'frame_skp'; did you mean frame_skip"),
+    ({"gravity": 1}, r"gravity = 1 has the wrong type"),
+    ({"start_height": [0.2, 1.0]}, r"plate_offset_range\[2\] = 0.5 is out of range"),
+    ({"brush": "no_such_brush"}, r"no_such_brush"),
+])
+def test_config_errors_name_parameter_value_and_range(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        gym.make(ENV_ID, **kw)
+
+
+def test_bad_render_mode_and_config_file(tmp_path):
+    with pytest.raises(ValueError, match="render_mode = 'video'"):
+        BrushEnv(render_mode="video", **TINY)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[engine]\nframe_skip = 4\n[reward]\nframe_skip = 5\n")
+    with pytest.raises(ConfigError, match=r"'frame_skip' is in section \[reward\].*\[engine\]"):
+        BrushEnv(config=bad)
+    bad.write_text("[physics]\nframe_skip = 4\n")
+    with pytest.raises(ConfigError, match="unknown section .*'physics'"):
+        BrushEnv(config=bad)
+    good = tmp_path / "good.toml"
+    good.write_text("[engine]\nbrush = \"tiny_env\"\nframe_skip = 4\n")
+    assert BrushEnv(config=good).dt == pytest.approx(0.016)
