@@ -6,7 +6,8 @@
 
 ``--policy`` is ``reference`` (agents/reference.py), ``random`` (uniform actions) or the path of
 a stable-baselines3 model saved by ``agents/train.py`` (its ``meta.json`` names the algorithm and
-the env settings; a ``vecnormalize.pkl`` beside it normalises the observations as in training).
+the env settings it was trained on, which ``--env-kw`` may override; a ``vecnormalize.pkl`` beside
+it normalises the observations as in training).
 Episode i is reset with seed ``--seed + i``, so two policies see the same start poses and plate
 offsets.  Writes to ``--out``:
 

@@ -122,7 +122,8 @@ class EnvConfig:
                              "half-width of the workspace square about the nominal patch centre",
                              lo=1.0, hi=1000.0)
     workspace_height: tuple = _f((-5.0, 15.0), "episode", "mm",
-                                 "[min, max] TCP height above the nominal touching height",
+                                 "[min, max] TCP height above z_t (tips touching the nominal "
+                                 "plate)",
                                  lo=-50.0, hi=200.0)
     max_tilt_deg: float = _f(30.0, "episode", "deg",
                              "largest angle between the bristle axis and -z", lo=0.0, hi=90.0,
@@ -134,8 +135,8 @@ class EnvConfig:
     start_xy_range: float = _f(5.0, "reset", "mm", "start x, y uniform in centre +- this",
                                lo=0.0, hi=1000.0)
     start_height: tuple = _f((1.0, 2.0), "reset", "mm",
-                             "start height above the nominal touching height, uniform in "
-                             "[min, max]", lo=-50.0, hi=200.0)
+                             "start height above z_t (tips touching the nominal plate), "
+                             "uniform in [min, max]", lo=-50.0, hi=200.0)
     start_yaw_range_deg: float = _f(15.0, "reset", "deg",
                                     "start yaw about z uniform in +- this", lo=0.0, hi=180.0)
     plate_offset_range: tuple = _f((1.0, 1.0, 0.5), "reset", "mm",

@@ -12,8 +12,9 @@ paper's press-then-circle trajectory (``agents/reference.py``) is the baseline.
 
 Units: mm, N, s, rad.  Base frame: robot base, z up, origin at the *nominal* patch centre on the
 nominal plate surface.  TCP frame: z along the bristles (towards the plate at the start
-orientation ``diag(1, -1, -1)`` rotated by the start yaw).  ``L`` = longest bristle; the tips
-touch the nominal plate at TCP height ``z = L``.
+orientation ``diag(1, -1, -1)`` rotated by the start yaw).  ``L`` = longest bristle; ``z_t`` =
+touch height, the TCP height at which the lowest tip sphere touches the nominal plate at the start
+orientation (L + tip radius = 10.44 mm for the default brush).
 
 Action Space
 ------------
@@ -46,7 +47,7 @@ expressions in nb and m):
 | 7*nb .. 8*nb-1 | tip_contact | (nb,) | [0, 1] | 1 if the tip touches the plate |
 | 8*nb .. 8*nb+2 | tcp_force | (3,) | [-5, 5] | force the TCP applies to the brush, TCP frame (/ force_scale) |
 | 8*nb+3 .. 8*nb+5 | tcp_moment | (3,) | [-5, 5] | moment about the TCP, TCP frame (/ moment_scale) |
-| 8*nb+6 .. 8*nb+8 | tcp_position | (3,) | [-1.5, 1.5] | TCP (x, y, z - L), base frame (/ workspace_xy, workspace_xy, max abs workspace_height) |
+| 8*nb+6 .. 8*nb+8 | tcp_position | (3,) | [-1.5, 1.5] | TCP (x, y, z - z_t), base frame (/ workspace_xy, workspace_xy, max abs workspace_height) |
 | 8*nb+9 .. 8*nb+14 | tcp_orientation | (6,) | [-1, 1] | TCP x and y axes in the base frame (first two columns of R) |
 | 8*nb+15 .. 8*nb+20 | tcp_twist | (6,) | [-1, 1] | commanded (v, w), base frame (/ max_linear_speed, max_angular_speed) |
 | 8*nb+21 .. 8*nb+21 | coverage_fraction | (1,) | [0, 1] | fraction of the patch cleaned |
@@ -75,7 +76,7 @@ these numbers: ``configs/envs/flat_plate.toml`` and ``docs/env.md``.
 Starting State
 --------------
 Straight bristles at rest; TCP at (x, y) = start_center + U(-start_xy_range, start_xy_range)^2,
-tips U(start_height) above the nominal plate, yaw U(+-start_yaw_range_deg) about z; the plate and
+tip spheres U(start_height) above the nominal plate (TCP z = z_t + U(start_height)), yaw U(+-start_yaw_range_deg) about z; the plate and
 patch offset from nominal by U(+-plate_offset_range) per axis.  ``reset(seed=...)`` reproduces
 an episode bit for bit.  ``options`` may fix ``"tcp_position"`` (3 floats, base frame, mm),
 ``"yaw_deg"`` and ``"plate_offset"`` (3 floats, mm).
@@ -87,7 +88,7 @@ Episode End
 state is the last converged engine step, never corrupted); ``"force_limit"`` the total normal
 force exceeded ``hard_force_limit`` (15 N) at an engine step (the robot's protective stop: the
 step ends there); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
-(TCP z - L) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
+(TCP z - z_t) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).
 
@@ -193,7 +194,7 @@ class BrushEnv(gym.Env):
     ``BrushEnv(config="flat_plate", render_mode=None, **overrides)``; ``config`` may also be an
     :class:`EnvConfig`.  Attributes: ``config`` (the validated EnvConfig), ``sim`` (the engine's
     Simulator), ``layout`` (ObservationLayout), ``dt`` (control step [s]), ``horizon`` (the time
-    limit in steps).
+    limit in steps), ``L`` (longest bristle [mm]), ``touch_height`` (z_t [mm]).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"]}
@@ -225,9 +226,12 @@ class BrushEnv(gym.Env):
         model = self.sim.model
         self.n_bristles = model.n_bristles
         self.L = float(brush.max_length)
+        # touch height: lowest tip sphere of the straight brush at the start orientation R_START
+        rest = model.root_p + model.length[:, None] * model.root_R[:, :, 0]
+        self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
         self.action_type = make_action_type(cfg)
         self.action_space = self.action_type.space()
-        self.layout = ObservationLayout(cfg, self.n_bristles, self.L)
+        self.layout = ObservationLayout(cfg, self.n_bristles, self.L, self.touch_height)
         self.observation_type = make_observation_type(cfg, self.layout)
         self.observation_space = self.observation_type.space()
         self.coverage = CoverageMap(cfg.patch_size, cfg.cell_size, cfg.clean_radius,
@@ -286,7 +290,7 @@ class BrushEnv(gym.Env):
         h = rng.uniform(*cfg.start_height)
         yaw = math.radians(rng.uniform(-cfg.start_yaw_range_deg, cfg.start_yaw_range_deg))
         off = rng.uniform(-1.0, 1.0, 3) * np.asarray(cfg.plate_offset_range)
-        p_obs = np.array([xy[0], xy[1], self.L + h])
+        p_obs = np.array([xy[0], xy[1], self.touch_height + h])
         opts = dict(options or {})
         for key in opts:
             if key not in RESET_OPTIONS:
@@ -401,7 +405,7 @@ class BrushEnv(gym.Env):
     def _in_workspace(self) -> bool:
         cfg = self.config
         p = self._to_obs(self._p)
-        h = p[2] - self.L
+        h = p[2] - self.touch_height
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -self._R[2, 2]))))
         return (abs(p[0]) <= cfg.workspace_xy and abs(p[1]) <= cfg.workspace_xy
                 and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]

@@ -43,16 +43,21 @@ class Block:
 class ObservationLayout:
     """Blocks of the observation for a brush of ``n_bristles`` tips (see the env docstring).
 
-    ``values(...)`` turns physical quantities into the scaled, clipped blocks; ``block(obs,
+    ``max_length`` L [mm] scales the tip deflections; ``touch_height`` z_t [mm] (default L) is
+    the TCP height at which the lowest tip sphere touches the nominal plate (``BrushEnv`` passes
+    L + R).  ``values(...)`` turns physical quantities into the scaled, clipped blocks; ``block(obs,
     name)`` reads a block back from a Box or Dict observation; ``tcp_pose`` and
     ``elapsed_steps`` undo the scaling of the blocks a scripted policy needs.
     """
 
-    def __init__(self, cfg: EnvConfig, n_bristles: int, max_length: float):
+    def __init__(self, cfg: EnvConfig, n_bristles: int, max_length: float,
+                 touch_height: float | None = None):
         nb, m = int(n_bristles), cfg.coarse_map_size
         self.cfg = cfg
         self.n_bristles = nb
         self.max_length = float(max_length)
+        #: TCP height [mm] at which the lowest tip sphere touches the nominal plate (L + R)
+        self.touch_height = float(max_length if touch_height is None else touch_height)
         h = max(abs(cfg.workspace_height[0]), abs(cfg.workspace_height[1]))
         self.position_scale = np.array([cfg.workspace_xy, cfg.workspace_xy, h])
         self.v_max = np.asarray(cfg.max_linear_speed, float)
@@ -73,7 +78,7 @@ class ObservationLayout:
             Block("tcp_moment", (3,), -5.0, 5.0, "N mm / M_s",
                   f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm"),
             Block("tcp_position", (3,), -1.5, 1.5, "mm / ws",
-                  "TCP x, y about the nominal patch centre and z - L above the nominal plate, "
+                  "TCP x, y about the nominal patch centre and height z - z_t above touching, "
                   f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm"),
             Block("tcp_orientation", (6,), -1.0, 1.0, "-",
                   "first two columns of the TCP rotation matrix (TCP x and y axes in the base "
@@ -109,7 +114,7 @@ class ObservationLayout:
         rel = tip_pos - p
         defl = (rel @ R - rest_tips) / self.max_length
         vrel = (tip_vel - v - np.cross(w, rel)) @ R / cfg.tip_velocity_scale
-        pos = (np.asarray(p_obs, float) - [0.0, 0.0, self.max_length]) / self.position_scale
+        pos = (np.asarray(p_obs, float) - [0.0, 0.0, self.touch_height]) / self.position_scale
         raw = {
             "tip_deflection": defl,
             "tip_velocity": vrel,
@@ -143,7 +148,7 @@ class ObservationLayout:
         """TCP position [mm] (about the nominal patch centre; z above the nominal plate) and
         rotation matrix from an observation (float32 precision: ~1e-5 mm, ~1e-7 rad)."""
         pos = self.block(obs, "tcp_position").astype(float) * self.position_scale
-        pos[..., 2] += self.max_length
+        pos[..., 2] += self.touch_height
         c = self.block(obs, "tcp_orientation").astype(float)
         x = c[..., 0:3] / np.linalg.norm(c[..., 0:3], axis=-1, keepdims=True)
         y = c[..., 3:6] - x * np.sum(x * c[..., 3:6], axis=-1, keepdims=True)

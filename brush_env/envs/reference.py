@@ -10,7 +10,8 @@ bench env`` drives the env with it.  The plan (engine-side trajectories of
    Its duration is at least ``approach_time`` and long enough that the quintic's peak speed stays
    under 80 % of the action limits.
 2. **Press** (quintic) ``hover + press_depth`` mm along the bristle axis in ``press_time``: the
-   paper's 3 mm press, measured from the *nominal* plate (the plate offset is not observed).
+   paper's 3 mm press "from contact", measured from the TCP height at which the tip spheres touch
+   the *nominal* plate (the plate offset is not observed).
 3. **Circle** of ``radius`` (paper: 20 mm) about the nominal patch centre at ``speed`` with a
    trapezoidal profile of acceleration ``accel``, counter-clockwise from P0 (Figure 6), for as
    many turns as the episode allows; the exact circle (not the four-point MoveL path).
@@ -81,7 +82,7 @@ class CircleReference:
         self.center = np.array([center[0], center[1]], float)
         self.start_angle, self.clockwise = start_angle, clockwise
         self.kp, self.kr = kp, kr
-        self.L = layout.max_length
+        self.z_touch = layout.touch_height
         self.trajectory = None
         self.circle = None
 
@@ -94,7 +95,8 @@ class CircleReference:
         R_goal = R_START if self.rotates else R0
         ang = self.start_angle
         P0 = np.array([self.center[0] + self.radius * math.cos(ang),
-                       self.center[1] + self.radius * math.sin(ang), self.L + self.hover])
+                       self.center[1] + self.radius * math.sin(ang),
+                       self.z_touch + self.hover])
         d = np.abs(P0 - p0)
         rot = np.abs(log_so3(R_goal @ R0.T))
         t_app = max(self.approach_time,
@@ -103,7 +105,7 @@ class CircleReference:
                     else 0.0)
         approach = Approach((p0, R0), (P0, R_goal), t_app)
         press = Press((P0, R_goal), self.hover + self.press_depth, self.press_time)
-        z_c = self.L - self.press_depth
+        z_c = self.z_touch - self.press_depth
         t_left = max(self.horizon * self.dt - t_app - self.press_time, 1.0)
         turns = max(0.25, t_left * self.speed / (2.0 * math.pi * self.radius) + 0.25)
         self.circle = Circle((self.center[0], self.center[1], z_c), self.radius, self.speed,

@@ -48,8 +48,8 @@ def test_reference_tcp_path_is_the_papers_circle(make_env):
     Rs = np.array([R for t, _, R in poses if t >= t_circle + 1e-9])
     radius = np.hypot(pts[:, 0], pts[:, 1])
     assert np.max(np.abs(radius - 20.0)) <= CIRCLE_TOL_MM
-    # in the circle's plane, 3 mm past the nominal touching height (the paper's press)
-    assert np.max(np.abs(pts[:, 2] - (u.L - 3.0))) <= CIRCLE_TOL_MM
+    # in the circle's plane, 3 mm past the height at which the tips touch (the paper's press)
+    assert np.max(np.abs(pts[:, 2] - (u.touch_height - 3.0))) <= CIRCLE_TOL_MM
     assert np.allclose(Rs, np.diag([1.0, -1.0, -1.0]), atol=1e-6)  # the paper's orientation
     # counter-clockwise from P0 = (-20, 0) (Figure 6), more than one full turn in 300 steps
     phi = np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))
@@ -57,7 +57,7 @@ def test_reference_tcp_path_is_the_papers_circle(make_env):
     assert np.all(np.diff(phi) >= -1e-9) and phi[-1] - phi[0] > 2 * math.pi
     # before the circle: the press ends exactly at P0, 3 mm past the nominal touching height
     p_end, _ = ctrl.trajectory.pose(t_circle)
-    assert np.allclose(p_end, [-20.0, 0.0, u.L - 3.0], atol=1e-9)
+    assert np.allclose(p_end, [-20.0, 0.0, u.touch_height - 3.0], atol=1e-9)
 
 
 @pytest.mark.parametrize("variant", [{}, {"observation_mode": "dict"}, {"action_mode": "3d"}])

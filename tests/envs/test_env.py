@@ -53,7 +53,7 @@ def test_seeded_episode_is_bit_for_bit_reproducible(make_env):
 def test_seeds_randomise_start_pose_and_plate_offset_within_ranges(make_env):
     env = make_env()
     cfg = env.unwrapped.config
-    L = env.unwrapped.L
+    z_t = env.unwrapped.touch_height
     starts, offsets, yaws = [], [], []
     for seed in range(20):
         obs, info = env.reset(seed=seed)
@@ -64,7 +64,7 @@ def test_seeds_randomise_start_pose_and_plate_offset_within_ranges(make_env):
     starts, offsets = np.array(starts), np.array(offsets)
     assert len({tuple(s) for s in starts}) == 20
     assert np.all(np.abs(starts[:, :2] - cfg.start_center) <= cfg.start_xy_range)
-    h = starts[:, 2] - L
+    h = starts[:, 2] - z_t
     assert np.all((h >= cfg.start_height[0]) & (h <= cfg.start_height[1]))
     assert np.all(np.abs(offsets) <= np.array(cfg.plate_offset_range))
     assert np.all(np.abs(yaws) <= cfg.start_yaw_range_deg + 1e-4)
@@ -181,7 +181,8 @@ def test_leaving_the_workspace_terminates(make_env):
         if term:
             break
     assert term and not trunc and info["termination"] == "workspace"
-    assert info["tcp_position"][2] - env.unwrapped.L > env.unwrapped.config.workspace_height[1]
+    height = info["tcp_position"][2] - env.unwrapped.touch_height
+    assert height > env.unwrapped.config.workspace_height[1]
     assert info["reward_terms"]["termination"] == -env.unwrapped.config.termination_penalty
     with pytest.raises(RuntimeError, match="terminated"):
         env.unwrapped.step(ZERO)
