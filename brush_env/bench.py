@@ -232,7 +232,13 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-TARGETS = {"engine": bench_engine}
+def _bench_env(args) -> int:
+    from brush_env.envs import bench_env  # gymnasium only when the env is benchmarked
+
+    return bench_env.run(args)
+
+
+TARGETS = {"engine": bench_engine, "env": _bench_env}
 
 
 def add_arguments(parser) -> None:
@@ -242,6 +248,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced grid (for tests)")
     parser.add_argument("--no-cold-start", action="store_true",
                         help="skip the cold-start measurement (fresh numba compile)")
+    from brush_env.envs import bench_env  # env options (skips the shared --json)
+
+    bench_env.add_arguments(parser)
 
 
 def run(args) -> int:
