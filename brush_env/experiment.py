@@ -1192,7 +1192,7 @@ def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times
                 ax_t.plot(rel[0, 0], rel[0, 1], "s", color=col, ms=2.5)
             ax_s.axhline(0.0, color="0.3", lw=1.5)
             ax_s.set_xlim(-span, span)
-            ax_s.set_ylim(-1.0, p_tcp[2] + 1.0)
+            ax_s.set_ylim(min(-1.0, float(tips[:, 2].min()) - 0.5), p_tcp[2] + 1.0)
             ax_t.set_xlim(-span, span)
             ax_t.set_ylim(-spany, spany)
             if i + 1 < len(P):
