@@ -164,10 +164,11 @@ def _rel_rms(run: Run, ref: Run, grid: np.ndarray) -> tuple[float, float]:
     return errs[0], errs[1]
 
 
-#: Newton tolerance of the reference run.  The default 1e-8 is below the round-off floor of the
-#: residual at 24 bodies and dt = 2e-5 s (the stiff axial term, amplified by the damping factor
-#: 1 + beta c0 / dt, times the ~n ulp position error of the chain rebuild): Newton stagnates near
-#: 1.0e-8 and the step "diverges" at t ~ 0.21 s.  1e-7 is still far below the errors measured.
+#: Newton tolerance of the reference run.  At 24 bodies and dt = 2e-5 s the default 1e-8 is below
+#: the round-off floor of the scaled residual (world-coordinate round-off times the stiff axial
+#: term and the damping factor 1 + beta c0 / dt): Newton stagnates at 1.008e-8 and the run stops
+#: with SimulationDivergence at t ~ 0.21 s (docs/benchmarks.md).  1e-7 is far below the errors
+#: measured.
 REF_RTOL = 1e-7
 
 GRID_FULL = dict(bodies=(3, 6, 12), dts=(1e-4, 5e-4, 1e-3, 2e-3, 5e-3), duration=0.5,

@@ -73,11 +73,15 @@ def _log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
 @njit(cache=True)
 def _local_rot_into(R, Rn, out):
     """out = log(R Rn^T): world-frame rotation vector taking Rn to R."""
-    m = np.empty(9)
-    for a in range(3):
-        for b in range(3):
-            m[3 * a + b] = R[a, 0] * Rn[b, 0] + R[a, 1] * Rn[b, 1] + R[a, 2] * Rn[b, 2]
-    _log3s(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], out)
+    _log3s(R[0, 0] * Rn[0, 0] + R[0, 1] * Rn[0, 1] + R[0, 2] * Rn[0, 2],
+           R[0, 0] * Rn[1, 0] + R[0, 1] * Rn[1, 1] + R[0, 2] * Rn[1, 2],
+           R[0, 0] * Rn[2, 0] + R[0, 1] * Rn[2, 1] + R[0, 2] * Rn[2, 2],
+           R[1, 0] * Rn[0, 0] + R[1, 1] * Rn[0, 1] + R[1, 2] * Rn[0, 2],
+           R[1, 0] * Rn[1, 0] + R[1, 1] * Rn[1, 1] + R[1, 2] * Rn[1, 2],
+           R[1, 0] * Rn[2, 0] + R[1, 1] * Rn[2, 1] + R[1, 2] * Rn[2, 2],
+           R[2, 0] * Rn[0, 0] + R[2, 1] * Rn[0, 1] + R[2, 2] * Rn[0, 2],
+           R[2, 0] * Rn[1, 0] + R[2, 1] * Rn[1, 1] + R[2, 2] * Rn[1, 2],
+           R[2, 0] * Rn[2, 0] + R[2, 1] * Rn[2, 1] + R[2, 2] * Rn[2, 2], out)
 
 
 @njit(cache=True, inline="always")
@@ -308,3 +312,50 @@ def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist
     _body_gen(cB, pB, nf[6:12], out12[6:12])
 
 
+
+
+@njit(cache=True)
+def block_factor(n, D, U, L, G, piv):
+    """Factor the block-tridiagonal matrix (L_i, D_i, U_i) in place (block Thomas, O(n)).
+
+    D becomes the LU factors of the Schur complements, G_i = D_i^-1 U_i.  Returns False if a pivot
+    block is singular.  Solve with ``block_solve``; the factors can be reused for many solves.
+    """
+    tmp = np.empty(6)
+    for i in range(n):
+        if i > 0:
+            for a in range(6):
+                for b in range(6):
+                    s = 0.0
+                    for k in range(6):
+                        s += L[i, a, k] * G[i - 1, k, b]
+                    D[i, a, b] -= s
+        if not _lu6(D[i], piv[i]):
+            return False
+        if i < n - 1:
+            for b in range(6):
+                for a in range(6):
+                    tmp[a] = U[i, a, b]
+                _lus6(D[i], piv[i], tmp)
+                for a in range(6):
+                    G[i, a, b] = tmp[a]
+    return True
+
+
+@njit(cache=True)
+def block_solve(n, D, L, G, piv, r, x):
+    """Solve with the factors of ``block_factor``: x = A^-1 r (r is left unchanged)."""
+    for i in range(n):
+        for a in range(6):
+            s = r[i, a]
+            if i > 0:
+                for k in range(6):
+                    s -= L[i, a, k] * x[i - 1, k]
+            x[i, a] = s
+        _lus6(D[i], piv[i], x[i])
+    for i in range(n - 2, -1, -1):
+        for a in range(6):
+            s = 0.0
+            for k in range(6):
+                s += G[i, a, k] * x[i + 1, k]
+            x[i, a] -= s

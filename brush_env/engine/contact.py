@@ -43,7 +43,9 @@ S_PEN = 14  # penetration [mm]
 S_CP = 15  # 15:18 contact point [mm]
 S_DNEW = 18  # 18:21 trial stiction deformation of the last evaluation
 S_FTT = 21  # tip-tip normal force magnitude (sum) [N]
-N_TIP_STATE = 22
+S_BETA = 22  # beta of the step start (committed), see tip_load
+S_BNEW = 23  # beta at the slip speed of the last evaluation
+N_TIP_STATE = 24
 
 # --- contact parameter vector cp (per scene)
 C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
@@ -165,6 +167,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
     state[S_SLIDE] = 0.0
     state[S_PEN] = 0.0
     state[S_FTT] = 0.0
+    state[S_BNEW] = 0.0
     for a in range(3):
         state[S_DNEW + a] = 0.0
         state[S_CP + a] = pt[a]
@@ -221,8 +224,14 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 v_d = cp[C_VD]
                 # beta: C1 form step(|v|, 0, 0, v_s, 1).  The printed step(|v|, -v_s, -1, v_s, 1)
                 # has the same end values but a kink at v = 0 (slope 1.5/v_s in |v|), which makes
-                # Newton cycle around v = 0 for a sticking tip.
-                beta = step10(vmag, 0.0, 0.0, v_s, 1.0)
+                # Newton cycle around v = 0 for a sticking tip.  beta is taken at the slip speed
+                # of the step start (lagged one step): with mu_s > mu_d the law is non-monotone in
+                # |v| once Delta = Delta_max (the stick-slip drop), and an implicit step through
+                # the falling branch has no unique solution for a nearly massless tip; with beta
+                # frozen within the step the friction force rises monotonically with |v| and
+                # |Delta|, and the break-away still happens, over one step.
+                beta = state[S_BETA]
+                state[S_BNEW] = step10(vmag, 0.0, 0.0, v_s, 1.0)
                 gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
                 gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
                 fst = (1.0 - beta) * mus * Fn * gst  # stiction force magnitude
@@ -238,26 +247,47 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                     F[a] += ft[a]
                     state[S_FT + a] = ft[a]
                 state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
-                # Newton tangent of F_t w.r.t. pt (dDelta/dpt = P_t, dv/dpt = (c0/h) P_t):
-                # an isotropic, symmetric secant-or-slope stiffness in the tangent plane.  The exact
-                # tangent vanishes along a saturated law (|v| > v_d or |Delta| = Delta_max), which
-                # makes Newton overshoot and flip the slip direction every iteration; the secant
-                # f/|x| keeps the iteration contractive.  The Fn-coupling and beta(|v|) terms
-                # are left out (non-symmetric, small).  Only Newton's path depends on this.
+                # Exact Newton tangent of F_t w.r.t. pt (beta is frozen within the step):
+                # dDelta/dpt = P_t (unclamped), dv/dpt = (c0/h) P_t; for a magnitude f(|x|) along
+                # u = x/|x|:  d(-f u)/dx = -f' u u^T - (f/|x|)(P_t - u u^T).
                 rate = 0.0 if static else c0 * inv_h
-                kst = (1.0 - beta) * mus * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
                 if dmag > 0.0:
-                    kst = max(kst * (dmag < dmax), fst / dmag)
-                ksl = 0.0
+                    dfd = 0.0
+                    if dmag < dmax:
+                        dfd = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0,
+                                                                  1.0) / dmax
+                    ftr = fst / dmag
+                    for a in range(3):
+                        ua = dn[a] / dmag
+                        for bb in range(3):
+                            ub = dn[bb] / dmag
+                            pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
+                            Kt[a, bb] -= dfd * ua * ub + ftr * (pab - ua * ub)
+                else:  # Delta = 0: the stiction spring's slope at the origin
+                    kst = (1.0 - beta) * mus * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
+                    for a in range(3):
+                        for bb in range(3):
+                            Kt[a, bb] -= kst * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
                 if rate > 0.0:
-                    ksl = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
                     if vmag > 0.0:
-                        ksl = max(cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
-                                  / v_d, fsl / vmag)
-                    ksl *= rate
+                        dfv = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d
+                        ftr = fsl / vmag
+                        for a in range(3):
+                            ua = vs[a] / vmag
+                            for bb in range(3):
+                                ub = vs[bb] / vmag
+                                pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
+                                Kt[a, bb] -= rate * (dfv * ua * ub + ftr * (pab - ua * ub))
+                    else:
+                        dfv = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
+                        for a in range(3):
+                            for bb in range(3):
+                                Kt[a, bb] -= rate * dfv * ((1.0 if a == bb else 0.0)
+                                                           - nrm[a] * nrm[bb])
+                # friction is proportional to Fn: dF_t = (F_t / Fn) dFn, dFn = -kk n^T dpt
                 for a in range(3):
                     for bb in range(3):
-                        Kt[a, bb] -= (kst + ksl) * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+                        Kt[a, bb] -= kk * ft[a] / Fn * nrm[bb]
     # ---- tip-tip contact, no friction (Table 3)
     if pair_ptr.shape[0] > b + 1:
         for q in range(pair_ptr[b], pair_ptr[b + 1]):

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_thomas
-from .contact import S_DELTA, S_DNEW, S_HIST, S_PN, tip_load
+from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_factor, block_solve
+from .contact import S_BETA, S_BNEW, S_DELTA, S_DNEW, S_HIST, S_PN, tip_load
 
 # status codes per bristle
 OK = 0
@@ -38,9 +38,24 @@ P_RTOL = 3  # Newton tolerance on the residual, relative to the bristle force sc
 P_MAXIT = 4  # Newton iterations per attempt
 P_MAXLEV = 5  # sub-stepping levels (h / 2**levels is the smallest step)
 P_G = 6  # 6, 7, 8: gravity [mm/s^2]
-N_PRM = 9
+P_JAGE = 9  # steps a factored Newton matrix may be reused
+N_PRM = 10
 
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
+
+
+def make_workspace(nmax: int, n_tip_state: int):
+    """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
+    return (np.zeros((8, nmax, 3, 3)), np.zeros((6, nmax, 6)), np.zeros((nmax, 6, 6)),
+            np.zeros((8, 12)), np.zeros(32), np.zeros((6, nmax, 3)), np.zeros((2, nmax, 3, 3)),
+            np.zeros(n_tip_state))
+
+
+def make_jacobian_store(n_bodies: int, n_bristles: int):
+    """Per-bristle factored Newton matrices kept across steps (see ``_newton``)."""
+    return (np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)),
+            np.zeros((n_bodies, 6), np.int64), np.zeros(n_bristles), np.zeros(n_bristles,
+                                                                               np.int64))
 
 
 @njit(cache=True)
@@ -375,43 +390,50 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
 
 @njit(cache=True)
 def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
-            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw):
+            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw, jac, ws):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
     from (pAs, RAs) to (pAe, RAe); (pAp, RAp) is the base at t_{n-1} (BDF2 damping history).
     On failure the bristle's arrays are left at their start-of-step values.
+
+    jac = (jD, jG, jL, jpiv, jkey, jage): factored Newton matrices kept per bristle across steps
+    (simplified Newton).  They are rebuilt when the step size or scheme changes (key c0/h), when
+    they are older than prm[P_JAGE] steps, and whenever an iteration with old factors converges
+    slowly (residual ratio > 0.25) or fails its line search: the converged state is always set by
+    the residual, the Jacobian's age only changes the iteration count.
+    ws: scratch memory, see ``make_workspace``.
     """
     static = prm[P_STATIC] != 0.0
     inv_h = 1.0 / h
     gvec = prm[P_G:P_G + 3]
-    D = np.empty((n, 6, 6))
-    U = np.empty((n, 6, 6))
-    L = np.empty((n, 6, 6))
-    G = np.empty((n, 6, 6))
-    piv = np.empty((n, 6), np.int64)
-    Rn = np.empty((n, 3, 3))
-    s_rot = np.empty((n, 3, 3))
-    t_rot = np.empty((n, 3, 3))
-    sw = np.empty((8, 12))
-    res = np.empty((n, 6))
-    r0 = np.empty((n, 6))
-    dq = np.empty((n, 6))
-    ehist = np.empty((n, 6))
-    cm = np.empty((n, 3))
-    vm = np.empty((n, 3))
-    Lm = np.empty((n, 3))
-    thp = np.empty((n, 3))
-    s_pos = np.empty((n, 3))
-    s_vel = np.empty((n, 3))
-    s_omg = np.empty((n, 3))
-    t_pos = np.empty((n, 3))
-    gs = np.empty(n)
-    hs = np.empty(n)
-    tipF = np.empty(3)
-    tipK = np.empty((3, 3))
-    tmp6 = np.empty(6)
-    th = np.empty(3)
+    jD, jG, jL, jpiv, jkey, jage = jac
+    D = jD[b0:b0 + n]
+    G = jG[b0:b0 + n]
+    L = jL[b0:b0 + n]
+    piv = jpiv[b0:b0 + n]
+    w3, w6, wU, sw, small, bk3, bkR, bktip = ws
+    U = wU[:n]
+    Rn = w3[0, :n]
+    s_rot = w3[1, :n]
+    t_rot = w3[2, :n]
+    res = w6[0, :n]
+    r0 = w6[1, :n]
+    dq = w6[2, :n]
+    ehist = w6[3, :n]
+    cm = w3[3, :n, 0]
+    vm = w3[3, :n, 1]
+    Lm = w3[3, :n, 2]
+    thp = w3[4, :n, 0]
+    s_pos = w3[4, :n, 1]
+    s_vel = w3[4, :n, 2]
+    s_omg = w3[5, :n, 0]
+    t_pos = w3[5, :n, 1]
+    gs = w6[4, :n, 0]
+    hs = w6[4, :n, 1]
+    tipF = small[0:3]
+    th = small[3:6]
+    tipK = w3[6, 0]
     if static:
         c1u = 0.0
         c2u = 0.0
@@ -458,16 +480,27 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
                     ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw)
     it = 0
     ok = nrm <= rtol
+    key = -1.0 if static else c0 * inv_h
+    jage[b] += 1
+    need = jkey[b] != key or jage[b] > prm[P_JAGE]
     while not ok and it < maxit and np.isfinite(nrm):
         it += 1
-        _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, tipF,
-                  tipK, D, U, L, sw)
+        fresh = need
+        if need:
+            _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, tipF,
+                      tipK, D, U, L, sw)
+            need = False
+            jage[b] = 0
+            if block_factor(n, D, U, L, G, piv):
+                jkey[b] = key
+            else:
+                jkey[b] = 0.0
+                break
         for k in range(n):
             for a in range(6):
                 r0[k, a] = res[k, a]
                 res[k, a] = -res[k, a]
-        if not block_thomas(n, D, U, L, res, dq, G, piv, tmp6):
-            break
+        block_solve(n, D, L, G, piv, res, dq)
         # Line search on the directional derivative g(alpha) = dq . r(q + alpha dq) (the
         # energy-like measure of structural Newton solvers): the residual norm itself is a poor
         # merit here, because the stiff axial/shear terms react to second-order geometry.
@@ -504,8 +537,38 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
             # overshoot (g changed sign): secant estimate of the zero of g, safeguarded
             alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
         if not accepted:
-            break
+            # restore the iterate; retry with fresh factors unless they were fresh already
+            for k in range(n):
+                i = b0 + k
+                for a in range(3):
+                    pos[i, a] = t_pos[k, a]
+                    for bb in range(3):
+                        rot[i, a, bb] = t_rot[k, a, bb]
+            if fresh:
+                break
+            need = True
+            nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
+                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
+                            tipF, tipK, sw)
+            continue
+        if not fresh and new > 0.25 * nrm:
+            need = True  # old factors converge slowly: rebuild them
         nrm = new
+        # round-off floor: the update no longer moves the state (|alpha dq| at the level of the
+        # coordinates' last bits) and the residual is within 100x of the tolerance: accept
+        if nrm <= 100.0 * rtol:
+            stepmax = 0.0
+            for k in range(n):
+                for a in range(3):
+                    v = abs(alpha * dq[k, a]) / (abs(pos[b0 + k, a]) + bp[b0 + k, 5])
+                    if v > stepmax:
+                        stepmax = v
+                    v = abs(alpha * dq[k, 3 + a])
+                    if v > stepmax:
+                        stepmax = v
+            if stepmax < 1e-13:
+                ok = True
+                break
         ok = nrm <= rtol
     if not ok:
         for k in range(n):
@@ -520,6 +583,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
     # accept: commit the stiction deformation, rates from the discrete formula, shift history
     for a in range(3):
         tip_state[S_DELTA + a] = tip_state[S_DNEW + a]
+    tip_state[S_BETA] = tip_state[S_BNEW]
     for k in range(n):
         i = b0 + k
         if static:
@@ -551,8 +615,8 @@ def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
 
 @njit(cache=True)
 def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, hist_ok, tcp_p,
-                  tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, rootw, iters, nsub,
-                  status):
+                  tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, jac, ws, rootw, iters,
+                  nsub, status):
     """Advance every bristle by one step h = prm[P_H] (in place).
 
     tcp_p (3, 3), tcp_R (3, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1} (rows 0, 1, 2).
@@ -581,15 +645,18 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
     for b in range(nb):
         b0 = bstart[b]
         n = bstart[b + 1] - b0
-        bk_pos = pos[b0:b0 + n].copy()
-        bk_rot = rot[b0:b0 + n].copy()
-        bk_vel = vel[b0:b0 + n].copy()
-        bk_omg = omg[b0:b0 + n].copy()
-        bk_ppos = ppos[b0:b0 + n].copy()
-        bk_prot = prot[b0:b0 + n].copy()
-        bk_pvel = pvel[b0:b0 + n].copy()
-        bk_pomg = pomg[b0:b0 + n].copy()
-        bk_tip = tip_state[b].copy()
+        bk3 = ws[5]
+        bkR = ws[6]
+        bktip = ws[7]
+        bk3[0, :n] = pos[b0:b0 + n]
+        bk3[1, :n] = vel[b0:b0 + n]
+        bk3[2, :n] = omg[b0:b0 + n]
+        bk3[3, :n] = ppos[b0:b0 + n]
+        bk3[4, :n] = pvel[b0:b0 + n]
+        bk3[5, :n] = pomg[b0:b0 + n]
+        bkR[0, :n] = rot[b0:b0 + n]
+        bkR[1, :n] = prot[b0:b0 + n]
+        bktip[:] = tip_state[b]
         s = 0.0
         level = 0
         tot = 0
@@ -611,7 +678,7 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
             ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm,
                              c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
-                             tip_state[b], ctx, rootw[b])
+                             tip_state[b], ctx, rootw[b], jac, ws)
             tot += it
             if ok:
                 s += ds
@@ -623,15 +690,15 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
                 level += 1
                 if level > maxlev:
                     status[b] = 1
-                    pos[b0:b0 + n] = bk_pos
-                    rot[b0:b0 + n] = bk_rot
-                    vel[b0:b0 + n] = bk_vel
-                    omg[b0:b0 + n] = bk_omg
-                    ppos[b0:b0 + n] = bk_ppos
-                    prot[b0:b0 + n] = bk_prot
-                    pvel[b0:b0 + n] = bk_pvel
-                    pomg[b0:b0 + n] = bk_pomg
-                    tip_state[b] = bk_tip
+                    pos[b0:b0 + n] = bk3[0, :n]
+                    vel[b0:b0 + n] = bk3[1, :n]
+                    omg[b0:b0 + n] = bk3[2, :n]
+                    ppos[b0:b0 + n] = bk3[3, :n]
+                    pvel[b0:b0 + n] = bk3[4, :n]
+                    pomg[b0:b0 + n] = bk3[5, :n]
+                    rot[b0:b0 + n] = bkR[0, :n]
+                    prot[b0:b0 + n] = bkR[1, :n]
+                    tip_state[b] = bktip
                     break
         iters[b] = tot
         nsub[b] = nsteps

@@ -54,6 +54,8 @@ class SimSettings:
     dt [s] time step; integrator "euler" (backward Euler) or "bdf2"; newton_rtol: Newton tolerance
     on the residual relative to each bristle's force scale E I / L^2 [-]; newton_max_iter per
     attempt; max_substep_levels: a failing step is retried as halves down to dt / 2**levels;
+    jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at every
+    step; reuse changes iteration counts only, the converged state is set by the residual);
     gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off).
     """
 
@@ -63,6 +65,7 @@ class SimSettings:
     newton_max_iter: int = 40
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)
+    jacobian_max_age: int = 25
 
     def __post_init__(self):
         _check("settings.dt", self.dt, 0.0, 0.1, "s")
@@ -72,6 +75,8 @@ class SimSettings:
         _check("settings.newton_rtol", self.newton_rtol, 0.0, 1e-2, "(relative)")
         _check("settings.newton_max_iter", self.newton_max_iter, 1, 200, "", lo_open=False)
         _check("settings.max_substep_levels", self.max_substep_levels, 0, 30, "", lo_open=False)
+        _check("settings.jacobian_max_age", self.jacobian_max_age, 0, 10000, "steps",
+               lo_open=False)
         if len(self.gravity) != 3 or not np.all(np.isfinite(self.gravity)):
             raise ConfigError(f"settings.gravity = {self.gravity!r}: must be 3 finite numbers "
                               "(mm/s^2)")
@@ -135,7 +140,7 @@ def build_model(brush: BrushConfig) -> Model:
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
         # lean: rotate about the width axis so the tip moves toward the thickness direction
         c, s_ = np.cos(brush.lean), np.sin(brush.lean)
-        Ry = np.array([[c, 0.0, s_], [0.0, 1.0, 0.0], [-s_, 0.0, c]])
+        Ry = np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # x -> (c, 0, +s)
         root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
     return Model(bstart, bp, K, root_p, root_R, seg,
                  np.array([b.tip_radius for b in brush.bristles]),
@@ -167,10 +172,14 @@ class State:
     tip_state: np.ndarray
     time: float = 0.0
     steps: int = 0
+    jac: tuple = ()
 
-    def copy(self) -> "State":
-        return State(**{k: (v.copy() if isinstance(v, np.ndarray) else v)
-                        for k, v in self.__dict__.items()})
+    def copy(self, with_jacobian: bool = True) -> "State":
+        """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
+        state so that a restored state continues bit for bit like the original."""
+        d = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
+        d["jac"] = tuple(a.copy() for a in self.jac) if with_jacobian else self.jac
+        return State(**d)
 
 
 @dataclass
@@ -222,6 +231,7 @@ class Simulator:
         self.surfaces = _surface_rows(scene.surfaces)
         self.pair_ptr, self.pair_idx = tip_pairs(self.model, scene) if scene.tip_tip else \
             (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        self._ws = itg.make_workspace(int(np.diff(self.model.bstart).max()), N_TIP_STATE)
         self._tips = np.zeros((nb, 7))
         self._tips[:, 6] = self.model.tip_radius
         self._rootw = np.zeros((nb, 6))
@@ -242,6 +252,7 @@ class Simulator:
         prm[itg.P_MAXIT] = s.newton_max_iter
         prm[itg.P_MAXLEV] = s.max_substep_levels
         prm[itg.P_G:itg.P_G + 3] = s.gravity
+        prm[itg.P_JAGE] = s.jacobian_max_age
         return prm
 
     def reset(self, tcp_p=None, tcp_R=None, time: float = 0.0) -> StepResult:
@@ -262,7 +273,8 @@ class Simulator:
         z = np.zeros((N, 3))
         self.state = State(pos, rot, z.copy(), z.copy(), pos.copy(), rot.copy(), z.copy(),
                            z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 3),
-                           np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0)
+                           np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0,
+                           itg.make_jacobian_store(N, nb))
         self._rootw[:] = 0.0
         self._tips[:, 0:3] = self.tip_positions()
         self._tips[:, 3:6] = 0.0
@@ -330,14 +342,14 @@ class Simulator:
 
     def _advance(self, tcp_p, tcp_R, prm, t_new) -> StepResult:
         st = self.state
-        snapshot = st.copy()
+        snapshot = st.copy(with_jacobian=False)  # rollback target; the factors are only a cache
         st.tcp_p[2] = tcp_p
         st.tcp_R[2] = tcp_R
         m = self.model
         itg.step_bristles(m.bstart, m.bp, m.K, st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot,
                           st.pvel, st.pomg, st.hist_ok, st.tcp_p, st.tcp_R, m.root_p, m.root_R,
-                          prm, self.tip_args, st.tip_state, self._ctx(), self._rootw,
-                          self._iters, self._nsub, self._status)
+                          prm, self.tip_args, st.tip_state, self._ctx(), st.jac, self._ws,
+                          self._rootw, self._iters, self._nsub, self._status)
         bad = np.flatnonzero(self._status)
         if bad.size == 0 and not (np.all(np.isfinite(st.pos)) and np.all(np.isfinite(self._rootw))):
             bad = np.arange(m.n_bristles)
