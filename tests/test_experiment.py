@@ -249,7 +249,7 @@ def test_reference_end_to_end_tiny(tmp_path):
         assert s["run_status"]["baseline"].startswith("diverged")
         pytest.xfail(f"engine: {s['run_status']['baseline']}")
     # the press reached 3 mm and the tips touched the plate
-    assert z[0] - z.min() == pytest.approx(3.0, abs=1e-9)
+    assert z[0] - z.min() == pytest.approx(3.0, abs=1e-6)  # CSV keeps 9 significant digits
     assert col["n_contact"].max() > 0 and np.max(-col["Fz_N"]) > 0.01
     assert col["theta_rad"][-1] == pytest.approx(0.3 * TWO_PI, abs=0.02)
     assert s["trajectory"]["cut_before_end_of_motion"] is True

@@ -58,7 +58,9 @@ SURF_PLANE = 0.0
 SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
 N_SURF = 8
 
-DELTA_TANGENT_FLOOR = 1e-3  # [mm] smallest penetration used for the normal-law tangent
+DELTA_TANGENT_FLOOR = 1e-3  # [mm] penetration whose slope the pre-search zone's tangent uses
+PRESEARCH = 1.01  # bounding-sphere factor of the pre-search (paper Sec. 3)
+PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
 
 
 def paper_contact_params() -> np.ndarray:
@@ -95,9 +97,10 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
     if delta <= 0.0:
         return 0.0, 0.0, 0.0
     el = k * delta**m1
-    # the tangent of k delta^m1 vanishes at delta -> 0 (m1 > 1); Newton then overshoots at contact
-    # onset.  The tangent (not the force) uses at least the slope at DELTA_TANGENT_FLOOR.
-    kel = k * m1 * max(delta, DELTA_TANGENT_FLOOR) ** (m1 - 1.0)
+    # exact slope (it vanishes as delta -> 0 for m1 > 1: overshoot at contact onset is handled by
+    # the pre-search tangent and the penetration step limit, not by altering this slope, because
+    # an over-stiff tangent turns Newton's convergence linear near onset)
+    kel = k * m1 * delta ** (m1 - 1.0)
     ad = abs(ddelta)
     sg = 1.0 if ddelta > 0.0 else (-1.0 if ddelta < 0.0 else 0.0)
     dm = delta**m3
@@ -298,7 +301,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
             dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             rj = tips[j, 6]
             delta = R + rj - dist
-            if delta <= 0.0 or dist < 1e-12:
+            if dist < 1e-12 or delta <= 0.0:
                 continue
             u0 = d0 / dist
             u1 = d1 / dist
@@ -317,6 +320,51 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
             F[1] += Fn * u1
             F[2] += Fn * u2
             u = (u0, u1, u2)
+            # d(Fn u)/dpt = -kk u u^T + (Fn / dist)(I - u u^T): the second (geometric) term is
+            # ~10x the bristle's lateral stiffness for a squeezed tip; without it Newton crawls
+            geo = Fn / dist
             for a in range(3):
                 for bb in range(3):
-                    Kt[a, bb] -= kk * u[a] * u[bb]
+                    Kt[a, bb] += -kk * u[a] * u[bb] + geo * ((1.0 if a == bb else 0.0)
+                                                             - u[a] * u[bb])
+
+
+@njit(cache=True)
+def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx):
+    """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
+    tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from
+    outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
+    back out (a limit cycle).  This replaces a "pre-search" tangent, which made Newton converge
+    only linearly whenever a tip rests just outside a contact."""
+    nrm = np.empty(3)
+    cpt = np.empty(3)
+    amax = 1.0
+    for s in range(surf.shape[0]):
+        gap = _surface_gap(surf[s], pt, nrm, cpt) - R  # < 0: penetrating
+        dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
+        if dn >= 0.0:
+            continue
+        allow = max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)
+        # penetration after the step: -(gap + a dn) <= allow
+        a = (gap + allow) / (-dn)
+        if a < amax:
+            amax = max(a, 0.0)
+    # the same for the partner tips (held fixed), along the current line of centres
+    if pair_ptr.shape[0] > b + 1:
+        for q in range(pair_ptr[b], pair_ptr[b + 1]):
+            j = pair_idx[q]
+            d0 = pt[0] - tips[j, 0]
+            d1 = pt[1] - tips[j, 1]
+            d2 = pt[2] - tips[j, 2]
+            dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if dist < 1e-12:
+                continue
+            gap = dist - R - tips[j, 6]
+            dn = (dp[0] * d0 + dp[1] * d1 + dp[2] * d2) / dist
+            if dn >= 0.0 or gap > -dn:  # moving apart, or cannot reach the partner
+                continue
+            allow = max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)
+            a = (gap + allow) / (-dn)
+            if a < amax:
+                amax = max(a, 0.0)
+    return amax

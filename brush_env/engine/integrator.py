@@ -23,7 +23,8 @@ import numpy as np
 from numba import njit
 
 from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_factor, block_solve
-from .contact import S_BETA, S_BNEW, S_DELTA, S_DNEW, S_HIST, S_PN, tip_load
+from .contact import (S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
+                      penetration_step_limit, tip_load)
 
 # status codes per bristle
 OK = 0
@@ -42,6 +43,7 @@ P_JAGE = 9  # steps a factored Newton matrix may be reused
 N_PRM = 10
 
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
+MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip radii
 
 
 def make_workspace(nmax: int, n_tip_state: int):
@@ -516,8 +518,33 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
                     t_rot[k, a, bb] = rot[i, a, bb]
                 if abs(dq[k, 3 + a]) > dmax:
                     dmax = abs(dq[k, 3 + a])
-        # cap the rotation increment of one iteration (keeps the log map far from pi)
+        # cap the rotation increment of one iteration (keeps the log map far from pi) and the
+        # tip's displacement (a trust region: the contact laws are ~10^3 times stiffer than the
+        # bristle, and an unbounded step can throw the tip deep into the plate or a neighbour)
         alpha = 1.0 if dmax <= MAX_ROT_STEP else MAX_ROT_STEP / dmax
+        kl = n - 1
+        il = b0 + kl
+        hl = bp[il, 4]
+        r0x = hl * rot[il, 0, 0]
+        r0y = hl * rot[il, 1, 0]
+        r0z = hl * rot[il, 2, 0]
+        dpx = dq[kl, 0] + dq[kl, 4] * r0z - dq[kl, 5] * r0y
+        dpy = dq[kl, 1] + dq[kl, 5] * r0x - dq[kl, 3] * r0z
+        dpz = dq[kl, 2] + dq[kl, 3] * r0y - dq[kl, 4] * r0x
+        dtip = np.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
+        tipcap = MAX_TIP_STEP * tip_args[3]
+        in_contact = tip_state[S_FN] > 0.0 or tip_state[S_FTT] > 0.0
+        if in_contact and alpha * dtip > tipcap:
+            alpha = tipcap / dtip
+        small[6] = dpx
+        small[7] = dpy
+        small[8] = dpz
+        for a in range(3):
+            small[9 + a] = pos[il, a] + hl * rot[il, a, 0]
+        apen = penetration_step_limit(b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2],
+                                      ctx[3], ctx[4])
+        if apen < alpha:
+            alpha = max(apen, 1e-3)
         accepted = False
         for _ls in range(8):
             _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe)

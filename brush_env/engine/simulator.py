@@ -62,7 +62,7 @@ class SimSettings:
     dt: float = 1e-3
     integrator: str = "bdf2"
     newton_rtol: float = 1e-8
-    newton_max_iter: int = 40
+    newton_max_iter: int = 100
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)
     jacobian_max_age: int = 25
@@ -73,7 +73,7 @@ class SimSettings:
             raise ConfigError(f"settings.integrator = {self.integrator!r}: must be one of "
                               f"{sorted(INTEGRATORS)}")
         _check("settings.newton_rtol", self.newton_rtol, 0.0, 1e-2, "(relative)")
-        _check("settings.newton_max_iter", self.newton_max_iter, 1, 200, "", lo_open=False)
+        _check("settings.newton_max_iter", self.newton_max_iter, 1, 1000, "", lo_open=False)
         _check("settings.max_substep_levels", self.max_substep_levels, 0, 30, "", lo_open=False)
         _check("settings.jacobian_max_age", self.jacobian_max_age, 0, 10000, "steps",
                lo_open=False)
