@@ -48,3 +48,21 @@ def natural_frequencies(sim, bristle: int = 0, n_modes: int = 6) -> np.ndarray:
     Li = np.linalg.inv(Lc)
     w2 = np.linalg.eigvalsh(Li @ Ks @ Li.T)
     return np.sqrt(np.clip(np.sort(w2)[:n_modes], 0.0, None)) / (2.0 * np.pi)
+
+
+def element_strains(sim) -> np.ndarray:
+    """Co-rotational strain [d (mm); phi (rad)] of every element (N, 6), as the kernels define it
+    (eq 5 with the strain in the proximal frame); 1/2 e^T K e is the element's elastic energy."""
+    from .rotation import logmap
+
+    st, m = sim.state, sim.model
+    out = np.zeros((m.n_bodies, 6))
+    for j in range(m.n_bristles):
+        pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[j]
+        RA = st.tcp_R[1] @ m.root_R[j]
+        for i in range(m.bstart[j], m.bstart[j + 1]):
+            pB = st.pos[i] + m.bp[i, 4] * st.rot[i][:, 0]
+            out[i, :3] = RA.T @ (pB - pA) - np.array([m.bp[i, 5], 0.0, 0.0])
+            out[i, 3:] = logmap(RA.T @ st.rot[i])
+            pA, RA = pB, st.rot[i]
+    return out

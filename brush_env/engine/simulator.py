@@ -61,7 +61,7 @@ class SimSettings:
 
     dt: float = 1e-3
     integrator: str = "bdf2"
-    newton_rtol: float = 1e-8
+    newton_rtol: float = 1e-7
     newton_max_iter: int = 100
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)

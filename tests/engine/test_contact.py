@@ -1,0 +1,245 @@
+"""Contact (eq 6), stick-slip friction (eq 7-10, Table 1) and tip-tip contact (Table 3).
+
+References are the paper's laws and tables with closed-form consequences: the static penetration
+(W/k)^(1/m1), the friction limits mu_s Fn / mu_d Fn, the bound Delta_max, energy dissipation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from brush_env.engine import (BristleConfig, BrushConfig, Material, Plane, Scene, Section,
+                              SimSettings, Simulator, load_brush, load_scene)
+from brush_env.engine import contact as ct
+
+R0 = np.diag([1.0, -1.0, -1.0])  # TCP z down: bristles hang toward the plate z = 0
+SILICONE = Material(name="silicone", E=7.0, nu=0.48, density=1.15e-9, damping_ratio=0.1)
+TABLE2 = dict(k=100.0, m1=1.3, mu_s=0.8, mu_d=0.76, v_s=1.2, v_d=1.5, dmax=0.1)
+
+
+def one_bristle(length=10.0, bodies=6, material=SILICONE, section=None, lean=0.0, tip=0.44,
+                root=(0.0, 0.0, 0.0)):
+    br = BristleConfig(root=root, axis=(0, 0, 1), width_dir=(1, 0, 0), length=length,
+                       section=section or Section.rect(1.8, 0.8), material=material,
+                       bodies=bodies, tip_radius=tip)
+    return BrushConfig(name="one", head_offset=(0, 0, 0), head_rpy=(0, 0, 0), bristles=(br,),
+                       lean=np.radians(lean))
+
+
+def plate_scene(brush, tip_tip=False):
+    return Scene(brush, (Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),), tip_tip=tip_tip)
+
+
+def test_paper_tables_are_the_defaults():
+    cp = ct.paper_contact_params()
+    assert (cp[ct.C_K], cp[ct.C_M1], cp[ct.C_C], cp[ct.C_M2], cp[ct.C_M3]) == (100, 1.3, 0.2, 1, 2)
+    assert (cp[ct.C_MUS], cp[ct.C_MUD], cp[ct.C_VS], cp[ct.C_VD], cp[ct.C_DMAX]) == \
+        (0.8, 0.76, 1.2, 1.5, 0.1)
+    assert (cp[ct.C_KT], cp[ct.C_M1T], cp[ct.C_CT], cp[ct.C_M2T], cp[ct.C_M3T]) == \
+        (100, 1.3, 0.2, 1, 2)
+
+
+@pytest.mark.parametrize("W", [0.01, 0.1, 0.5])
+def test_sphere_under_load_settles_at_closed_form_penetration(W):
+    """Static: a vertical bristle standing on the plate under a tip load W: delta = (W/k)^(1/m1)."""
+    brush = one_bristle()
+    sim = Simulator(plate_scene(brush), SimSettings(gravity=(0, 0, 0)))
+    sim.reset(np.array([0.0, 0.0, 10.0 + 0.44]), R0)  # sphere exactly touching
+    sim.set_tip_forces(np.array([[0.0, 0.0, -W]]))
+    out = sim.solve_static(increments=4)
+    # the tip sinks by delta and stretches the bristle by delta: the plate carries
+    # W - (EA/L) delta = k delta^m1  (eq 6 with Table 2, axial spring EA/L)
+    sec = brush.bristles[0].section
+    ka = SILICONE.E * sec.area / 10.0
+    lo, hi = 0.0, (W / TABLE2["k"]) ** (1.0 / TABLE2["m1"])
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if TABLE2["k"] * mid ** TABLE2["m1"] + ka * mid < W else (lo, mid)
+    delta = 0.5 * (lo + hi)
+    assert out.tip_penetration[0] == pytest.approx(delta, rel=1e-6)
+    assert out.tip_normal_force[0] == pytest.approx(TABLE2["k"] * delta ** TABLE2["m1"], rel=1e-6)
+    # the robot's reaction is minus the net external load: -(-W + Fn) = +(EA/L) delta (up)
+    assert out.tcp_force[2] == pytest.approx(ka * delta, rel=1e-5)
+
+
+def test_no_tensile_normal_force_during_separation():
+    """A pressed bristle pulled off the plate fast: Fn >= 0 always (no adhesion), then 0."""
+    brush = one_bristle(lean=1.0)
+    sim = Simulator(plate_scene(brush), SimSettings(dt=1e-3, gravity=(0, 0, 0)))
+    z0 = 10.0 + 0.44
+    sim.reset(np.array([0.0, 0.0, z0]), R0)
+    fn = []
+    for k in range(1, 101):  # press 1 mm in 0.1 s
+        fn.append(sim.step(np.array([0.0, 0.0, z0 - 0.01 * k]), R0).tip_normal_force[0])
+    assert max(fn) > 0.01
+    for k in range(1, 41):  # lift at 100 mm/s
+        out = sim.step(np.array([0.0, 0.0, z0 - 1.0 + 0.1 * k]), R0)
+        fn.append(out.tip_normal_force[0])
+    assert min(fn) >= 0.0
+    assert fn[-1] == 0.0 and not out.tip_in_contact[0]
+
+
+def _drag(sim, z, xs, dt):
+    """Drive the TCP through the x positions at height z; return per-step outputs."""
+    outs = []
+    for x in xs:
+        outs.append(sim.step(np.array([x, 0.0, z]), R0))
+    return outs
+
+
+def test_stick_then_slide_at_the_friction_coefficients_and_reversal():
+    """A short bristle held on the plate by a dead load, its base dragged slowly: the tip sticks
+    until |Ft| reaches mu_s Fn (at |Delta| = Delta_max), then slides at mu_d Fn; |Delta| never
+    exceeds Delta_max; reversing the drag flips the friction force.
+
+    While sticking the tip creeps at v < v_base, and the paper's stiction state adds the smoothed
+    sliding term mu_d Fn s(v / v_d) (slope 1.5 / v_d) to the stiction force: the peak lies in
+    [mu_s (1 - beta), mu_s + 1.5 mu_d v_base / v_d] -> [mu_s, mu_s + 0.04] at v_base = 0.05 mm/s.
+    """
+    brush = one_bristle(length=3.0)
+    dt = 2e-3
+    sim = Simulator(plate_scene(brush), SimSettings(dt=dt, gravity=(0, 0, 0)))
+    z = 3.0 + 0.44
+    sim.reset(np.array([0.0, 0.0, z]), R0)
+    sim.set_tip_forces(np.array([[0.0, 0.0, -0.05]]))
+    for _ in range(50):
+        sim.step(np.array([0.0, 0.0, z]), R0)
+    x = 0.0
+    ratios, deltas, sliding = [], [], []
+    for v_base, n in ((0.05, 4000), (4.0, 500), (-4.0, 1000)):  # slow drag, fast drag, reversal
+        for _ in range(n):
+            x += v_base * dt
+            out = sim.step(np.array([x, 0.0, z]), R0)
+            ft = out.tip_tangential_force[0]
+            ratios.append(np.sign(ft[0]) * np.linalg.norm(ft) / out.tip_normal_force[0])
+            deltas.append(np.linalg.norm(sim.state.tip_state[0, ct.S_DELTA:ct.S_DELTA + 3]))
+            sliding.append(bool(out.tip_sliding[0]))
+    r = np.abs(np.array(ratios))
+    slow = r[:4000]
+    mu_s, mu_d = TABLE2["mu_s"], TABLE2["mu_d"]
+    assert mu_s <= slow.max() <= mu_s + 1.5 * mu_d * 0.05 / TABLE2["v_d"] + 1e-3
+    assert not any(sliding[:1000])  # sticks first
+    assert max(deltas) <= TABLE2["dmax"] + 1e-12
+    fast = np.array(ratios[4000 + 300:4500])
+    assert np.allclose(fast, -mu_d, atol=1e-6) and all(sliding[4300:4500])  # opposes +x slip
+    back = np.array(ratios[4500 + 600:])
+    assert np.allclose(back, mu_d, atol=1e-6)  # sign flipped after the reversal
+
+
+def test_two_facing_bristles_push_apart_with_table3_law_and_no_friction():
+    """Two bristles loaded toward each other: the tip spheres touch; the contact force follows
+    F = k delta^m1 along the line of centres (Table 3) and has no tangential part."""
+    a = one_bristle(root=(-0.6, 0.0, 0.0), tip=0.44).bristles[0]
+    b = dataclasses.replace(a, root=(0.6, 0.0, 0.0))
+    brush = BrushConfig(name="pair", head_offset=(0, 0, 0), head_rpy=(0, 0, 0), bristles=(a, b))
+    sim = Simulator(Scene(brush, (), tip_tip=True), SimSettings(dt=1e-3, gravity=(0, 0, 0)))
+    assert sim.n_tip_pairs == 1
+    sim.reset(np.array([0.0, 0.0, 30.0]), R0)
+    P = 0.02  # N, pushes the tips together along x (world x = TCP x)
+    out = None
+    for k in range(1, 3001):  # ramp the loads over 0.5 s (no tunnelling), then settle
+        s = min(k / 500.0, 1.0)
+        sim.set_tip_forces(s * np.array([[P, 0.0, 0.0], [-P, 0.0, 0.0]]))
+        out = sim.step(np.array([0.0, 0.0, 30.0]), R0)
+    tips = out.tip_pos
+    d = tips[0] - tips[1]
+    dist = np.linalg.norm(d)
+    delta = 0.88 - dist
+    assert delta > 0
+    ftt = out.extra["tip_tip_force"]
+    # rel 1e-3: the pair is still creeping toward equilibrium (1e-4 after 3 s) and bristle 0 sees
+    # bristle 1's tip of the previous step (one Gauss-Seidel sweep per step)
+    assert ftt[0] == pytest.approx(100.0 * delta ** 1.3, rel=1e-3)
+    assert ftt[1] == pytest.approx(ftt[0], rel=1e-3)
+    # head-on and frictionless: the line of centres stays along x (no sideways force appears)
+    assert abs(d[1]) < 1e-9 and abs(d[2]) < 1e-5 and d[0] < 0  # z: Gauss-Seidel asymmetry
+    assert np.all(out.tip_tangential_force == 0.0)
+    # statics of bristle a along x: load P = contact force + its bending reaction (> 0)
+    assert 0.0 < ftt[0] < P
+
+
+def _energy(sim):
+    """Kinetic + elastic (1/2 e^T K e per element) energy of the bristles [N mm]."""
+    st, m = sim.state, sim.model
+    ke = 0.5 * np.sum(m.bp[:, 0] * np.sum(st.vel ** 2, axis=1))
+    for i in range(m.n_bodies):
+        om_b = st.rot[i].T @ st.omg[i]
+        ke += 0.5 * np.sum(m.bp[i, 1:4] * om_b ** 2)
+    from brush_env.engine.modal import element_strains
+    e = element_strains(sim)
+    pe = 0.5 * np.einsum("ni,nij,nj->", e, m.K, e)
+    # penalty contact potential of eq 6's elastic part: k delta^(m1+1) / (m1 + 1)
+    pen = st.tip_state[:, ct.S_PEN] * (st.tip_state[:, ct.S_FN] > 0)
+    pc = np.sum(TABLE2["k"] * pen ** (TABLE2["m1"] + 1.0) / (TABLE2["m1"] + 1.0))
+    return ke + pe + pc
+
+
+def test_bristle_dropped_on_plate_loses_energy_and_never_gains_it():
+    brush = one_bristle(lean=3.0)
+    dt = 1e-3
+    sim = Simulator(plate_scene(brush), SimSettings(dt=dt, gravity=(0, 0, 0)))
+    z0 = 10.0 + 0.44 + 0.2
+    sim.reset(np.array([0.0, 0.0, z0]), R0)
+    v = 20.0  # mm/s down; the base stops 1.5 mm below the touch height
+    z = z0
+    for _ in range(int(round(1.7 / v / dt))):
+        z -= v * dt
+        sim.step(np.array([0.0, 0.0, z]), R0)
+    e = [_energy(sim)]
+    touched = False
+    for _ in range(1500):  # base held still: no work in; contact, friction and damping dissipate
+        out = sim.step(np.array([0.0, 0.0, z]), R0)
+        touched |= bool(out.tip_in_contact[0])
+        e.append(_energy(sim))
+    e = np.array(e)
+    assert touched
+    assert np.all(np.diff(e) <= 1e-9 * e[0] + 1e-15)
+    assert e[-1] < e[0]
+
+
+HARD_CASES = {
+    "press_6mm": dict(press=6.0, stroke=0.0, speed=0.0),
+    "reversal_50": dict(press=3.0, stroke=3.0, speed=50.0, reverse=True),
+    "stroke_200": dict(press=3.0, stroke=10.0, speed=200.0),
+    "stiff_contact_10x": dict(press=3.0, stroke=3.0, speed=20.0, kscale=10.0),
+    "material_7GPa": dict(press=0.05, stroke=0.5, speed=20.0, gpa=True),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HARD_CASES))
+def test_hard_cases_stay_finite_and_bounded(name):
+    """Hard cases on the tiny brush: finite outputs, bounded penetration, wrench in an envelope
+    (|F| below the sum of what the tips can push: n_tips * k * (0.1 mm)^m1 = 5 N per tip)."""
+    case = HARD_CASES[name]
+    brush = load_brush("tiny")
+    if case.get("gpa"):
+        brush = brush.with_material(dataclasses.replace(SILICONE, E=7000.0, name="7GPa"))
+    scene = dataclasses.replace(load_scene("flat_plate", brush=brush), tip_tip=True)
+    dt = 1e-3
+    sim = Simulator(scene, SimSettings(dt=dt))
+    if "kscale" in case:
+        sim.contact_params[ct.C_K] *= case["kscale"]
+        sim.contact_params[ct.C_KT] *= case["kscale"]
+    z0 = brush.max_length + 0.44
+    sim.reset(np.array([0.0, 0.0, z0]), R0)
+    n_press = 300
+    poses = [np.array([0.0, 0.0, z0 - case["press"] * (3 * s * s - 2 * s ** 3)])
+             for s in np.arange(1, n_press + 1) / n_press]
+    if case["speed"]:
+        n = int(case["stroke"] / case["speed"] / dt)
+        x = np.cumsum(np.full(n, case["speed"] * dt))
+        if case.get("reverse"):
+            x = np.r_[x, x[-1] - x]  # instant reversal
+        poses += [np.array([xi, 0.0, z0 - case["press"]]) for xi in x]
+    pen_max = 0.0
+    fmax = 0.0
+    for p in poses:
+        out = sim.step(p, R0)
+        assert np.all(np.isfinite(out.tcp_force)) and np.all(np.isfinite(out.tip_pos))
+        pen_max = max(pen_max, out.tip_penetration.max())
+        fmax = max(fmax, np.linalg.norm(out.tcp_force))
+    assert pen_max < 0.1  # mm: a tenth of the tip sphere... far above the silicone's ~5 um
+    assert fmax < brush.n_bristles * 100.0 * 0.1 ** 1.3 * 2.0
