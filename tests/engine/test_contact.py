@@ -243,3 +243,22 @@ def test_hard_cases_stay_finite_and_bounded(name):
         fmax = max(fmax, np.linalg.norm(out.tcp_force))
     assert pen_max < 0.1  # mm: a tenth of the tip sphere... far above the silicone's ~5 um
     assert fmax < brush.n_bristles * 100.0 * 0.1 ** 1.3 * 2.0
+
+
+@pytest.mark.parametrize("E, limit_um, must_meet", [(7.0, 10.0, True), (7000.0, 100.0, False)])
+def test_paper_penetration_criterion_7MPa_meets_7GPa_does_not(E, limit_um, must_meet):
+    """Paper Sec. 3: the contact parameters keep tip penetration at about 5 um.  A 3 mm press of
+    the default silicone brush stays within 2x that (buckling peak included; 8.6 um measured);
+    the printed 7 GPa makes the bristles 1000x stiffer and the tips sink by far more than 20x
+    that (1425 um measured; docs/model.md)."""
+    brush = load_brush("default")
+    brush = brush.with_material(dataclasses.replace(brush.bristles[0].material, E=E, name="m"))
+    sim = Simulator(load_scene("flat_plate", brush=brush), SimSettings(dt=1e-3))
+    z0 = brush.max_length + 0.44
+    sim.reset(np.array([0.0, 0.0, z0]), R0)
+    pen = 0.0
+    for k in range(1, 501):
+        s = min(k / 400.0, 1.0)
+        out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s ** 3)]), R0)
+        pen = max(pen, out.tip_penetration.max())
+    assert (pen * 1e3 <= limit_um) == must_meet
