@@ -6,11 +6,11 @@ Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator`
 
 from .config import (BristleConfig, BrushConfig, ConfigError, Material, Section, configs_dir,
                      load_brush, load_materials)
-from .scene import Plane, Scene, load_scene
+from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import SimSettings, SimulationDivergence, Simulator, State, StepResult
 
 __all__ = [
     "BristleConfig", "BrushConfig", "ConfigError", "Material", "Section", "configs_dir",
     "load_brush", "load_materials", "SimSettings", "SimulationDivergence", "Simulator", "State",
-    "StepResult", "Plane", "Scene", "load_scene",
+    "StepResult", "Plane", "Cylinder", "MeshPlate", "Scene", "load_scene",
 ]

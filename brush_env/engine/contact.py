@@ -56,6 +56,7 @@ N_CP = 15
 # --- surface rows surf (ns, 8): kind, point (3), normal/axis (3), radius
 SURF_PLANE = 0.0
 SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
+SURF_MESH = 2.0  # the scene's triangle mesh (ctx mesh arrays); row: kind, search radius [mm]
 N_SURF = 8
 
 DELTA_TANGENT_FLOOR = 1e-3  # [mm] penetration whose slope the pre-search zone's tangent uses
@@ -114,9 +115,111 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
 
 
 @njit(cache=True)
-def _surface_gap(surf, pt, nrm, cpt):
+def _closest_on_triangle(p, a, b, c, out):
+    """Closest point to p on triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+    if d1 <= 0.0 and d2 <= 0.0:
+        out[0], out[1], out[2] = a[0], a[1], a[2]
+        return
+    bp0, bp1, bp2 = p[0] - b[0], p[1] - b[1], p[2] - b[2]
+    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
+    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
+    if d3 >= 0.0 and d4 <= d3:
+        out[0], out[1], out[2] = b[0], b[1], b[2]
+        return
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        out[0], out[1], out[2] = a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
+        return
+    cp0, cp1, cp2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
+    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
+    if d6 >= 0.0 and d5 <= d6:
+        out[0], out[1], out[2] = c[0], c[1], c[2]
+        return
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        out[0], out[1], out[2] = a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
+        return
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out[0] = b[0] + w * (c[0] - b[0])
+        out[1] = b[1] + w * (c[1] - b[1])
+        out[2] = b[2] + w * (c[2] - b[2])
+        return
+    den = 1.0 / (va + vb + vc)
+    v = vb * den
+    w = vc * den
+    out[0] = a[0] + ab0 * v + ac0 * w
+    out[1] = a[1] + ab1 * v + ac1 * w
+    out[2] = a[2] + ab2 * v + ac2 * w
+
+
+@njit(cache=True)
+def _mesh_gap(pt, search, mesh, nrm, cpt):
+    """Signed distance from pt to the mesh (>0 on the side the triangle normals point to), the
+    contact normal and the closest point, over the triangles of the grid cells within ``search``
+    of pt (uniform-grid spatial index).  Returns 1e300 if no triangle is that close."""
+    verts, tris, tnrm, gf, cell_start, cell_tris = mesh
+    if tris.shape[0] == 0:
+        return 1e300
+    cell = gf[3]
+    nx, ny, nz = int(gf[4]), int(gf[5]), int(gf[6])
+    lo = np.empty(3, np.int64)
+    hi = np.empty(3, np.int64)
+    dims = (nx, ny, nz)
+    for a in range(3):
+        lo[a] = max(int(np.floor((pt[a] - search - gf[a]) / cell)), 0)
+        hi[a] = min(int(np.floor((pt[a] + search - gf[a]) / cell)), dims[a] - 1)
+        if lo[a] > hi[a]:
+            return 1e300
+    q = np.empty(3)
+    best = 1e300
+    bestd = 1e300
+    for ix in range(lo[0], hi[0] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            for iz in range(lo[2], hi[2] + 1):
+                c = (ix * ny + iy) * nz + iz
+                for k in range(cell_start[c], cell_start[c + 1]):
+                    t = cell_tris[k]
+                    _closest_on_triangle(pt, verts[tris[t, 0]], verts[tris[t, 1]],
+                                         verts[tris[t, 2]], q)
+                    d0 = pt[0] - q[0]
+                    d1 = pt[1] - q[1]
+                    d2 = pt[2] - q[2]
+                    dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                    if dist < bestd:
+                        bestd = dist
+                        side = d0 * tnrm[t, 0] + d1 * tnrm[t, 1] + d2 * tnrm[t, 2]
+                        if dist > 1e-12 * (1.0 + abs(pt[0]) + abs(pt[1]) + abs(pt[2])) and \
+                                abs(side) < (1.0 - 1e-12) * dist:
+                            # closest point on an edge or vertex: normal along p - q
+                            sg = 1.0 if side >= 0.0 else -1.0
+                            for a in range(3):
+                                nrm[a] = sg * (pt[a] - q[a]) / dist
+                            best = sg * dist
+                        else:  # face interior: the face normal, exactly as for a plane
+                            for a in range(3):
+                                nrm[a] = tnrm[t, a]
+                            best = side
+                        for a in range(3):
+                            cpt[a] = q[a]
+    return best
+
+
+@njit(cache=True)
+def _surface_gap(surf, pt, nrm, cpt, mesh):
     """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point."""
     kind = surf[0]
+    if kind == SURF_MESH:
+        return _mesh_gap(pt, surf[1], mesh, nrm, cpt)
     if kind == SURF_PLANE:
         for a in range(3):
             nrm[a] = surf[4 + a]
@@ -146,7 +249,8 @@ def _surface_gap(surf, pt, nrm, cpt):
 
 
 @njit(cache=True)
-def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, F, Kt):
+def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F,
+             Kt):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
 
     Sums the dead external force, the tip-surface contact (eq 6-10) of the deepest surface and the
@@ -180,12 +284,12 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
     best = 1e300
     ibest = -1
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt)
+        gap = _surface_gap(surf[s], pt, nrm, cpt, mesh)
         if gap < best:
             best = gap
             ibest = s
     if ibest >= 0 and best < R:
-        _surface_gap(surf[ibest], pt, nrm, cpt)
+        _surface_gap(surf[ibest], pt, nrm, cpt, mesh)
         delta = R - best
         vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
         Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])
@@ -330,7 +434,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
 
 
 @njit(cache=True)
-def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx):
+def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh):
     """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
     tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from
     outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
@@ -340,7 +444,7 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx):
     cpt = np.empty(3)
     amax = 1.0
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt) - R  # < 0: penetrating
+        gap = _surface_gap(surf[s], pt, nrm, cpt, mesh) - R  # < 0: penetrating
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
@@ -368,3 +472,41 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx):
             if a < amax:
                 amax = max(a, 0.0)
     return amax
+
+
+def empty_mesh():
+    """The mesh arrays of a scene without a triangle mesh (numba needs fixed types)."""
+    return (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(7),
+            np.zeros(1, np.int64), np.zeros(0, np.int64))
+
+
+def build_mesh(vertices, triangles, cell: float | None = None):
+    """Mesh arrays with a uniform-grid index: every triangle is listed in each cell its bounding
+    box overlaps.  ``cell`` [mm] defaults to twice the mean edge length."""
+    V = np.ascontiguousarray(vertices, dtype=float)
+    T = np.ascontiguousarray(triangles, dtype=np.int64)
+    e1 = V[T[:, 1]] - V[T[:, 0]]
+    e2 = V[T[:, 2]] - V[T[:, 0]]
+    n = np.cross(e1, e2)
+    area2 = np.linalg.norm(n, axis=1)
+    if np.any(area2 <= 0):
+        raise ValueError("mesh has degenerate triangles (zero area)")
+    n = n / area2[:, None]
+    if cell is None:
+        cell = 2.0 * float(np.mean(np.linalg.norm(e1, axis=1)))
+    lo = V.min(axis=0) - 1e-9
+    dims = np.maximum(np.ceil((V.max(axis=0) + 1e-9 - lo) / cell).astype(np.int64), 1)
+    tlo = np.floor((V[T].min(axis=1) - lo) / cell).astype(np.int64)
+    thi = np.floor((V[T].max(axis=1) - lo) / cell).astype(np.int64)
+    thi = np.minimum(thi, dims - 1)
+    buckets = [[] for _ in range(int(np.prod(dims)))]
+    for t in range(len(T)):
+        for ix in range(tlo[t, 0], thi[t, 0] + 1):
+            for iy in range(tlo[t, 1], thi[t, 1] + 1):
+                for iz in range(tlo[t, 2], thi[t, 2] + 1):
+                    buckets[(ix * dims[1] + iy) * dims[2] + iz].append(t)
+    start = np.zeros(len(buckets) + 1, np.int64)
+    start[1:] = np.cumsum([len(bk) for bk in buckets])
+    flat = np.array([t for bk in buckets for t in bk], np.int64)
+    gf = np.array([lo[0], lo[1], lo[2], cell, dims[0], dims[1], dims[2]], float)
+    return (V, T, n, gf, start, flat)

@@ -121,9 +121,9 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
             res[k, a] -= out12[6 + a]
     il = b0 + n - 1
     _node(pos[il], rot[il], bp[il, 4], pt)
-    surf, cp, tips, pair_ptr, pair_idx = ctx
+    surf, cp, tips, pair_ptr, pair_idx, mesh = ctx
     tip_load(b, pt, c0, inv_h, static, tip_args, tip_state, surf, cp, tips, pair_ptr, pair_idx,
-             tipF, tipK)
+             mesh, tipF, tipK)
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
     rz = pt[2] - pos[il, 2]
@@ -542,7 +542,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         for a in range(3):
             small[9 + a] = pos[il, a] + hl * rot[il, a, 0]
         apen = penetration_step_limit(b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2],
-                                      ctx[3], ctx[4])
+                                      ctx[3], ctx[4], ctx[5])
         if apen < alpha:
             alpha = max(apen, 1e-3)
         accepted = False
@@ -649,8 +649,9 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
     tcp_p (3, 3), tcp_R (3, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1} (rows 0, 1, 2).
     root_p (nb, 3), root_R (nb, 3, 3): root node pose of each bristle in the TCP frame.
     tip_args (nb, na), tip_state (nb, ns): tip-load parameters and per-contact state (contact.py).
-    ctx = (surf, cp, tips, pair_ptr, pair_idx): surfaces, contact law parameters, every tip's
-    node position/velocity/radius (nb, 7) and the tip-tip partner lists (CSR).  Bristles are
+    ctx = (surf, cp, tips, pair_ptr, pair_idx, mesh): surfaces, contact law parameters, every
+    tip's node position/velocity/radius (nb, 7), the tip-tip partner lists (CSR) and the scene's
+    triangle mesh with its grid index (contact.build_mesh).  Bristles are
     solved in order; each one sees its partners' latest tips (one Gauss-Seidel sweep), and its
     own entry in ``tips`` is updated as soon as it has been advanced.
     Outputs per bristle: rootw (force, moment of the root element on the head, at the root node,

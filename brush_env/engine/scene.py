@@ -51,6 +51,37 @@ class Cylinder:
 
 
 @dataclass(frozen=True)
+class MeshPlate:
+    """A flat square plate as a triangle mesh (the paper meshed its plate, Sec. 3): centre
+    ``point`` [mm], normal +z, side ``size`` [mm], ``divisions`` squares per side (2 triangles
+    each).  Contact uses the closest point on the triangles near the tip (uniform-grid index)."""
+
+    point: tuple = (0.0, 0.0, 0.0)
+    size: float = 80.0
+    divisions: int = 16
+
+    def __post_init__(self):
+        if not (self.size > 0 and np.isfinite(self.size)):
+            raise ConfigError(f"mesh_plate.size_mm = {self.size!r}: must be > 0 (mm)")
+        if not (1 <= int(self.divisions) <= 1000):
+            raise ConfigError(f"mesh_plate.divisions = {self.divisions!r}: must be in [1, 1000]")
+
+    def kernel_row(self):
+        return np.r_[2.0, 2.0, np.zeros(6)]  # kind, search radius [mm] (> tip radius)
+
+    def triangles(self):
+        n = int(self.divisions)
+        g = np.linspace(-0.5 * self.size, 0.5 * self.size, n + 1)
+        X, Y = np.meshgrid(g, g, indexing="ij")
+        V = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)]) + np.asarray(self.point)
+        idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+        a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), \
+            idx[:-1, 1:].ravel()
+        T = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])  # normals +z
+        return V, T
+
+
+@dataclass(frozen=True)
 class Scene:
     """A brush and its environment.  ``surfaces`` empty means a free brush (no contact)."""
 
@@ -82,10 +113,13 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
         kind = s.get("kind", "plane")
         if kind == "plane":
             surfaces.append(Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1)))))
+        elif kind == "mesh_plate":
+            surfaces.append(MeshPlate(tuple(s.get("point_mm", (0, 0, 0))),
+                                      float(s.get("size_mm", 80.0)), int(s.get("divisions", 16))))
         elif kind == "cylinder":
             surfaces.append(Cylinder(tuple(s.get("point_mm", (0, 0, -5))),
                                      tuple(s.get("axis", (1, 0, 0))), float(s.get("radius_mm", 5.0))))
         else:
             raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of "
-                              "['plane', 'cylinder']")
+                              "['plane', 'mesh_plate', 'cylinder']")
     return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem))

@@ -229,6 +229,11 @@ class Simulator:
         self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
         self.contact_params = ct.paper_contact_params()
         self.surfaces = _surface_rows(scene.surfaces)
+        meshes = [srf for srf in scene.surfaces if hasattr(srf, "triangles")]
+        if len(meshes) > 1:
+            raise ConfigError(f"scene {scene.name!r}: at most one triangle-mesh surface, got "
+                              f"{len(meshes)}")
+        self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
         self.pair_ptr, self.pair_idx = tip_pairs(self.model, scene) if scene.tip_tip else \
             (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
         self._ws = itg.make_workspace(int(np.diff(self.model.bstart).max()), N_TIP_STATE)
@@ -366,7 +371,8 @@ class Simulator:
         return self._result(int(self._iters.sum()), int(self._nsub.sum()))
 
     def _ctx(self):
-        return (self.surfaces, self.contact_params, self._tips, self.pair_ptr, self.pair_idx)
+        return (self.surfaces, self.contact_params, self._tips, self.pair_ptr, self.pair_idx,
+                self.mesh)
 
     @property
     def n_tip_pairs(self) -> int:

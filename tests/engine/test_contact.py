@@ -262,3 +262,26 @@ def test_paper_penetration_criterion_7MPa_meets_7GPa_does_not(E, limit_um, must_
         out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s ** 3)]), R0)
         pen = max(pen, out.tip_penetration.max())
     assert (pen * 1e3 <= limit_um) == must_meet
+
+
+def test_mesh_plate_and_analytic_plane_give_the_same_forces():
+    """The paper meshed its flat plate: the triangle mesh (closest point on triangles, grid index)
+    and the analytic plane give the same press-and-drag forces to solver tolerance."""
+    from brush_env.engine import MeshPlate
+
+    brush = load_brush("tiny")
+    runs = []
+    for surf in (Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), MeshPlate((0.0, 0.0, 0.0), 60.0, 12)):
+        sim = Simulator(Scene(brush, (surf,), tip_tip=False), SimSettings(dt=1e-3,
+                                                                           newton_rtol=1e-10))
+        z0 = brush.max_length + 0.44
+        sim.reset(np.array([0.0, 0.0, z0]), R0)
+        F = []
+        for k in range(1, 601):  # press 2 mm in 0.3 s, then drag 3 mm along a diagonal
+            s = min(k / 300.0, 1.0)
+            d = max(k - 300, 0) * 0.01
+            out = sim.step(np.array([d, 0.7 * d, z0 - 2.0 * (3 * s * s - 2 * s ** 3)]), R0)
+            F.append(np.r_[out.tcp_force, out.tip_normal_force])
+        runs.append(np.array(F))
+    assert np.abs(runs[0]).max() > 0.05
+    assert np.allclose(runs[0], runs[1], rtol=0, atol=1e-7)
