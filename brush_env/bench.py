@@ -26,8 +26,9 @@ rtf = simulated time / wall time.  Run on one core: ``taskset -c 0 brush-env ben
 tips touching the plate at t = 0, pressed 3 mm along the bristle axis (0.5 s, minimum jerk), held
 0.25 s, then driven along the paper's 20 mm circle at 20 mm/s (exact circle, 100 mm/s^2 ramp) --
 but only for the first ``arc`` = 1.05 s of the circle (1.8 s in all, a multiple of every dt;
-theta reaches ~55 deg, past the first jamming angle pi/4), not the full turn the issue asks for,
-so that the whole grid stays under ~10 min on one core.  Grid: bodies {3, 6} x dt {1, 2, 4} ms x {euler, bdf2} x tip_tip {off, on}
+theta reaches ~54 deg, past the first jamming angle pi/4), not the full turn the issue asks for,
+so that the whole grid stays under ~10 min on one core.  Grid: bodies {3, 6} x dt {1, 2, 4} ms
+x {euler, bdf2} x tip_tip {off, on}
 (``dataclasses.replace(scene, tip_tip=...)``; the scene file has it off).  Each tip_tip setting
 has its own reference (12 bodies, dt = 2.5e-4 s, BDF2, same tip_tip); the TCP force is
 interpolated onto a common 5 ms grid and
