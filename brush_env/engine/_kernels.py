@@ -164,47 +164,6 @@ def _lus6(A, piv, b):
         b[i] = s / A[i, i]
 
 
-@njit(cache=True)
-def block_thomas(n, D, U, L, r, x, G, piv, tmp):
-    """Solve the block-tridiagonal system (L_i, D_i, U_i) x = r in O(n) (block Thomas).
-
-    D, U, L: (n, 6, 6) (D is overwritten by its LU factors), r, x: (n, 6), G: (n, 6, 6) scratch,
-    piv: (n, 6) int scratch, tmp: (6,) scratch.  Returns False if a pivot block is singular.
-    """
-    for i in range(n):
-        if i > 0:
-            # D_i -= L_i G_{i-1};  r_i -= L_i y_{i-1}  (y stored in x)
-            for a in range(6):
-                for b in range(6):
-                    s = 0.0
-                    for k in range(6):
-                        s += L[i, a, k] * G[i - 1, k, b]
-                    D[i, a, b] -= s
-                s = 0.0
-                for k in range(6):
-                    s += L[i, a, k] * x[i - 1, k]
-                r[i, a] -= s
-        if not _lu6(D[i], piv[i]):
-            return False
-        for a in range(6):
-            x[i, a] = r[i, a]
-        _lus6(D[i], piv[i], x[i])
-        if i < n - 1:
-            for b in range(6):
-                for a in range(6):
-                    tmp[a] = U[i, a, b]
-                _lus6(D[i], piv[i], tmp)
-                for a in range(6):
-                    G[i, a, b] = tmp[a]
-    for i in range(n - 2, -1, -1):
-        for a in range(6):
-            s = 0.0
-            for k in range(6):
-                s += G[i, a, k] * x[i + 1, k]
-            x[i, a] -= s
-    return True
-
-
 # --------------------------------------------------------------------------- beam element (eq 1-5)
 @njit(cache=True)
 def element_forces(RA, pA, RB, pB, K, length, ehist, gs, hs, out, e):

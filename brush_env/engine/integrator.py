@@ -22,9 +22,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import _element_gen, _local_rot_into, _node, _rotate_left, block_factor, block_solve
+from ._kernels import (_element_gen, _local_rot_into, _node, _rotate_left, block_factor,
+                       block_solve)
 from .contact import (S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
                       penetration_step_limit, tip_load)
+from .rotation import skew
 
 # status codes per bristle
 OK = 0
@@ -232,23 +234,8 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     # tip load at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta
     il = b0 + n - 1
     k = n - 1
-    r = np.empty(3)
-    for a in range(3):
-        r[a] = bp[il, 4] * rot[il, a, 0]
-    Sr = np.zeros((3, 3))
-    Sr[0, 1] = -r[2]
-    Sr[0, 2] = r[1]
-    Sr[1, 0] = r[2]
-    Sr[1, 2] = -r[0]
-    Sr[2, 0] = -r[1]
-    Sr[2, 1] = r[0]
-    SF = np.zeros((3, 3))
-    SF[0, 1] = -tipF[2]
-    SF[0, 2] = tipF[1]
-    SF[1, 0] = tipF[2]
-    SF[1, 2] = -tipF[0]
-    SF[2, 0] = -tipF[1]
-    SF[2, 1] = tipF[0]
+    Sr = skew(bp[il, 4] * rot[il, :, 0])
+    SF = skew(tipF)
     KS = tipK @ Sr
     SrK = Sr @ tipK
     SrKS = Sr @ KS
