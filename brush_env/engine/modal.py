@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import integrator as itg
+from .rotation import logmap
 
 
 def bristle_stiffness_mass(sim, bristle: int = 0):
@@ -53,8 +54,6 @@ def natural_frequencies(sim, bristle: int = 0, n_modes: int = 6) -> np.ndarray:
 def element_strains(sim) -> np.ndarray:
     """Co-rotational strain [d (mm); phi (rad)] of every element (N, 6), as the kernels define it
     (eq 5 with the strain in the proximal frame); 1/2 e^T K e is the element's elastic energy."""
-    from .rotation import logmap
-
     st, m = sim.state, sim.model
     out = np.zeros((m.n_bodies, 6))
     for j in range(m.n_bristles):
