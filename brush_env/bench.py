@@ -246,26 +246,37 @@ def bench_engine(args) -> int:
                f"|F(0)| = {np.linalg.norm(ref.F[0]):.3e} N, dynamic RMS |F - F(0)| = "
                f"{np.sqrt(np.mean(np.sum((yr - ref.F[0])**2, axis=1))):.3e} N")
     print(summary, file=log)
-    for name, c in cold.items():
-        print(f"cold start, {name}: import {c['import_s']:.2f} s, build + first step "
-              f"{c['first_step_s']:.2f} s, whole process {c['process_s']:.2f} s", file=log)
+    _print_cold_start(cold, log)
     if not args.json:
         print(format_table(rows))
     return 0
 
 
-def format_table(rows: list[dict]) -> str:
-    """Markdown table of the engine rows."""
-    head = ("| bodies | dt [s] | integrator | RMS F err | RMS M err | wall [s] | RTF "
-            "| Newton/step/bristle |")
-    lines = [head, "|" + "---|" * 8]
-    for r in rows:
-        lines.append(f"| {r['bodies']} | {r['dt']:g} | {r['integrator']} | "
-                     f"{r['rms_force_error']:.2e} | {r['rms_moment_error']:.2e} | "
-                     f"{r['wall_s']:.2f} | {r['rtf']:.3g} | "
-                     f"{r['newton_per_step_per_bristle']:.2f} |")
+def markdown_table(rows: list[dict], columns) -> str:
+    """Markdown table: ``columns`` is a list of (header, row -> cell text)."""
+    lines = ["| " + " | ".join(h for h, _ in columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(f(r) for _, f in columns) + " |" for r in rows]
     return "\n".join(lines)
 
+
+def _print_cold_start(cold: dict, log, what: str = "") -> None:
+    for name, c in cold.items():
+        print(f"cold start{what}, {name}: import {c['import_s']:.2f} s, build + first step "
+              f"{c['first_step_s']:.2f} s, whole process {c['process_s']:.2f} s", file=log)
+
+
+def format_table(rows: list[dict]) -> str:
+    """Markdown table of the engine rows."""
+    return markdown_table(rows, [
+        ("bodies", lambda r: f"{r['bodies']}"),
+        ("dt [s]", lambda r: f"{r['dt']:g}"),
+        ("integrator", lambda r: r["integrator"]),
+        ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
+        ("RMS M err", lambda r: f"{r['rms_moment_error']:.2e}"),
+        ("wall [s]", lambda r: f"{r['wall_s']:.2f}"),
+        ("RTF", lambda r: f"{r['rtf']:.3g}"),
+        ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
+    ])
 
 # --------------------------------------------------------------------------- contact target
 @dataclass
@@ -420,10 +431,7 @@ def bench_contact(args) -> int:
                     rows.append(row)
                     if args.json:
                         print(json.dumps(row), flush=True)
-    for name, c in cold.items():
-        print(f"cold start (flat_plate scene), {name}: import {c['import_s']:.2f} s, build + "
-              f"first step {c['first_step_s']:.2f} s, whole process {c['process_s']:.2f} s",
-              file=log)
+    _print_cold_start(cold, log, " (flat_plate scene)")
     if not args.json:
         print(format_contact_table(rows))
     return 0
@@ -431,24 +439,24 @@ def bench_contact(args) -> int:
 
 def format_contact_table(rows: list[dict]) -> str:
     """Markdown table of the contact rows (references first, marked "ref")."""
-    head = ("| bodies | dt [s] | integrator | tip_tip | RMS F err | RMS F err (circle) | wall [s] "
-            "| RTF | Newton/step/bristle | extra substeps | status |")
-    lines = [head, "|" + "---|" * 11]
 
-    def e(x):
-        return "NaN" if not math.isfinite(x) else f"{x:.2e}"
+    def err(key):
+        return lambda r: "—" if r["reference"] else (
+            "NaN" if not math.isfinite(r[key]) else f"{r[key]:.2e}")
 
-    for r in rows:
-        ref = r["reference"]
-        lines.append(f"| {r['bodies']}{' (ref)' if ref else ''} | {r['dt']:g} | "
-                     f"{r['integrator']} | {'on' if r['tip_tip'] else 'off'} | "
-                     f"{'—' if ref else e(r['rms_force_error'])} | "
-                     f"{'—' if ref else e(r['rms_force_error_circle'])} | "
-                     f"{r['wall_s']:.1f} | {r['rtf']:.3g} | "
-                     f"{r['newton_per_step_per_bristle']:.2f} | {r['substeps_extra']} | "
-                     f"{r['status']} |")
-    return "\n".join(lines)
-
+    return markdown_table(rows, [
+        ("bodies", lambda r: f"{r['bodies']}{' (ref)' if r['reference'] else ''}"),
+        ("dt [s]", lambda r: f"{r['dt']:g}"),
+        ("integrator", lambda r: r["integrator"]),
+        ("tip_tip", lambda r: "on" if r["tip_tip"] else "off"),
+        ("RMS F err", err("rms_force_error")),
+        ("RMS F err (circle)", err("rms_force_error_circle")),
+        ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
+        ("RTF", lambda r: f"{r['rtf']:.3g}"),
+        ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
+        ("extra substeps", lambda r: f"{r['substeps_extra']}"),
+        ("status", lambda r: r["status"]),
+    ])
 
 def _bench_env(args) -> int:
     from brush_env.envs import bench_env  # gymnasium only when the env is benchmarked
