@@ -73,36 +73,28 @@ def _clip(x, lo, hi):
 # --------------------------------------------------------------------------------------------
 # validation helpers
 # --------------------------------------------------------------------------------------------
-def _positive(name: str, value) -> float:
+def _number(name: str, value, what: str, rng: str, ok) -> float:
+    """float(value), or ValueError naming the parameter, the value and the allowed range."""
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number > 0 (allowed range (0, inf)), got {value!r}")
-    if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f"{name} must be > 0 (allowed range (0, inf)), got {value!r}")
+        kind = "a finite number" if what == "finite" else f"a number {what}"
+        raise ValueError(f"{name} must be {kind} (allowed range {rng}), got {value!r}")
+    if not (math.isfinite(x) and ok(x)):
+        raise ValueError(f"{name} must be {what} (allowed range {rng}), got {value!r}")
     return x
+
+
+def _positive(name: str, value) -> float:
+    return _number(name, value, "> 0", "(0, inf)", lambda x: x > 0.0)
 
 
 def _nonneg(name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number >= 0 (allowed range [0, inf)), got {value!r}")
-    if not (math.isfinite(x) and x >= 0.0):
-        raise ValueError(f"{name} must be >= 0 (allowed range [0, inf)), got {value!r}")
-    return x
+    return _number(name, value, ">= 0", "[0, inf)", lambda x: x >= 0.0)
 
 
 def _finite(name: str, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{name} must be a finite number (allowed range (-inf, inf)), got {value!r}"
-        )
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite (allowed range (-inf, inf)), got {value!r}")
-    return x
+    return _number(name, value, "finite", "(-inf, inf)", lambda x: True)
 
 
 def _vec3(name: str, value) -> np.ndarray:
