@@ -115,6 +115,30 @@ def _rotate_left(v0, v1, v2, R, out):
 
 
 @njit(cache=True)
+def reorthonormalize(R):
+    """R <- R (3 I - R^T R) / 2 in place: one step of the polar (Newton-Schulz) iteration.
+
+    Products of many small rotations drift from orthonormality by ~1e-16 per product; after a few
+    hundred steps ``R R^T - I`` reaches ~1e-12 and the chain update, which maps strains through
+    ``R_A^T`` and back through ``R_A``, then shifts nodes by ~1e-12 mm on its own.  A sticking
+    friction contact (tangent stiffness ~1e4 N/mm at small sub-steps) turns that shift into a
+    residual floor Newton cannot pass.  The error is squared by each step, so one per accepted
+    time step keeps R orthonormal to round-off.
+    """
+    M = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            M[a, b] = -0.5 * (R[0, a] * R[0, b] + R[1, a] * R[1, b] + R[2, a] * R[2, b])
+        M[a, a] += 1.5
+    for a in range(3):
+        r0 = R[a, 0]
+        r1 = R[a, 1]
+        r2 = R[a, 2]
+        for b in range(3):
+            R[a, b] = r0 * M[0, b] + r1 * M[1, b] + r2 * M[2, b]
+
+
+@njit(cache=True)
 def _lu6(A, piv):
     """In-place LU with partial pivoting of a 6x6 block. Returns False if singular."""
     n = 6

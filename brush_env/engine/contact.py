@@ -474,6 +474,60 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh):
     return amax
 
 
+@njit(cache=True)
+def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
+    """Largest fraction of the tip step ``dp`` that does not carry a sliding tip's slip velocity
+    past its turning point.
+
+    Sliding friction has a constant magnitude mu_d Fn for |v| >= v_d, so along the slip direction
+    Newton's tangent holds only the bristle's own (soft) stiffness and proposes a tip step that
+    reverses the slip, which flips the friction force: the residual then rises at any fraction of
+    the step larger than the closest approach of v to zero (at small sub-steps v changes by
+    c0 |dp| / h, ~10^3 mm/s per 0.01 mm).  Stopping there (or where the path reaches
+    |v| = v_d / 2, whichever comes first) lands in the smooth part of eq 10, where the exact
+    tangent converges.  Uses the contact normal of the last evaluation; 1 when not in contact or static.
+    """
+    if state[S_FN] <= 0.0 or inv_h == 0.0:
+        return 1.0
+    n0 = pt[0] - state[S_CP]
+    n1 = pt[1] - state[S_CP + 1]
+    n2 = pt[2] - state[S_CP + 2]
+    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if nn < 1e-12:
+        return 1.0
+    n0 /= nn
+    n1 /= nn
+    n2 /= nn
+    rate = c0 * inv_h
+    v = np.empty(3)
+    w = np.empty(3)
+    for a in range(3):
+        v[a] = (c0 * pt[a] + state[S_HIST + a]) * inv_h
+        w[a] = rate * dp[a]
+    vn = v[0] * n0 + v[1] * n1 + v[2] * n2
+    wn = w[0] * n0 + w[1] * n1 + w[2] * n2
+    v[0] -= vn * n0
+    v[1] -= vn * n1
+    v[2] -= vn * n2
+    w[0] -= wn * n0
+    w[1] -= wn * n1
+    w[2] -= wn * n2
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    if vv <= v_d * v_d:
+        return 1.0  # already in the smooth band: the exact tangent holds
+    vw = v[0] * w[0] + v[1] * w[1] + v[2] * w[2]
+    ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    if vw >= 0.0 or ww == 0.0:
+        return 1.0  # the slip speed grows along the step
+    a_close = -vw / ww  # closest approach of v + a w to zero
+    # |v + a w| = v_d / 2 (smaller root): inside the band, where eq 10's step has a slope (it is
+    # flat at |v| = v_d, so landing on the band's edge would repeat the overshoot)
+    vb = 0.5 * v_d
+    disc = vw * vw - ww * (vv - vb * vb)
+    a_band = (-vw - np.sqrt(disc)) / ww if disc > 0.0 else a_close
+    return min(1.0, a_band, a_close)
+
+
 def empty_mesh():
     """The mesh arrays of a scene without a triangle mesh (numba needs fixed types)."""
     return (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(7),

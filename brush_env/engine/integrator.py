@@ -23,9 +23,9 @@ import numpy as np
 from numba import njit
 
 from ._kernels import (_element_gen, _local_rot_into, _node, _rotate_left, block_factor,
-                       block_solve)
-from .contact import (S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
-                      penetration_step_limit, tip_load)
+                       block_solve, reorthonormalize)
+from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
+                      penetration_step_limit, slip_step_limit, tip_load)
 from .rotation import skew
 
 # status codes per bristle
@@ -533,6 +533,11 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
                                       ctx[3], ctx[4], ctx[5])
         if apen < alpha:
             alpha = max(apen, 1e-3)
+        if not static:
+            aslip = slip_step_limit(small[9:12], small[6:9], tip_state, c0, inv_h,
+                                    ctx[1][C_VD])
+            if aslip < alpha:
+                alpha = max(aslip, 1e-4)
         accepted = False
         for _ls in range(8):
             _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe)
@@ -608,6 +613,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
     tip_state[S_BETA] = tip_state[S_BNEW]
     for k in range(n):
         i = b0 + k
+        reorthonormalize(rot[i])  # see the kernel: keeps the chain update free of drift
         if static:
             for a in range(3):
                 vel[i, a] = 0.0

@@ -96,7 +96,6 @@ def _coverage(env, policy, seed):
             return info["coverage"], info["termination"]
 
 
-@pytest.mark.xfail(reason="needs contact", strict=False)
 def test_reference_cleans_more_than_random(make_env):
     env = make_env(max_episode_steps=150)
     ref = ReferencePolicy.for_env(env)
