@@ -306,6 +306,41 @@ def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, p
 
 
 @njit(cache=True)
+def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe):
+    """pos/rot <- the state at t_n moved on by its last step, in the base frame: with
+    x = RA^T (c - pA) and Q = RA^T R, x_pred = 2 x_n - x_{n-1}, Q_pred = Q_n Q_{n-1}^T Q_n, then
+    back to the world with the base at the step's end (pAe, RAe)."""
+    Qn = np.empty((3, 3))
+    Qp = np.empty((3, 3))
+    D = np.empty((3, 3))
+    xp = np.empty(3)
+    for k in range(n):
+        i = b0 + k
+        for a in range(3):
+            xp[a] = 0.0
+            for c in range(3):
+                xp[a] += 2.0 * RAs[c, a] * (s_pos[k, c] - pAs[c]) - RAp[c, a] * (ppos[i, c]
+                                                                               - pAp[c])
+            for bb in range(3):
+                Qn[a, bb] = RAs[0, a] * s_rot[k, 0, bb] + RAs[1, a] * s_rot[k, 1, bb] \
+                    + RAs[2, a] * s_rot[k, 2, bb]
+                Qp[a, bb] = RAp[0, a] * prot[i, 0, bb] + RAp[1, a] * prot[i, 1, bb] \
+                    + RAp[2, a] * prot[i, 2, bb]
+        for a in range(3):  # D = Qn Qp^T
+            for bb in range(3):
+                D[a, bb] = Qn[a, 0] * Qp[bb, 0] + Qn[a, 1] * Qp[bb, 1] + Qn[a, 2] * Qp[bb, 2]
+        for a in range(3):  # Qp <- D Qn (the predicted relative rotation)
+            for bb in range(3):
+                Qp[a, bb] = D[a, 0] * Qn[0, bb] + D[a, 1] * Qn[1, bb] + D[a, 2] * Qn[2, bb]
+        for a in range(3):
+            pos[i, a] = pAe[a] + RAe[a, 0] * xp[0] + RAe[a, 1] * xp[1] + RAe[a, 2] * xp[2]
+            for bb in range(3):
+                rot[i, a, bb] = RAe[a, 0] * Qp[0, bb] + RAe[a, 1] * Qp[1, bb] \
+                    + RAe[a, 2] * Qp[2, bb]
+        reorthonormalize(rot[i])
+
+
+@njit(cache=True)
 def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
     """Apply the Newton correction alpha*dq to one bristle, rebuilding the chain from the root.
 
@@ -380,7 +415,7 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
 
 @njit(cache=True)
 def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
-            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw, jac, ws):
+            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw, jac, ws, extrap):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
@@ -468,6 +503,33 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
     maxit = int(prm[P_MAXIT])
     nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
                     ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw)
+    if extrap and nrm > rtol:
+        # second predictor: the last step's motion relative to the base, repeated (second-order
+        # extrapolation in the base frame).  A bristle that slides or bends steadily starts
+        # Newton O(h^2) close instead of O(h); kept only if its residual is smaller (contact
+        # onset, where extrapolation can overshoot into the plate, falls back to the rigid one).
+        for k in range(n):
+            i = b0 + k
+            for a in range(3):
+                t_pos[k, a] = pos[i, a]
+                for bb in range(3):
+                    t_rot[k, a, bb] = rot[i, a, bb]
+        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe)
+        nx = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
+                       ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
+                       sw)
+        if nx < nrm:
+            nrm = nx
+        else:
+            for k in range(n):
+                i = b0 + k
+                for a in range(3):
+                    pos[i, a] = t_pos[k, a]
+                    for bb in range(3):
+                        rot[i, a, bb] = t_rot[k, a, bb]
+            nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
+                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
+                            tipF, tipK, sw)
     it = 0
     ok = nrm <= rtol
     key = -1.0 if static else c0 * inv_h
@@ -705,9 +767,10 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAs, RAs)
             _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
+            extrap = whole and hist_ok[b] != 0 and prm[P_STATIC] == 0.0
             ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm,
                              c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
-                             tip_state[b], ctx, rootw[b], jac, ws)
+                             tip_state[b], ctx, rootw[b], jac, ws, extrap)
             tot += it
             if ok:
                 s += ds
