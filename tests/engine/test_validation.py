@@ -325,3 +325,7 @@ def test_cli_bench_contact_quick(capsys):
                         if r["status"] == "ok")
     # a diverged row is reported with a NaN error, never dropped or given a number
     assert all(np.isfinite(r["rms_force_error"]) == (r["status"] == "ok") for r in grid)
+    # quick grid: its reference has the rows' own bodies (3), so both errors are the same number
+    assert all("rms_force_error_same_bodies" in r for r in grid)
+    assert all(r["rms_force_error_same_bodies"] == r["rms_force_error"] for r in grid
+               if r["status"] == "ok")
