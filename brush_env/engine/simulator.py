@@ -390,7 +390,7 @@ class Simulator:
         st, m = self.state, self.model
         last = m.bstart[1:] - 1
         r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
-        return st.vel[last] + np.cross(st.omg[last], r)
+        return st.vel[last] + _cross_rows(st.omg[last], r)
 
     def _result(self, iters: int, nsub: int) -> StepResult:
         st = self.state
@@ -399,7 +399,7 @@ class Simulator:
         root_w = p_tcp + m.root_p @ R_tcp.T
         # the root elements push on the head with rootw; the robot holds the (massless) head
         F_on_head = self._rootw[:, 0:3]
-        M_on_head = self._rootw[:, 3:6] + np.cross(root_w - p_tcp, F_on_head)
+        M_on_head = self._rootw[:, 3:6] + _cross_rows(root_w - p_tcp, F_on_head)
         F = -F_on_head.sum(axis=0)
         M = -M_on_head.sum(axis=0)
         ts = st.tip_state
@@ -410,6 +410,15 @@ class Simulator:
                           np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0),
                           ts[:, ct.S_CP:ct.S_CP + 3].copy(),
                           extra={"tip_tip_force": ts[:, ct.S_FTT].copy()})
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b of (n, 3) arrays (np.cross costs ~15 us per call in the step's hot path)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
 
 
 def _surface_rows(surfaces) -> np.ndarray:

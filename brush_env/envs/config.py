@@ -59,6 +59,9 @@ class EnvConfig:
                          lo=1, hi=1000)
     integrator: str = _f("bdf2", "engine", "-", "implicit scheme", choices=("bdf2", "euler"))
     gravity: bool = _f(True, "engine", "-", "gravity on the bristles (-z, 9810 mm/s^2)")
+    tip_tip: str = _f("scene", "engine", "-",
+                      "tip-tip contact (Table 3): scene = the scene file's setting, on, off",
+                      choices=("scene", "on", "off"))
     # --- action -------------------------------------------------------------------------------
     action_mode: str = _f("6d", "action", "-",
                           "6d: linear + angular TCP velocity; 3d: linear only",

@@ -107,6 +107,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | frame_skip | 10 | count | engine steps per action; dt = engine_dt * frame_skip |
 | integrator | "bdf2" | - | "bdf2" or "euler" |
 | gravity | True | - | gravity on the bristles |
+| tip_tip | "scene" | - | tip-tip contact: the scene file's (on for flat_plate), "on", "off" |
 | action_mode | "6d" | - | "6d" or "3d" |
 | max_linear_speed | (50, 50, 20) | mm/s | velocity at action +-1 |
 | max_angular_speed | (0.5, 0.5, 1.0) | rad/s | angular velocity at action +-1 |
@@ -144,6 +145,8 @@ Version History
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import math
 import os
@@ -214,6 +217,8 @@ class BrushEnv(gym.Env):
         if cfg.bodies_per_bristle:
             brush = brush.with_bodies(cfg.bodies_per_bristle)
         scene = load_scene(cfg.scene, brush=brush)
+        if cfg.tip_tip != "scene":
+            scene = dataclasses.replace(scene, tip_tip=cfg.tip_tip == "on")
         planes = [s for s in scene.surfaces if isinstance(s, Plane)
                   and np.allclose(np.asarray(s.normal) / np.linalg.norm(s.normal), [0, 0, 1])]
         if not planes:
