@@ -305,6 +305,26 @@ def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, p
                 ehist[k, a] += coef * e[a]
 
 
+@njit(cache=True, inline="always")
+def _save_chain(b0, n, pos, rot, t_pos, t_rot):
+    """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
+    for k in range(n):
+        for a in range(3):
+            t_pos[k, a] = pos[b0 + k, a]
+            for bb in range(3):
+                t_rot[k, a, bb] = rot[b0 + k, a, bb]
+
+
+@njit(cache=True, inline="always")
+def _load_chain(b0, n, pos, rot, t_pos, t_rot):
+    """pos/rot of one bristle <- t_pos/t_rot (see ``_save_chain``)."""
+    for k in range(n):
+        for a in range(3):
+            pos[b0 + k, a] = t_pos[k, a]
+            for bb in range(3):
+                rot[b0 + k, a, bb] = t_rot[k, a, bb]
+
+
 @njit(cache=True)
 def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe):
     """pos/rot <- the state at t_n moved on by its last step, in the base frame: with
@@ -508,12 +528,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         # extrapolation in the base frame).  A bristle that slides or bends steadily starts
         # Newton O(h^2) close instead of O(h); kept only if its residual is smaller (contact
         # onset, where extrapolation can overshoot into the plate, falls back to the rigid one).
-        for k in range(n):
-            i = b0 + k
-            for a in range(3):
-                t_pos[k, a] = pos[i, a]
-                for bb in range(3):
-                    t_rot[k, a, bb] = rot[i, a, bb]
+        _save_chain(b0, n, pos, rot, t_pos, t_rot)
         _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe)
         nx = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
                        ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
@@ -521,12 +536,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         if nx < nrm:
             nrm = nx
         else:
-            for k in range(n):
-                i = b0 + k
-                for a in range(3):
-                    pos[i, a] = t_pos[k, a]
-                    for bb in range(3):
-                        rot[i, a, bb] = t_rot[k, a, bb]
+            _load_chain(b0, n, pos, rot, t_pos, t_rot)
             nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
                             Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
                             tipF, tipK, sw)
@@ -558,14 +568,11 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         # merit here, because the stiff axial/shear terms react to second-order geometry.
         g0 = 0.0
         dmax = 0.0
+        _save_chain(b0, n, pos, rot, t_pos, t_rot)
         for k in range(n):
-            i = b0 + k
             for a in range(6):
                 g0 += dq[k, a] * r0[k, a]
             for a in range(3):
-                t_pos[k, a] = pos[i, a]
-                for bb in range(3):
-                    t_rot[k, a, bb] = rot[i, a, bb]
                 if abs(dq[k, 3 + a]) > dmax:
                     dmax = abs(dq[k, 3 + a])
         # cap the rotation increment of one iteration (keeps the log map far from pi) and the
@@ -620,12 +627,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
             alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
         if not accepted:
             # restore the iterate; retry with fresh factors unless they were fresh already
-            for k in range(n):
-                i = b0 + k
-                for a in range(3):
-                    pos[i, a] = t_pos[k, a]
-                    for bb in range(3):
-                        rot[i, a, bb] = t_rot[k, a, bb]
+            _load_chain(b0, n, pos, rot, t_pos, t_rot)
             if fresh:
                 break
             need = True

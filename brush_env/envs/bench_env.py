@@ -102,7 +102,7 @@ def _vector(a: dict, n: int) -> dict:
     obs, *_ = venv.step(policy(obs))
     cold = time.perf_counter() - t0
     obs, _ = venv.reset(seed=list(range(n)))
-    steps = max(1, a["steps"] // n)
+    steps = int(a["steps"])  # per env, as the single env: the same stretch of each episode
     terminations = 0
     t0 = time.perf_counter()
     for _ in range(steps):
@@ -145,7 +145,7 @@ def bench_env(args: dict) -> list[dict]:
 
 _OPTIONS = (
     ("--steps", dict(type=int, default=DEFAULTS["steps"],
-                     help="env steps per measurement (all envs together)")),
+                     help="env steps per measurement and env (a vector runs n x steps)")),
     ("--n-envs", dict(type=int, nargs="+", default=DEFAULTS["n_envs"],
                       help="vector sizes to measure; 1 = one in-process env")),
     ("--brush", dict(default=DEFAULTS["brush"])),

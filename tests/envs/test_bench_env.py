@@ -18,7 +18,7 @@ def test_bench_env_rows():
     for r in rows:
         assert set(r) == KEYS and r["steps_per_s"] > 0 and r["n_bristles"] == 4
         assert r["real_time_factor"] == pytest.approx(r["steps_per_s"] * 0.04)
-    assert rows[1]["steps"] == 12
+    assert rows[1]["steps"] == 24  # 12 per env: each env runs the same stretch as the single one
 
 
 def test_bench_env_cli_json(capsys):
