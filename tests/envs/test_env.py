@@ -284,10 +284,19 @@ def test_force_penalties_integrate_the_excess(make_env):
     ({"gravity": 1}, r"gravity = 1 has the wrong type"),
     ({"start_height": [0.2, 1.0]}, r"plate_offset_range\[2\] = 0.5 is out of range"),
     ({"brush": "no_such_brush"}, r"no_such_brush"),
+    ({"tip_tip": "yes"}, r"tip_tip = 'yes' is not allowed: must be one of 'scene', 'on', 'off'"),
 ])
 def test_config_errors_name_parameter_value_and_range(kw, match):
     with pytest.raises(ConfigError, match=match):
         gym.make(ENV_ID, **kw)
+
+
+def test_tip_tip_option_switches_the_scenes_pair_list(make_env):
+    """flat_plate.toml has tip-tip contact on: "scene" and "on" keep the pairs its geometry can
+    bring together (all 6 of the 2 x 2 tiny brush, whose roots are 1.6-2.7 mm apart against a
+    reach of 2 x (0.6 x 10 + 0.44) mm), "off" keeps none."""
+    pairs = {o: make_env(tip_tip=o).unwrapped.sim.n_tip_pairs for o in ("scene", "on", "off")}
+    assert pairs == {"scene": 6, "on": 6, "off": 0}
 
 
 def test_bad_render_mode_and_config_file(tmp_path):
