@@ -149,6 +149,16 @@ def _profile_name(value) -> str:
 # --------------------------------------------------------------------------------------------
 # eq 10: cubic step
 # --------------------------------------------------------------------------------------------
+def _step_u(x, x0, x1):
+    """Checked (x0, x1) and the step's normalised coordinate u = (x - x0)/(x1 - x0) in [0, 1]."""
+    x0 = _finite("x0", x0)
+    x1 = _finite("x1", x1)
+    if x0 == x1:
+        raise ValueError(f"x1 must differ from x0 (allowed: x1 != x0), got x0 = x1 = {x0!r}")
+    x = np.asarray(x, dtype=float)
+    return x0, x1, _clip((x - x0) / (x1 - x0), 0.0, 1.0)
+
+
 def smoothstep(x, x0, h0, x1, h1):
     """Cubic step of eq 10 (the ``step`` function of ADAMS-like multibody codes).
 
@@ -158,24 +168,14 @@ def smoothstep(x, x0, h0, x1, h1):
     is ``x0 <= x <= x1``.  ``x1 < x0`` is allowed and gives the mirrored step (``h1`` for
     ``x <= x1``, ``h0`` for ``x >= x0``).  Vectorised over ``x``; returns a float for scalar input.
     """
-    x0 = _finite("x0", x0)
-    x1 = _finite("x1", x1)
-    if x0 == x1:
-        raise ValueError(f"x1 must differ from x0 (allowed: x1 != x0), got x0 = x1 = {x0!r}")
-    x = np.asarray(x, dtype=float)
-    u = _clip((x - x0) / (x1 - x0), 0.0, 1.0)
+    x0, x1, u = _step_u(x, x0, x1)
     out = h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)
     return float(out) if out.ndim == 0 else out
 
 
 def smoothstep_dot(x, x0, h0, x1, h1):
     """Derivative d smoothstep / dx: ``(h1 - h0) * 6 u (1 - u) / (x1 - x0)``, zero outside."""
-    x0 = _finite("x0", x0)
-    x1 = _finite("x1", x1)
-    if x0 == x1:
-        raise ValueError(f"x1 must differ from x0 (allowed: x1 != x0), got x0 = x1 = {x0!r}")
-    x = np.asarray(x, dtype=float)
-    u = _clip((x - x0) / (x1 - x0), 0.0, 1.0)
+    x0, x1, u = _step_u(x, x0, x1)
     out = (h1 - h0) * 6.0 * u * (1.0 - u) / (x1 - x0)
     return float(out) if out.ndim == 0 else out
 
