@@ -27,6 +27,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._kernels import HOT
+
 # --- tip_args row (per bristle, float64)
 A_FEXT = 0  # 0:3 external dead force [N, world]
 A_RADIUS = 3  # tip sphere radius [mm]
@@ -73,7 +75,7 @@ def paper_contact_params() -> np.ndarray:
     return cp
 
 
-@njit(cache=True)
+@njit(**HOT)
 def step10(x, x0, h0, x1, h1):
     """Eq 10: cubic step from h0 (x <= x0) to h1 (x >= x1)."""
     if x <= x0:
@@ -84,7 +86,7 @@ def step10(x, x0, h0, x1, h1):
     return h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)
 
 
-@njit(cache=True)
+@njit(**HOT)
 def step10_dx(x, x0, h0, x1, h1):
     if x <= x0 or x >= x1:
         return 0.0
@@ -92,7 +94,7 @@ def step10_dx(x, x0, h0, x1, h1):
     return (h1 - h0) * 6.0 * u * (1.0 - u) / (x1 - x0)
 
 
-@njit(cache=True)
+@njit(**HOT)
 def normal_law(delta, ddelta, k, m1, c, m2, m3):
     """Eq 6 for delta > 0: returns (Fn, dFn/ddelta, dFn/d(ddelta)); Fn clamped >= 0."""
     if delta <= 0.0:
@@ -114,52 +116,42 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
     return F, dF_dd, dF_dv
 
 
-@njit(cache=True)
-def _closest_on_triangle(p, a, b, c, out):
-    """Closest point to p on triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+@njit(**HOT)
+def _closest_on_triangle(p, a, b, c):
+    """Closest point (x, y, z) to p on triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
     ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
     ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
     d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
     d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
     if d1 <= 0.0 and d2 <= 0.0:
-        out[0], out[1], out[2] = a[0], a[1], a[2]
-        return
+        return a[0], a[1], a[2]
     bp0, bp1, bp2 = p[0] - b[0], p[1] - b[1], p[2] - b[2]
     d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
     d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
     if d3 >= 0.0 and d4 <= d3:
-        out[0], out[1], out[2] = b[0], b[1], b[2]
-        return
+        return b[0], b[1], b[2]
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
-        out[0], out[1], out[2] = a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
-        return
+        return a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
     cp0, cp1, cp2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
     d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
     d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
     if d6 >= 0.0 and d5 <= d6:
-        out[0], out[1], out[2] = c[0], c[1], c[2]
-        return
+        return c[0], c[1], c[2]
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
-        out[0], out[1], out[2] = a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
-        return
+        return a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        out[0] = b[0] + w * (c[0] - b[0])
-        out[1] = b[1] + w * (c[1] - b[1])
-        out[2] = b[2] + w * (c[2] - b[2])
-        return
+        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])
     den = 1.0 / (va + vb + vc)
     v = vb * den
     w = vc * den
-    out[0] = a[0] + ab0 * v + ac0 * w
-    out[1] = a[1] + ab1 * v + ac1 * w
-    out[2] = a[2] + ab2 * v + ac2 * w
+    return a[0] + ab0 * v + ac0 * w, a[1] + ab1 * v + ac1 * w, a[2] + ab2 * v + ac2 * w
 
 
 @njit(cache=True)
@@ -172,28 +164,27 @@ def _mesh_gap(pt, search, mesh, nrm, cpt):
         return 1e300
     cell = gf[3]
     nx, ny, nz = int(gf[4]), int(gf[5]), int(gf[6])
-    lo = np.empty(3, np.int64)
-    hi = np.empty(3, np.int64)
-    dims = (nx, ny, nz)
-    for a in range(3):
-        lo[a] = max(int(np.floor((pt[a] - search - gf[a]) / cell)), 0)
-        hi[a] = min(int(np.floor((pt[a] + search - gf[a]) / cell)), dims[a] - 1)
-        if lo[a] > hi[a]:
-            return 1e300
-    q = np.empty(3)
+    lo0 = max(int(np.floor((pt[0] - search - gf[0]) / cell)), 0)
+    lo1 = max(int(np.floor((pt[1] - search - gf[1]) / cell)), 0)
+    lo2 = max(int(np.floor((pt[2] - search - gf[2]) / cell)), 0)
+    hi0 = min(int(np.floor((pt[0] + search - gf[0]) / cell)), nx - 1)
+    hi1 = min(int(np.floor((pt[1] + search - gf[1]) / cell)), ny - 1)
+    hi2 = min(int(np.floor((pt[2] + search - gf[2]) / cell)), nz - 1)
+    if lo0 > hi0 or lo1 > hi1 or lo2 > hi2:
+        return 1e300
     best = 1e300
     bestd = 1e300
-    for ix in range(lo[0], hi[0] + 1):
-        for iy in range(lo[1], hi[1] + 1):
-            for iz in range(lo[2], hi[2] + 1):
+    for ix in range(lo0, hi0 + 1):
+        for iy in range(lo1, hi1 + 1):
+            for iz in range(lo2, hi2 + 1):
                 c = (ix * ny + iy) * nz + iz
                 for k in range(cell_start[c], cell_start[c + 1]):
                     t = cell_tris[k]
-                    _closest_on_triangle(pt, verts[tris[t, 0]], verts[tris[t, 1]],
-                                         verts[tris[t, 2]], q)
-                    d0 = pt[0] - q[0]
-                    d1 = pt[1] - q[1]
-                    d2 = pt[2] - q[2]
+                    q0, q1, q2 = _closest_on_triangle(pt, verts[tris[t, 0]], verts[tris[t, 1]],
+                                                      verts[tris[t, 2]])
+                    d0 = pt[0] - q0
+                    d1 = pt[1] - q1
+                    d2 = pt[2] - q2
                     dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
                     if dist < bestd:
                         bestd = dist
@@ -202,19 +193,21 @@ def _mesh_gap(pt, search, mesh, nrm, cpt):
                                 abs(side) < (1.0 - 1e-12) * dist:
                             # closest point on an edge or vertex: normal along p - q
                             sg = 1.0 if side >= 0.0 else -1.0
-                            for a in range(3):
-                                nrm[a] = sg * (pt[a] - q[a]) / dist
+                            nrm[0] = sg * d0 / dist
+                            nrm[1] = sg * d1 / dist
+                            nrm[2] = sg * d2 / dist
                             best = sg * dist
                         else:  # face interior: the face normal, exactly as for a plane
                             for a in range(3):
                                 nrm[a] = tnrm[t, a]
                             best = side
-                        for a in range(3):
-                            cpt[a] = q[a]
+                        cpt[0] = q0
+                        cpt[1] = q1
+                        cpt[2] = q2
     return best
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _surface_gap(surf, pt, nrm, cpt, mesh):
     """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point."""
     kind = surf[0]
@@ -248,9 +241,9 @@ def _surface_gap(surf, pt, nrm, cpt, mesh):
     return rr - surf[7]
 
 
-@njit(cache=True)
+@njit(**HOT, inline="always")
 def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F,
-             Kt):
+             Kt, tw):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
 
     Sums the dead external force, the tip-surface contact (eq 6-10) of the deepest surface and the
@@ -260,7 +253,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
     damping, isotropic tangential friction stiffness; the dependence of friction on Fn is omitted).
     """
     R = args[A_RADIUS]
-    vt = np.empty(3)
+    vt = tw[0, 0:3]  # tw: (2, >= 9) scratch, so that the Newton loop does not allocate
     for a in range(3):
         F[a] = args[A_FEXT + a]
         for bb in range(3):
@@ -279,8 +272,8 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
         state[S_DNEW + a] = 0.0
         state[S_CP + a] = pt[a]
     # ---- tip-surface: the deepest surface
-    nrm = np.empty(3)
-    cpt = np.empty(3)
+    nrm = tw[0, 3:6]
+    cpt = tw[0, 6:9]
     best = 1e300
     ibest = -1
     for s in range(surf.shape[0]):
@@ -309,11 +302,11 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
             mus = cp[C_MUS]
             if mus > 0.0 or cp[C_MUD] > 0.0:
                 # slip velocity and stiction deformation in the tangent plane
-                vs = np.empty(3)
+                vs = tw[1, 0:3]
                 for a in range(3):
                     vs[a] = vt[a] - vn * nrm[a]
                 vmag = np.sqrt(vs[0] ** 2 + vs[1] ** 2 + vs[2] ** 2)
-                dn = np.empty(3)
+                dn = tw[1, 3:6]
                 for a in range(3):
                     dn[a] = state[S_DELTA + a] + pt[a] - state[S_PN + a]
                 dnn = dn[0] * nrm[0] + dn[1] * nrm[1] + dn[2] * nrm[2]
@@ -343,7 +336,9 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
                 fst = (1.0 - beta) * mus * Fn * gst  # stiction force magnitude
                 fsl = cp[C_MUD] * Fn * gsl  # sliding force magnitude
-                ft = np.zeros(3)
+                ft = tw[1, 6:9]
+                for a in range(3):
+                    ft[a] = 0.0
                 if dmag > 0.0:
                     for a in range(3):
                         ft[a] -= fst * dn[a] / dmag
@@ -433,15 +428,15 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                                                              - u[a] * u[bb])
 
 
-@njit(cache=True)
-def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh):
+@njit(**HOT)
+def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh, tw):
     """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
     tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from
     outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
     back out (a limit cycle).  This replaces a "pre-search" tangent, which made Newton converge
-    only linearly whenever a tip rests just outside a contact."""
-    nrm = np.empty(3)
-    cpt = np.empty(3)
+    only linearly whenever a tip rests just outside a contact.  tw: (>= 6,) scratch."""
+    nrm = tw[0:3]
+    cpt = tw[3:6]
     amax = 1.0
     for s in range(surf.shape[0]):
         gap = _surface_gap(surf[s], pt, nrm, cpt, mesh) - R  # < 0: penetrating
@@ -474,7 +469,7 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh):
     return amax
 
 
-@njit(cache=True)
+@njit(**HOT)
 def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     """Largest fraction of the tip step ``dp`` that does not carry a sliding tip's slip velocity
     past its turning point.
@@ -499,24 +494,25 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     n1 /= nn
     n2 /= nn
     rate = c0 * inv_h
-    v = np.empty(3)
-    w = np.empty(3)
-    for a in range(3):
-        v[a] = (c0 * pt[a] + state[S_HIST + a]) * inv_h
-        w[a] = rate * dp[a]
-    vn = v[0] * n0 + v[1] * n1 + v[2] * n2
-    wn = w[0] * n0 + w[1] * n1 + w[2] * n2
-    v[0] -= vn * n0
-    v[1] -= vn * n1
-    v[2] -= vn * n2
-    w[0] -= wn * n0
-    w[1] -= wn * n1
-    w[2] -= wn * n2
-    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    v0 = (c0 * pt[0] + state[S_HIST]) * inv_h
+    v1 = (c0 * pt[1] + state[S_HIST + 1]) * inv_h
+    v2 = (c0 * pt[2] + state[S_HIST + 2]) * inv_h
+    w0 = rate * dp[0]
+    w1 = rate * dp[1]
+    w2 = rate * dp[2]
+    vn = v0 * n0 + v1 * n1 + v2 * n2
+    wn = w0 * n0 + w1 * n1 + w2 * n2
+    v0 -= vn * n0
+    v1 -= vn * n1
+    v2 -= vn * n2
+    w0 -= wn * n0
+    w1 -= wn * n1
+    w2 -= wn * n2
+    vv = v0 * v0 + v1 * v1 + v2 * v2
     if vv <= v_d * v_d:
         return 1.0  # already in the smooth band: the exact tangent holds
-    vw = v[0] * w[0] + v[1] * w[1] + v[2] * w[2]
-    ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    vw = v0 * w0 + v1 * w1 + v2 * w2
+    ww = w0 * w0 + w1 * w1 + w2 * w2
     if vw >= 0.0 or ww == 0.0:
         return 1.0  # the slip speed grows along the step
     a_close = -vw / ww  # closest approach of v + a w to zero

@@ -22,11 +22,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import (_element_gen, _local_rot_into, _node, _rotate_left, block_factor,
+from ._kernels import (HOT, _element_gen, _local_rot_into, _node, _rotate_left, block_factor,
                        block_solve, reorthonormalize)
 from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
                       penetration_step_limit, slip_step_limit, tip_load)
-from .rotation import skew
 
 # status codes per bristle
 OK = 0
@@ -49,10 +48,13 @@ MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
 MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip radii
 
 
+N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see their bodies)
+
+
 def make_workspace(nmax: int, n_tip_state: int):
     """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
     return (np.zeros((8, nmax, 3, 3)), np.zeros((6, nmax, 6)), np.zeros((nmax, 6, 6)),
-            np.zeros((8, 12)), np.zeros(32), np.zeros((6, nmax, 3)), np.zeros((2, nmax, 3, 3)),
+            np.zeros((N_SW, 12)), np.zeros(32), np.zeros((6, nmax, 3)), np.zeros((2, nmax, 3, 3)),
             np.zeros(n_tip_state))
 
 
@@ -63,7 +65,29 @@ def make_jacobian_store(n_bodies: int, n_bristles: int):
                                                                                np.int64))
 
 
-@njit(cache=True)
+@njit(**HOT, inline="always")
+def _skew_into(x, y, z, S):
+    """S <- [v]x, the cross-product matrix of v = (x, y, z)."""
+    S[0, 0] = 0.0
+    S[0, 1] = -z
+    S[0, 2] = y
+    S[1, 0] = z
+    S[1, 1] = 0.0
+    S[1, 2] = -x
+    S[2, 0] = -y
+    S[2, 1] = x
+    S[2, 2] = 0.0
+
+
+@njit(**HOT, inline="always")
+def _mul3(A, B, C):
+    """C <- A B for 3x3 matrices (C distinct from A and B)."""
+    for a in range(3):
+        for b in range(3):
+            C[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
+
+
+@njit(**HOT)
 def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
     """Base pose at fraction s of the step: linear in position, geodesic in rotation."""
     for a in range(3):
@@ -72,7 +96,7 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
     _rotate_left(s * tmp[0], s * tmp[1], s * tmp[2], R0, Rout)
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist, gs,
               hs, pAb, RAb, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw):
     """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm).
@@ -83,7 +107,6 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
     """
     e = sw[0, 0:6]
     out12 = sw[1]
-    w = sw[2:6]
     th = sw[6, 0:3]
     pt = sw[6, 3:6]
     for k in range(n):
@@ -112,12 +135,12 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
         i = b0 + k
         if k == 0:
             _element_gen(True, pAb, RAb, 0.0, pAb, pos[i], rot[i], bp[i, 4], K[i], bp[i, 5],
-                         ehist[k], gs[k], hs[k], out12, e, w)
+                         ehist[k], gs[k], hs[k], out12, e)
             for a in range(6):
                 rootw[a] = out12[a]
         else:
             _element_gen(False, pos[i - 1], rot[i - 1], bp[i - 1, 4], pAb, pos[i], rot[i],
-                         bp[i, 4], K[i], bp[i, 5], ehist[k], gs[k], hs[k], out12, e, w)
+                         bp[i, 4], K[i], bp[i, 5], ehist[k], gs[k], hs[k], out12, e)
             for a in range(6):
                 res[k - 1, a] -= out12[a]
         for a in range(6):
@@ -126,7 +149,7 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
     _node(pos[il], rot[il], bp[il, 4], pt)
     surf, cp, tips, pair_ptr, pair_idx, mesh = ctx
     tip_load(b, pt, c0, inv_h, static, tip_args, tip_state, surf, cp, tips, pair_ptr, pair_idx,
-             mesh, tipF, tipK)
+             mesh, tipF, tipK, sw[2:4])
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
     rz = pt[2] - pos[il, 2]
@@ -153,7 +176,7 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
     return nrm
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, tipF, tipK,
               D, U, L, sw):
     """Newton matrix d(res)/d(q), q_k = (dc_k, dtheta_k) in world axes (block tridiagonal).
@@ -164,11 +187,10 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     state is fixed by the residual alone.
     """
     e = sw[0, 0:6]
-    w = sw[2:6]
     cP = sw[6, 6:9]
     base = sw[7]
     pert = sw[1]
-    RP = np.empty((3, 3))
+    RP = sw[8:11, 0:3]
     for k in range(n):
         for a in range(6):
             for b in range(6):
@@ -198,7 +220,7 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
         RAk = RAb if isroot else rot[j]
         cAk = pAb if isroot else pos[j]
         _element_gen(isroot, cAk, RAk, hA, pAb, pos[i], rot[i], hB, K[i], ln, ehist[k], gs[k],
-                     hs[k], base, e, w)
+                     hs[k], base, e)
         nside = 1 if isroot else 2
         for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
             src = i if side == 0 else j
@@ -217,10 +239,10 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
                     eps = epsr
                 if side == 0:
                     _element_gen(isroot, cAk, RAk, hA, pAb, cP, RP, hB, K[i], ln, ehist[k],
-                                 gs[k], hs[k], pert, e, w)
+                                 gs[k], hs[k], pert, e)
                 else:
                     _element_gen(False, cP, RP, hA, pAb, pos[i], rot[i], hB, K[i], ln,
-                                 ehist[k], gs[k], hs[k], pert, e, w)
+                                 ehist[k], gs[k], hs[k], pert, e)
                 for a in range(6):
                     dA = (pert[a] - base[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - base[6 + a]) / eps  # d(force on B)
@@ -234,12 +256,19 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     # tip load at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta
     il = b0 + n - 1
     k = n - 1
-    Sr = skew(bp[il, 4] * rot[il, :, 0])
-    SF = skew(tipF)
-    KS = tipK @ Sr
-    SrK = Sr @ tipK
-    SrKS = Sr @ KS
-    SFSr = SF @ Sr
+    Sr = sw[8:11, 3:6]
+    SF = sw[8:11, 6:9]
+    KS = sw[8:11, 9:12]
+    SrK = sw[11:14, 0:3]
+    SrKS = sw[11:14, 3:6]
+    SFSr = sw[11:14, 6:9]
+    hl = bp[il, 4]
+    _skew_into(hl * rot[il, 0, 0], hl * rot[il, 1, 0], hl * rot[il, 2, 0], Sr)
+    _skew_into(tipF[0], tipF[1], tipF[2], SF)
+    _mul3(tipK, Sr, KS)
+    _mul3(Sr, tipK, SrK)
+    _mul3(Sr, KS, SrKS)
+    _mul3(SF, Sr, SFSr)
     # residual rows: -F and -(r x F); dF = K (dc - [r]x dth); d(r x F) = [r]x dF + [F]x [r]x dth
     for a in range(3):
         for b in range(3):
@@ -249,14 +278,13 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
             D[k, 3 + a, 3 + b] += SrKS[a, b] - SFSr[a, b]
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, pAs, RAs, pAp,
              RAp, cm, vm, Lm, thp, Rn, ehist, sw):
     """Constants of one (sub)step: cm = c1 c_n + c2 c_{n-1}, vm, Lm (angular momenta),
     thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains)."""
     e = sw[0, 0:6]
     out12 = sw[1]
-    w = sw[2:6]
     tmp = sw[6, 0:3]
     zero6 = sw[6, 6:12]
     for a in range(6):
@@ -297,15 +325,15 @@ def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, p
                 pa = pAs if which == 0 else pAp
                 Ra = RAs if which == 0 else RAp
                 _element_gen(True, pa, Ra, 0.0, pa, P[i], Q[i], bp[i, 4], K[i], bp[i, 5], zero6,
-                             1.0, 0.0, out12, e, w)
+                             1.0, 0.0, out12, e)
             else:
                 _element_gen(False, P[i - 1], Q[i - 1], bp[i - 1, 4], pAs, P[i], Q[i], bp[i, 4],
-                             K[i], bp[i, 5], zero6, 1.0, 0.0, out12, e, w)
+                             K[i], bp[i, 5], zero6, 1.0, 0.0, out12, e)
             for a in range(6):
                 ehist[k, a] += coef * e[a]
 
 
-@njit(cache=True, inline="always")
+@njit(**HOT, inline="always")
 def _save_chain(b0, n, pos, rot, t_pos, t_rot):
     """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
     for k in range(n):
@@ -315,7 +343,7 @@ def _save_chain(b0, n, pos, rot, t_pos, t_rot):
                 t_rot[k, a, bb] = rot[b0 + k, a, bb]
 
 
-@njit(cache=True, inline="always")
+@njit(**HOT, inline="always")
 def _load_chain(b0, n, pos, rot, t_pos, t_rot):
     """pos/rot of one bristle <- t_pos/t_rot (see ``_save_chain``)."""
     for k in range(n):
@@ -325,15 +353,15 @@ def _load_chain(b0, n, pos, rot, t_pos, t_rot):
                 rot[b0 + k, a, bb] = t_rot[k, a, bb]
 
 
-@njit(cache=True)
-def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe):
+@njit(**HOT)
+def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe, sw):
     """pos/rot <- the state at t_n moved on by its last step, in the base frame: with
     x = RA^T (c - pA) and Q = RA^T R, x_pred = 2 x_n - x_{n-1}, Q_pred = Q_n Q_{n-1}^T Q_n, then
     back to the world with the base at the step's end (pAe, RAe)."""
-    Qn = np.empty((3, 3))
-    Qp = np.empty((3, 3))
-    D = np.empty((3, 3))
-    xp = np.empty(3)
+    Qn = sw[8:11, 0:3]
+    Qp = sw[8:11, 3:6]
+    D = sw[8:11, 6:9]
+    xp = sw[11, 0:3]
     for k in range(n):
         i = b0 + k
         for a in range(3):
@@ -360,8 +388,8 @@ def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, 
         reorthonormalize(rot[i])
 
 
-@njit(cache=True)
-def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
+@njit(**HOT)
+def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
     """Apply the Newton correction alpha*dq to one bristle, rebuilding the chain from the root.
 
     Rotations: R <- exp(alpha dtheta) R.  Positions: each element's translational strain d gets
@@ -371,12 +399,12 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
     spurious axial/shear strain ~ l theta^2/2, which the stiff axial terms would turn into huge
     residuals.
     """
-    pAo = np.empty(3)
-    pBo = np.empty(3)
-    dpA = np.empty(3)
-    dpB = np.empty(3)
-    pAn = np.empty(3)
-    dd = np.empty(3)
+    pAo = sw[14, 0:3]
+    pBo = sw[14, 3:6]
+    dpA = sw[14, 6:9]
+    dpB = sw[14, 9:12]
+    pAn = sw[15, 0:3]
+    dd = sw[15, 3:6]
     for a in range(3):
         pAn[a] = pAb[a]
     for k in range(n):
@@ -433,7 +461,7 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb):
             pAn[a] = pBn
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
             pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw, jac, ws, extrap):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
@@ -507,7 +535,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         tip_state[S_HIST + a] = c1u * ptn + c2u * ptp
     # predictor: the start configuration carried rigidly by the base's motion over the step
     # (T = base_end o base_start^-1): a driven, nearly quasi-static chain starts Newton close
-    Tr = np.empty((3, 3))
+    Tr = sw[8:11, 0:3]
     for a in range(3):
         for bb in range(3):
             Tr[a, bb] = RAe[a, 0] * RAs[bb, 0] + RAe[a, 1] * RAs[bb, 1] + RAe[a, 2] * RAs[bb, 2]
@@ -529,7 +557,8 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         # Newton O(h^2) close instead of O(h); kept only if its residual is smaller (contact
         # onset, where extrapolation can overshoot into the plate, falls back to the rigid one).
         _save_chain(b0, n, pos, rot, t_pos, t_rot)
-        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe)
+        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe,
+                     sw)
         nx = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
                        ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
                        sw)
@@ -599,7 +628,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         for a in range(3):
             small[9 + a] = pos[il, a] + hl * rot[il, a, 0]
         apen = penetration_step_limit(b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2],
-                                      ctx[3], ctx[4], ctx[5])
+                                      ctx[3], ctx[4], ctx[5], sw[4])
         if apen < alpha:
             alpha = max(apen, 1e-3)
         if not static:
@@ -609,7 +638,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
                 alpha = max(aslip, 1e-4)
         accepted = False
         for _ls in range(8):
-            _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe)
+            _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe, sw)
             new = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm,
                             thp, Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res,
                             rootw, tipF, tipK, sw)
@@ -696,13 +725,69 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
     return True, it
 
 
-@njit(cache=True)
+@njit(**HOT)
 def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
     """Root node pose in the world: p = p_tcp + R_tcp r, R = R_tcp R_root."""
     for a in range(3):
         pout[a] = tp[a] + tR[a, 0] * rp[0] + tR[a, 1] * rp[1] + tR[a, 2] * rp[2]
         for b in range(3):
             Rout[a, b] = tR[a, 0] * rR[0, b] + tR[a, 1] * rR[1, b] + tR[a, 2] * rR[2, b]
+
+
+@njit(**HOT, inline="always")
+def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
+    """out[b, 0:3] <- tip node (sphere centre) [mm], out[b, 3:6] <- its velocity [mm/s] (world):
+    p = c + r, v = v_c + omega x r with r = half R e_x of the last body ``il``."""
+    hl = bp[il, 4]
+    r0 = hl * rot[il, 0, 0]
+    r1 = hl * rot[il, 1, 0]
+    r2 = hl * rot[il, 2, 0]
+    out[b, 0] = pos[il, 0] + r0
+    out[b, 1] = pos[il, 1] + r1
+    out[b, 2] = pos[il, 2] + r2
+    out[b, 3] = vel[il, 0] + omg[il, 1] * r2 - omg[il, 2] * r1
+    out[b, 4] = vel[il, 1] + omg[il, 2] * r0 - omg[il, 0] * r2
+    out[b, 5] = vel[il, 2] + omg[il, 0] * r1 - omg[il, 1] * r0
+
+
+@njit(**HOT)
+def tip_states(bstart, bp, pos, rot, vel, omg, out):
+    """Tip node position and velocity of every bristle into out (nb, >= 6), see _tip_node_state."""
+    for b in range(bstart.shape[0] - 1):
+        _tip_node_state(b, bstart[b + 1] - 1, bp, pos, rot, vel, omg, out)
+
+
+@njit(**HOT)
+def tcp_wrench(R_tcp, root_p, rootw, out):
+    """Wrench the TCP applies to the brush, out = (F [N], M [N mm] about the TCP), world.
+
+    The (massless) head carries every root element's reaction: the elements push on the head with
+    rootw (force, moment at the root node); the root node sits at R_tcp root_p from the TCP."""
+    for a in range(6):
+        out[a] = 0.0
+    for b in range(root_p.shape[0]):
+        x0 = R_tcp[0, 0] * root_p[b, 0] + R_tcp[0, 1] * root_p[b, 1] + R_tcp[0, 2] * root_p[b, 2]
+        x1 = R_tcp[1, 0] * root_p[b, 0] + R_tcp[1, 1] * root_p[b, 1] + R_tcp[1, 2] * root_p[b, 2]
+        x2 = R_tcp[2, 0] * root_p[b, 0] + R_tcp[2, 1] * root_p[b, 1] + R_tcp[2, 2] * root_p[b, 2]
+        f0 = rootw[b, 0]
+        f1 = rootw[b, 1]
+        f2 = rootw[b, 2]
+        out[0] -= f0
+        out[1] -= f1
+        out[2] -= f2
+        out[3] -= rootw[b, 3] + x1 * f2 - x2 * f1
+        out[4] -= rootw[b, 4] + x2 * f0 - x0 * f2
+        out[5] -= rootw[b, 5] + x0 * f1 - x1 * f0
+
+
+@njit(**HOT)
+def all_finite(x):
+    """True if every entry of the 2-D array x is finite."""
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            if not np.isfinite(x[i, j]):
+                return False
+    return True
 
 
 @njit(cache=True)
@@ -796,12 +881,5 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
                     break
         iters[b] = tot
         nsub[b] = nsteps
-        tips = ctx[2]
-        il = b0 + n - 1
-        hl = bp[il, 4]
-        for a in range(3):
-            tips[b, a] = pos[il, a] + hl * rot[il, a, 0]
-        tips[b, 3] = vel[il, 0] + omg[il, 1] * hl * rot[il, 2, 0] - omg[il, 2] * hl * rot[il, 1, 0]
-        tips[b, 4] = vel[il, 1] + omg[il, 2] * hl * rot[il, 0, 0] - omg[il, 0] * hl * rot[il, 2, 0]
-        tips[b, 5] = vel[il, 2] + omg[il, 0] * hl * rot[il, 1, 0] - omg[il, 1] * hl * rot[il, 0, 0]
+        _tip_node_state(b, b0 + n - 1, bp, pos, rot, vel, omg, ctx[2])
         hist_ok[b] = 1 if (nsteps == 1 and status[b] == 0) else 0

@@ -25,7 +25,7 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     tipF = np.zeros(3)
     tipK = np.zeros((3, 3))
     itg._jacobian(b0, n, m.bp, m.K, st.pos, st.rot, True, 1.0, 1.0, zero6, np.ones(n),
-                  np.zeros(n), pA, RA, tipF, tipK, D, U, L, np.zeros((8, 12)))
+                  np.zeros(n), pA, RA, tipF, tipK, D, U, L, np.zeros((itg.N_SW, 12)))
     K = np.zeros((6 * n, 6 * n))
     M = np.zeros((6 * n, 6 * n))
     for k in range(n):

@@ -21,6 +21,7 @@ from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenk
 from . import contact as ct
 from .contact import N_TIP_ARGS, N_TIP_STATE
 from .config import BrushConfig, ConfigError
+from .rotation import pose_ok
 from .scene import Scene
 
 G_EARTH = 9810.0  # [mm/s^2]
@@ -281,18 +282,17 @@ class Simulator:
                            np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0,
                            itg.make_jacobian_store(N, nb))
         self._rootw[:] = 0.0
-        self._tips[:, 0:3] = self.tip_positions()
-        self._tips[:, 3:6] = 0.0
+        itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
         return self._result(0, 0)
 
     @staticmethod
     def _check_pose(p, R):
+        if p.shape == (3,) and R.shape == (3, 3) and pose_ok(p, R, 1e-6):
+            return
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"tcp_p = {p!r}: must be 3 finite numbers (mm)")
-        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or \
-                np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
-            raise ValueError(f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, "
-                             "tolerance 1e-6)")
+        raise ValueError(f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, "
+                         "tolerance 1e-6)")
 
     def set_tip_forces(self, forces) -> None:
         """Dead external loads on the tips [N, world], shape (nb, 3)."""
@@ -307,8 +307,8 @@ class Simulator:
 
     def set_state(self, state: State) -> None:
         self.state = state.copy()
-        self._tips[:, 0:3] = self.tip_positions()
-        self._tips[:, 3:6] = self.tip_velocities()
+        st, m = self.state, self.model
+        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, self._tips)
 
     # ------------------------------------------------------------------ stepping
     def step(self, tcp_p, tcp_R) -> StepResult:
@@ -347,7 +347,7 @@ class Simulator:
 
     def _advance(self, tcp_p, tcp_R, prm, t_new) -> StepResult:
         st = self.state
-        snapshot = st.copy(with_jacobian=False)  # rollback target; the factors are only a cache
+        snapshot = self._snapshot(st)  # rollback target
         st.tcp_p[2] = tcp_p
         st.tcp_R[2] = tcp_R
         m = self.model
@@ -356,7 +356,7 @@ class Simulator:
                           prm, self.tip_args, st.tip_state, self._ctx(), st.jac, self._ws,
                           self._rootw, self._iters, self._nsub, self._status)
         bad = np.flatnonzero(self._status)
-        if bad.size == 0 and not (np.all(np.isfinite(st.pos)) and np.all(np.isfinite(self._rootw))):
+        if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self._rootw)):
             bad = np.arange(m.n_bristles)
         if bad.size:
             self.set_state(snapshot)
@@ -370,6 +370,19 @@ class Simulator:
         st.steps += 1
         return self._result(int(self._iters.sum()), int(self._nsub.sum()))
 
+    def _snapshot(self, st: State) -> State:
+        """Copy of ``st`` into buffers kept across steps (no allocation per step); the Newton
+        factors are shared, not copied: they are only a cache, and a failed step leaves them valid
+        (the rebuild key decides when they are used)."""
+        snap = getattr(self, "_snap", None)
+        if snap is None or snap.pos.shape != st.pos.shape:
+            snap = self._snap = st.copy(with_jacobian=False)
+        else:
+            for name in _STATE_ARRAYS:
+                np.copyto(getattr(snap, name), getattr(st, name))
+            snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
+        return snap
+
     def _ctx(self):
         return (self.surfaces, self.contact_params, self._tips, self.pair_ptr, self.pair_idx,
                 self.mesh)
@@ -382,43 +395,38 @@ class Simulator:
     # ------------------------------------------------------------------ outputs
     def tip_positions(self) -> np.ndarray:
         """Tip node (sphere centre) of every bristle [mm, world], (nb, 3)."""
-        st, m = self.state, self.model
-        last = m.bstart[1:] - 1
-        return st.pos[last] + m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
+        return self._tip_states()[:, 0:3]
 
     def tip_velocities(self) -> np.ndarray:
+        """Tip node velocity of every bristle [mm/s, world], (nb, 3)."""
+        return self._tip_states()[:, 3:6]
+
+    def _tip_states(self) -> np.ndarray:
         st, m = self.state, self.model
-        last = m.bstart[1:] - 1
-        r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
-        return st.vel[last] + _cross_rows(st.omg[last], r)
+        out = np.empty((m.n_bristles, 6))
+        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, out)
+        return out
 
     def _result(self, iters: int, nsub: int) -> StepResult:
         st = self.state
-        p_tcp, R_tcp = st.tcp_p[1], st.tcp_R[1]
-        m = self.model
-        root_w = p_tcp + m.root_p @ R_tcp.T
-        # the root elements push on the head with rootw; the robot holds the (massless) head
-        F_on_head = self._rootw[:, 0:3]
-        M_on_head = self._rootw[:, 3:6] + _cross_rows(root_w - p_tcp, F_on_head)
-        F = -F_on_head.sum(axis=0)
-        M = -M_on_head.sum(axis=0)
+        R_tcp = st.tcp_R[1]
+        w = np.empty(6)
+        itg.tcp_wrench(R_tcp, self.model.root_p, self._rootw, w)
+        F, M = w[0:3], w[3:6]
         ts = st.tip_state
         fn = ts[:, ct.S_FN].copy()
-        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, self.tip_positions(),
-                          self.tip_velocities(), iters, nsub, fn, ts[:, ct.S_FT:ct.S_FT + 3].copy(),
+        tips = self._tips[:, 0:6].copy()  # step_bristles / tip_states keep them current
+        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, tips[:, 0:3], tips[:, 3:6],
+                          iters, nsub, fn, ts[:, ct.S_FT:ct.S_FT + 3].copy(),
                           fn > 0.0, (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
                           np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0),
                           ts[:, ct.S_CP:ct.S_CP + 3].copy(),
                           extra={"tip_tip_force": ts[:, ct.S_FTT].copy()})
 
 
-def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise a x b of (n, 3) arrays (np.cross costs ~15 us per call in the step's hot path)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+#: the array fields of State (copied by Simulator._snapshot)
+_STATE_ARRAYS = ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "hist_ok", "tcp_p",
+                 "tcp_R", "tip_state")
 
 
 def _surface_rows(surfaces) -> np.ndarray:
