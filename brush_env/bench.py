@@ -31,7 +31,7 @@ but only for the first ``arc`` = 1.05 s of the circle (1.8 s in all, a multiple 
 theta reaches ~54 deg, past the first jamming angle pi/4), not the full turn the issue asks for,
 so that the whole grid stays under ~10 min on one core.  Grid: bodies {3, 6} x dt {1, 2, 4} ms
 x {euler, bdf2} x tip_tip {off, on}
-(``dataclasses.replace(scene, tip_tip=...)``; the scene file has it off).  Each tip_tip setting
+(``dataclasses.replace(scene, tip_tip=...)``; the scene file has it on).  Each tip_tip setting
 has its own reference (12 bodies, dt = 2.5e-4 s, BDF2, same tip_tip); the TCP force is
 interpolated onto a common 5 ms grid and
 
@@ -43,7 +43,8 @@ over the whole run (and ``rms_force_error_circle`` over the circle part only), a
 raises ``SimulationDivergence`` are kept with status "diverged at t=..." and NaN errors; if a
 reference diverges, its rows are compared over the span it reached (``error_window_s``).
 Also per row: rtf, Newton iterations per step per bristle, extra sub-steps (sub-steps beyond one
-per bristle and step, summed over the run).  Cold start as for ``engine``, on the plate scene.
+per bristle and step, summed over the run).  Wall times (both targets) are the fastest of
+``--repeats`` identical runs (default 3; the results are deterministic, only the timing varies).  Cold start as for ``engine``, on the plate scene.
 """
 
 from __future__ import annotations
@@ -217,9 +218,21 @@ def _rel_rms(run: Run, ref: Run, grid: np.ndarray, t0: float = 0.0) -> tuple[flo
 #: measured.
 REF_RTOL = 1e-7
 
-GRID_FULL = dict(bodies=(3, 6, 12), dts=(1e-4, 5e-4, 1e-3, 2e-3, 3e-3, 5e-3), duration=0.5,
+GRID_FULL = dict(bodies=(3, 6, 12), dts=(1e-4, 5e-4, 1e-3, 2e-3, 3e-3, 4e-3, 5e-3), duration=0.5,
                  ref=(24, 2e-5), sample=5e-3)
 GRID_QUICK = dict(bodies=(3,), dts=(2e-3, 5e-3), duration=0.1, ref=(6, 2e-4), sample=1e-2)
+
+
+def _best_of(args, make_run):
+    """Run ``make_run()`` ``--repeats`` times and keep the fastest wall time: the runs are
+    deterministic (same results bit for bit), so repeating only filters the machine's timing
+    noise (other processes, frequency changes; ~30 % run to run on the shared VM measured)."""
+    best = make_run()
+    for _ in range(max(int(getattr(args, "repeats", 1) or 1), 1) - 1):
+        again = make_run()
+        if again.wall < best.wall:
+            best.wall = again.wall
+    return best
 
 
 def bench_engine(args) -> int:
@@ -242,7 +255,7 @@ def bench_engine(args) -> int:
     for bodies in g["bodies"]:
         for dt in g["dts"]:
             for integ in ("euler", "bdf2"):
-                run = simulate(bodies, dt, integ, g["duration"])
+                run = _best_of(args, lambda: simulate(bodies, dt, integ, g["duration"]))
                 ef, em = _rel_rms(run, ref, grid)
                 sf, sm = _rel_rms(run, ref, grid, STEADY_FROM)
                 steps = len(run.t) - 1
@@ -445,7 +458,8 @@ def bench_contact(args) -> int:
                 for integ in g["integrators"]:
                     print(f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...",
                           file=sys.stderr, flush=True)
-                    run = simulate_contact(bodies, dt, integ, tt, *motion)
+                    run = _best_of(args, lambda: simulate_contact(bodies, dt, integ, tt,
+                                                                  *motion))
                     row = _contact_row(run, bodies, dt, integ, tt,
                                        _contact_errors(run, ref, grid))
                     ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
@@ -498,6 +512,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", action="store_true",
                         help="one JSON object per row on stdout (machine info on stderr)")
     parser.add_argument("--quick", action="store_true", help="reduced grid (for tests)")
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="runs per row; the fastest wall time is reported (default 3)")
     parser.add_argument("--no-cold-start", action="store_true",
                         help="skip the cold-start measurement (fresh numba compile)")
     from brush_env.envs import bench_env  # env options (skips the shared --json)

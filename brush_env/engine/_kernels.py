@@ -304,6 +304,16 @@ def block_factor(n, D, U, L, G, piv):
     D becomes the LU factors of the Schur complements, G_i = D_i^-1 U_i.  Returns False if a pivot
     block is singular.  Solve with ``block_solve``; the factors can be reused for many solves.
     """
+    if not block_factor_head(n, D, U, L, G, piv):
+        return False
+    return _lu6(D[n - 1], piv[n - 1])
+
+
+@njit(**HOT)
+def block_factor_head(n, D, U, L, G, piv):
+    """``block_factor`` of blocks 0..n-2; D[n-1] is left as its Schur complement
+    D_{n-1} - L_{n-1} G_{n-2}, not yet factored.  Blocks 0..n-2 do not depend on D_{n-1}, so a
+    change of the last diagonal block only needs ``_lu6`` of (Schur complement + change)."""
     for i in range(n):
         if i > 0:
             for a in range(6):
@@ -312,13 +322,14 @@ def block_factor(n, D, U, L, G, piv):
                     for k in range(6):
                         s += L[i, a, k] * G[i - 1, k, b]
                     D[i, a, b] -= s
+        if i == n - 1:
+            return True
         if not _lu6(D[i], piv[i]):
             return False
-        if i < n - 1:
-            for b in range(6):
-                for a in range(6):
-                    G[i, a, b] = U[i, a, b]
-                _lus6(D[i], piv[i], G[i, :, b])
+        for b in range(6):
+            for a in range(6):
+                G[i, a, b] = U[i, a, b]
+            _lus6(D[i], piv[i], G[i, :, b])
     return True
 
 

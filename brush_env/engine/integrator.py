@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import (HOT, _element_gen, _local_rot_into, _node, _rotate_left, block_factor,
-                       block_solve, reorthonormalize)
+from ._kernels import (HOT, _element_gen, _local_rot_into, _lu6, _node, _rotate_left,
+                       block_factor, block_factor_head, block_solve, reorthonormalize)
 from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
                       penetration_step_limit, slip_step_limit, tip_load)
 
@@ -46,6 +46,7 @@ N_PRM = 10
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
 MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip radii
+SLOW = 0.1  # residual ratio of an iteration with reused factors above which they are rebuilt
 
 
 N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see their bodies)
@@ -59,10 +60,12 @@ def make_workspace(nmax: int, n_tip_state: int):
 
 
 def make_jacobian_store(n_bodies: int, n_bristles: int):
-    """Per-bristle factored Newton matrices kept across steps (see ``_newton``)."""
+    """Per-bristle factored Newton matrices kept across steps (see ``_newton``): D, G, L, pivots,
+    key, age, and the tip body's Schur complement without the tip load (nb, 6, 6)."""
     return (np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)),
             np.zeros((n_bodies, 6), np.int64), np.zeros(n_bristles), np.zeros(n_bristles,
-                                                                               np.int64))
+                                                                               np.int64),
+            np.zeros((n_bristles, 6, 6)))
 
 
 @njit(**HOT, inline="always")
@@ -186,6 +189,15 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     tip stiffness ``tipK`` and the lever arm.  The Jacobian only steers Newton: the converged
     state is fixed by the residual alone.
     """
+    _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L,
+                    sw)
+    _add_tip_block(D[n - 1], bp, rot, b0 + n - 1, tipF, tipK, sw)
+
+
+@njit(**HOT)
+def _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L,
+                    sw):
+    """The inertia and element blocks of ``_jacobian`` (everything but the tip load)."""
     e = sw[0, 0:6]
     cP = sw[6, 6:9]
     base = sw[7]
@@ -253,9 +265,13 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
                     else:
                         D[k - 1, a, col] -= dA
                         L[k, a, col] -= dB
-    # tip load at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta
-    il = b0 + n - 1
-    k = n - 1
+
+
+@njit(**HOT)
+def _add_tip_block(Dk, bp, rot, il, tipF, tipK, sw):
+    """Dk += d(-tip load, -its moment about c)/d(dc, dtheta) of the tip body ``il``.
+
+    Tip load F at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta."""
     Sr = sw[8:11, 3:6]
     SF = sw[8:11, 6:9]
     KS = sw[8:11, 9:12]
@@ -272,10 +288,25 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     # residual rows: -F and -(r x F); dF = K (dc - [r]x dth); d(r x F) = [r]x dF + [F]x [r]x dth
     for a in range(3):
         for b in range(3):
-            D[k, a, b] -= tipK[a, b]
-            D[k, a, 3 + b] += KS[a, b]
-            D[k, 3 + a, b] -= SrK[a, b]
-            D[k, 3 + a, 3 + b] += SrKS[a, b] - SFSr[a, b]
+            Dk[a, b] -= tipK[a, b]
+            Dk[a, 3 + b] += KS[a, b]
+            Dk[3 + a, b] -= SrK[a, b]
+            Dk[3 + a, 3 + b] += SrKS[a, b] - SFSr[a, b]
+
+
+@njit(**HOT)
+def _tip_refactor(n, D, piv, S, bp, rot, il, tipF, tipK, sw):
+    """Last block of the factored Newton matrix <- LU(S + tip block at the current tip load).
+
+    S is the tip body's Schur complement without the tip load (``block_factor_head``), so this
+    makes the contact part of the Newton matrix current for the price of one 6x6 LU, while the
+    chain's blocks (which change slowly) are reused.  Returns False if the block is singular."""
+    Dl = D[n - 1]
+    for a in range(6):
+        for c in range(6):
+            Dl[a, c] = S[a, c]
+    _add_tip_block(Dl, bp, rot, il, tipF, tipK, sw)
+    return _lu6(Dl, piv[n - 1])
 
 
 @njit(**HOT)
@@ -480,7 +511,8 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
     static = prm[P_STATIC] != 0.0
     inv_h = 1.0 / h
     gvec = prm[P_G:P_G + 3]
-    jD, jG, jL, jpiv, jkey, jage = jac
+    jD, jG, jL, jpiv, jkey, jage, jS = jac
+    S = jS[b]
     D = jD[b0:b0 + n]
     G = jG[b0:b0 + n]
     L = jL[b0:b0 + n]
@@ -578,15 +610,27 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         it += 1
         fresh = need
         if need:
-            _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, tipF,
-                      tipK, D, U, L, sw)
+            _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe,
+                            D, U, L, sw)
             need = False
             jage[b] = 0
-            if block_factor(n, D, U, L, G, piv):
+            good = block_factor_head(n, D, U, L, G, piv)
+            if good:
+                for a in range(6):
+                    for c in range(6):
+                        S[a, c] = D[n - 1, a, c]
+                good = _tip_refactor(n, D, piv, S, bp, rot, b0 + n - 1, tipF, tipK, sw)
+            if good:
                 jkey[b] = key
             else:
                 jkey[b] = 0.0
                 break
+        elif tip_state[S_FN] > 0.0 or tip_state[S_FTT] > 0.0:
+            # contact: the tip block at the current load, on the reused chain factors
+            if not _tip_refactor(n, D, piv, S, bp, rot, b0 + n - 1, tipF, tipK, sw):
+                need = True
+                it -= 1
+                continue
         for k in range(n):
             for a in range(6):
                 r0[k, a] = res[k, a]
@@ -671,7 +715,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
             nrm = new
             ok = True
             break
-        if (not fresh and new > 0.25 * nrm) or alpha < 1.0:
+        if (not fresh and new > SLOW * nrm) or alpha < 1.0:
             need = True  # old factors converge slowly or the step was cut: rebuild them
         nrm = new
         # round-off floor: the update no longer moves the state (|alpha dq| at the level of the
