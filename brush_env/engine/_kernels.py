@@ -205,7 +205,7 @@ def _node(c, R, half, out):
     out[2] = c[2] + half * R[2, 0]
 
 
-@njit(**HOT, inline="always")
+@njit(**HOT)
 def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist, gs, hs,
                  out12, e):
     """Generalised forces of one Timoshenko element (eq 5) on the centres of its bodies A and B.

@@ -241,7 +241,7 @@ def _surface_gap(surf, pt, nrm, cpt, mesh):
     return rr - surf[7]
 
 
-@njit(**HOT, inline="always")
+@njit(**HOT)
 def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F,
              Kt, tw):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
