@@ -360,6 +360,9 @@ class Simulator:
             bad = np.arange(m.n_bristles)
         if bad.size:
             self.set_state(snapshot)
+            # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
+            # them all stale, so that what follows depends on the restored state alone
+            self.state.jac[4][:] = 0.0
             raise SimulationDivergence(t_new, bad, "Newton did not converge on the smallest "
                                        f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})")
         st.tcp_p[0] = st.tcp_p[1]
