@@ -24,12 +24,14 @@ stepping loop only (after a warm-up; cold start is measured apart in a fresh ``p
 process, once with an empty numba cache, i.e. compiling, and once loading the cache).
 rtf = simulated time / wall time.  Run on one core: ``taskset -c 0 brush-env bench engine``.
 
+``bench convergence``: the ``bench contact`` motion (BDF2, tip-tip on) at 6 bodies for dt = 1, 0.5,
+0.25, 0.125 ms, each against the finest, and at dt = 0.25 ms for 6, 12, 24 bodies, each against
+24: how far from converged the contact run is in time step and in bodies (self-convergence).
+
 ``bench contact``: the ``flat_plate`` scene (default brush, 40 bristles, plate at z = 0) with the
 tips touching the plate at t = 0, pressed 3 mm along the bristle axis (0.5 s, minimum jerk), held
-0.25 s, then driven along the paper's 20 mm circle at 20 mm/s (exact circle, 100 mm/s^2 ramp) --
-but only for the first ``arc`` = 1.05 s of the circle (1.8 s in all, a multiple of every dt;
-theta reaches ~54 deg, past the first jamming angle pi/4), not the full turn the issue asks for,
-so that the whole grid stays under ~10 min on one core.  Grid: bodies {3, 6} x dt {1, 2, 4} ms
+0.25 s, then driven once round the paper's 20 mm circle at 20 mm/s (exact circle, 100 mm/s^2
+ramps; ``arc`` = "turn": 6.484 s, 7.234 s in all, a multiple of every dt).  Grid: bodies {3, 6} x dt {1, 2, 4} ms
 x {euler, bdf2} x tip_tip {off, on}
 (``dataclasses.replace(scene, tip_tip=...)``; the scene file has it on).  Each tip_tip setting
 has its own reference (12 bodies, dt = 2.5e-4 s, BDF2, same tip_tip); the TCP force is
@@ -329,8 +331,8 @@ class ContactRun:
 #: Contact grid.  ``press``/``hold``: the paper's 3 mm minimum-jerk press in 0.5 s and 0.25 s
 #: settling (experiment.DEFAULTS); ``arc``: simulated seconds of the circle after the hold.
 CONTACT_GRID_FULL = dict(bodies=(3, 6), dts=(1e-3, 2e-3, 4e-3), integrators=("euler", "bdf2"),
-                         tip_tip=(False, True), press=0.5, hold=0.25, arc=1.05, ref=(12, 2.5e-4),
-                         sample=5e-3)
+                         tip_tip=(False, True), press=0.5, hold=0.25, arc="turn",
+                         ref=(12, 2.5e-4), sample=5e-3)
 CONTACT_GRID_QUICK = dict(bodies=(3,), dts=(4e-3,), integrators=("bdf2",), tip_tip=(False, True),
                           press=0.1, hold=0.0, arc=0.06, ref=(3, 2e-3), sample=1e-2)
 
@@ -409,8 +411,23 @@ def _contact_row(run: ContactRun, bodies, dt, integ, tip_tip, errs, reference=Fa
             "steps": run.steps}
 
 
+def _arc_seconds(g: dict) -> float:
+    """``g['arc']`` [s], or for "turn" the whole circle (ramps included) rounded up to a multiple
+    of 4 ms, so that every dt of the grid ends on the same time."""
+    if g["arc"] != "turn":
+        return float(g["arc"])
+    from .experiment import DEFAULTS, build_trajectory
+
+    traj, starts, _ = build_trajectory(
+        start_xy=(0.0, 0.0), touch_z=0.0, radius=DEFAULTS["radius"], speed=DEFAULTS["speed"],
+        accel=DEFAULTS["accel"], turns=1.0, press_depth=DEFAULTS["press_depth"],
+        press_time=g["press"], hold_time=g["hold"], path="circle")
+    return math.ceil((traj.duration - starts[-1]) / 4e-3 - 1e-9) * 4e-3
+
+
 def bench_contact(args) -> int:
     g = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
+    g = dict(g, arc=_arc_seconds(g))
     info = machine_info()
     log = sys.stderr if args.json else sys.stdout
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
@@ -430,7 +447,7 @@ def bench_contact(args) -> int:
     deg = math.degrees(ref0.theta_end)
     print(f"motion: flat_plate scene (default brush, 40 bristles), tips touching the plate at t=0, "
           f"3 mm press in {g['press']} s (minimum jerk), {g['hold']} s hold, then the first "
-          f"{g['arc']} s of the 20 mm circle at 20 mm/s (0.2 s ramp; theta reaches {deg:.1f} deg "
+          f"{g['arc']:g} s of the 20 mm circle at 20 mm/s (0.2 s ramp; theta reaches {deg:.1f} deg "
           f"of the 360 deg turn), {ref0.t_circle + g['arc']:g} s in all; force error on a "
           f"{g['sample']:g} s grid relative to the reference's RMS |F|", file=log)
     for tt, ref in refs.items():
@@ -504,7 +521,61 @@ def _bench_env(args) -> int:
     return bench_env.run(args)
 
 
-TARGETS = {"engine": bench_engine, "contact": bench_contact, "env": _bench_env}
+# --------------------------------------------------------------------------- convergence target
+#: ``bench convergence``: how far the contact run (``bench contact``'s motion, BDF2, tip-tip on) is
+#: from converged, in time step (6 bodies) and in bodies per bristle (dt = 2.5e-4 s).
+CONVERGENCE_GRID_FULL = dict(dts=(1e-3, 5e-4, 2.5e-4, 1.25e-4), bodies=(6, 12, 24), body_dt=2.5e-4)
+CONVERGENCE_GRID_QUICK = dict(dts=(4e-3, 2e-3), bodies=(3, 6), body_dt=4e-3)
+
+
+def bench_convergence(args) -> int:
+    """Self-convergence of the contact benchmark: each row's RMS TCP-force error (as in ``bench
+    contact``, whole run and circle) against the finest run of its series -- the smallest dt at 6
+    bodies, and the most bodies at a fixed small dt.  It bounds what any setting can reach: the
+    time-step series shows the solver's own floor (stick-slip branches), the body series the
+    discretisation's."""
+    g = CONVERGENCE_GRID_QUICK if args.quick else CONVERGENCE_GRID_FULL
+    c = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
+    c = dict(c, arc=_arc_seconds(c))
+    motion = (c["press"], c["hold"], c["arc"])
+    log = sys.stderr if args.json else sys.stdout
+    info = machine_info()
+    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    rows = []
+    series = [("dt", 6 if not args.quick else 3, dt) for dt in g["dts"]] + \
+        [("bodies", b, g["body_dt"]) for b in g["bodies"]]
+    runs = {}
+    for kind, bodies, dt in series:
+        print(f"  {kind}: {bodies} bodies, dt={dt:g} ...", file=sys.stderr, flush=True)
+        runs[(kind, bodies, dt)] = simulate_contact(bodies, dt, "bdf2", True, *motion)
+    for kind in ("dt", "bodies"):
+        keys = [k for k in runs if k[0] == kind]
+        finest = keys[-1]
+        ref = runs[finest]
+        grid = np.arange(0.0, ref.t[-1] + 1e-12, c["sample"])
+        for k in keys:
+            run = runs[k]
+            whole, circ = _contact_errors(run, ref, grid) if k != finest else (0.0, 0.0)
+            row = {"series": kind, "bodies": k[1], "dt": k[2], "integrator": "bdf2",
+                   "tip_tip": True, "against": f"{finest[1]} bodies, dt={finest[2]:g}",
+                   "rms_force_error": whole, "rms_force_error_circle": circ,
+                   "wall_s": run.wall, "rtf": run.t[-1] / run.wall, "status": run.status}
+            rows.append(row)
+            if args.json:
+                print(json.dumps(row), flush=True)
+    if not args.json:
+        print(markdown_table(rows, [
+            ("series", lambda r: r["series"]), ("bodies", lambda r: str(r["bodies"])),
+            ("dt [s]", lambda r: f"{r['dt']:g}"), ("against", lambda r: r["against"]),
+            ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
+            ("RMS F err (circle)", lambda r: f"{r['rms_force_error_circle']:.2e}"),
+            ("wall [s]", lambda r: f"{r['wall_s']:.1f}"), ("RTF", lambda r: f"{r['rtf']:.3g}"),
+            ("status", lambda r: r["status"])]))
+    return 0
+
+
+TARGETS = {"engine": bench_engine, "contact": bench_contact, "convergence": bench_convergence,
+           "env": _bench_env}
 
 
 def add_arguments(parser) -> None:

@@ -329,3 +329,15 @@ def test_cli_bench_contact_quick(capsys):
     assert all("rms_force_error_same_bodies" in r for r in grid)
     assert all(r["rms_force_error_same_bodies"] == r["rms_force_error"] for r in grid
                if r["status"] == "ok")
+
+
+def test_cli_bench_convergence_quick(capsys):
+    assert cli.main(["bench", "convergence", "--quick", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
+            if line.startswith("{")]
+    assert {r["series"] for r in rows} == {"dt", "bodies"}
+    for series in ("dt", "bodies"):
+        part = [r for r in rows if r["series"] == series]
+        # the finest run of a series is its own reference (zero error); the others are not
+        assert part[-1]["rms_force_error"] == 0.0
+        assert all(r["status"] != "ok" or r["rms_force_error"] > 0.0 for r in part[:-1])
