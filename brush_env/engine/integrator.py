@@ -46,7 +46,15 @@ N_PRM = 10
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
 MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip radii
-SLOW = 0.1  # residual ratio of an iteration with reused factors above which they are rebuilt
+#: Reused Newton factors are rebuilt when an iteration with them reduces the residual by less than
+#: SLOW and, at that rate, more than REBUILD_ITERS further iterations would be needed: a rebuild
+#: (finite-difference chain Jacobian + factorisation, ~8.5 us at 6 bodies) costs about as much
+#: as four iterations with reused factors (~2 us each).
+SLOW = 0.1
+REBUILD_ITERS = 3.0
+#: scaled residual up to which the extrapolating predictor is trusted without also trying the rigid
+#: one (1 = a residual of the bristle's force scale E I / L^2)
+EXTRAP_TRUST = 1.0
 
 
 N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see their bodies)
@@ -55,7 +63,7 @@ N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see th
 def make_workspace(nmax: int, n_tip_state: int):
     """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
     return (np.zeros((8, nmax, 3, 3)), np.zeros((6, nmax, 6)), np.zeros((nmax, 6, 6)),
-            np.zeros((N_SW, 12)), np.zeros(32), np.zeros((6, nmax, 3)), np.zeros((2, nmax, 3, 3)),
+            np.zeros((N_SW, 12)), np.zeros(32), np.zeros((7, nmax, 3)), np.zeros((3, nmax, 3, 3)),
             np.zeros(n_tip_state))
 
 
@@ -385,38 +393,80 @@ def _load_chain(b0, n, pos, rot, t_pos, t_rot):
 
 
 @njit(**HOT)
-def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe, sw):
-    """pos/rot <- the state at t_n moved on by its last step, in the base frame: with
-    x = RA^T (c - pA) and Q = RA^T R, x_pred = 2 x_n - x_{n-1}, Q_pred = Q_n Q_{n-1}^T Q_n, then
-    back to the world with the base at the step's end (pAe, RAe)."""
+def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, order, pAs, RAs, pAp,
+                 RAp, pAq, RAq, pAe, RAe, sw):
+    """pos/rot <- the state at t_n moved on by polynomial extrapolation in the base frame.
+
+    With x = RA^T (c - pA) and Q = RA^T R at t_n, t_{n-1}, t_{n-2} (base poses (pAs, RAs),
+    (pAp, RAp), (pAq, RAq)):  order 2: x = 2 x_n - x_{n-1}, Q = Q_n Q_{n-1}^T Q_n (constant rates);
+    order 3: x = 3 x_n - 3 x_{n-1} + x_{n-2}, Q = exp(phi_2 - 3 phi_1) Q_n with
+    phi_j = log(Q_{n-j} Q_n^T) (the quadratic through the three rotation vectors about Q_n).  Then
+    back to the world with the base at the step's end (pAe, RAe).
+    """
     Qn = sw[8:11, 0:3]
     Qp = sw[8:11, 3:6]
-    D = sw[8:11, 6:9]
-    xp = sw[11, 0:3]
+    Qq = sw[8:11, 6:9]
+    Qr = sw[11:14, 0:3]
+    phi1 = sw[11, 3:6]
+    phi2 = sw[11, 6:9]
+    xp = sw[11, 9:12]
     for k in range(n):
         i = b0 + k
         for a in range(3):
-            xp[a] = 0.0
-            for c in range(3):
-                xp[a] += 2.0 * RAs[c, a] * (s_pos[k, c] - pAs[c]) - RAp[c, a] * (ppos[i, c]
-                                                                               - pAp[c])
+            xn = RAs[0, a] * (s_pos[k, 0] - pAs[0]) + RAs[1, a] * (s_pos[k, 1] - pAs[1]) \
+                + RAs[2, a] * (s_pos[k, 2] - pAs[2])
+            xm = RAp[0, a] * (ppos[i, 0] - pAp[0]) + RAp[1, a] * (ppos[i, 1] - pAp[1]) \
+                + RAp[2, a] * (ppos[i, 2] - pAp[2])
+            if order >= 3:
+                xq = RAq[0, a] * (pppos[i, 0] - pAq[0]) + RAq[1, a] * (pppos[i, 1] - pAq[1]) \
+                    + RAq[2, a] * (pppos[i, 2] - pAq[2])
+                xp[a] = 3.0 * xn - 3.0 * xm + xq
+            else:
+                xp[a] = 2.0 * xn - xm
             for bb in range(3):
                 Qn[a, bb] = RAs[0, a] * s_rot[k, 0, bb] + RAs[1, a] * s_rot[k, 1, bb] \
                     + RAs[2, a] * s_rot[k, 2, bb]
                 Qp[a, bb] = RAp[0, a] * prot[i, 0, bb] + RAp[1, a] * prot[i, 1, bb] \
                     + RAp[2, a] * prot[i, 2, bb]
-        for a in range(3):  # D = Qn Qp^T
-            for bb in range(3):
-                D[a, bb] = Qn[a, 0] * Qp[bb, 0] + Qn[a, 1] * Qp[bb, 1] + Qn[a, 2] * Qp[bb, 2]
-        for a in range(3):  # Qp <- D Qn (the predicted relative rotation)
-            for bb in range(3):
-                Qp[a, bb] = D[a, 0] * Qn[0, bb] + D[a, 1] * Qn[1, bb] + D[a, 2] * Qn[2, bb]
+                if order >= 3:
+                    Qq[a, bb] = RAq[0, a] * pprot[i, 0, bb] + RAq[1, a] * pprot[i, 1, bb] \
+                        + RAq[2, a] * pprot[i, 2, bb]
+        if order >= 3:
+            _local_rot_into(Qp, Qn, phi1)  # log(Q_{n-1} Q_n^T)
+            _local_rot_into(Qq, Qn, phi2)  # log(Q_{n-2} Q_n^T)
+            _rotate_left(phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1],
+                         phi2[2] - 3.0 * phi1[2], Qn, Qr)
+        else:
+            for a in range(3):  # Qq = Qn Qp^T, the last step's rotation
+                for bb in range(3):
+                    Qq[a, bb] = Qn[a, 0] * Qp[bb, 0] + Qn[a, 1] * Qp[bb, 1] + Qn[a, 2] * Qp[bb, 2]
+            for a in range(3):  # Qr = Qq Qn, repeated once more
+                for bb in range(3):
+                    Qr[a, bb] = Qq[a, 0] * Qn[0, bb] + Qq[a, 1] * Qn[1, bb] + Qq[a, 2] * Qn[2, bb]
         for a in range(3):
             pos[i, a] = pAe[a] + RAe[a, 0] * xp[0] + RAe[a, 1] * xp[1] + RAe[a, 2] * xp[2]
             for bb in range(3):
-                rot[i, a, bb] = RAe[a, 0] * Qp[0, bb] + RAe[a, 1] * Qp[1, bb] \
-                    + RAe[a, 2] * Qp[2, bb]
+                rot[i, a, bb] = RAe[a, 0] * Qr[0, bb] + RAe[a, 1] * Qr[1, bb] \
+                    + RAe[a, 2] * Qr[2, bb]
         reorthonormalize(rot[i])
+
+
+@njit(**HOT)
+def _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw):
+    """pos/rot <- the start configuration (s_pos, s_rot) carried rigidly by the base's motion over
+    the step, T = base_end o base_start^-1: a driven, nearly quasi-static chain starts Newton close."""
+    Tr = sw[8:11, 0:3]
+    for a in range(3):
+        for bb in range(3):
+            Tr[a, bb] = RAe[a, 0] * RAs[bb, 0] + RAe[a, 1] * RAs[bb, 1] + RAe[a, 2] * RAs[bb, 2]
+    for k in range(n):
+        i = b0 + k
+        for a in range(3):
+            pos[i, a] = pAe[a] + Tr[a, 0] * (s_pos[k, 0] - pAs[0]) \
+                + Tr[a, 1] * (s_pos[k, 1] - pAs[1]) + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
+            for bb in range(3):
+                rot[i, a, bb] = Tr[a, 0] * s_rot[k, 0, bb] + Tr[a, 1] * s_rot[k, 1, bb] \
+                    + Tr[a, 2] * s_rot[k, 2, bb]
 
 
 @njit(**HOT)
@@ -493,8 +543,9 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
 
 
 @njit(**HOT)
-def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0, c1, c2, h,
-            pAs, RAs, pAe, RAe, pAp, RAp, tip_args, tip_state, ctx, rootw, jac, ws, extrap):
+def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, pprot, prm, c0,
+            c1, c2, h, pAs, RAs, pAe, RAe, pAp, RAp, pAq, RAq, tip_args, tip_state, ctx, rootw, jac,
+            ws, extrap):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
@@ -565,42 +616,37 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
         ptp = ppos[il, a] + bp[il, 4] * prot[il, a, 0]
         tip_state[S_PN + a] = ptn
         tip_state[S_HIST + a] = c1u * ptn + c2u * ptp
-    # predictor: the start configuration carried rigidly by the base's motion over the step
-    # (T = base_end o base_start^-1): a driven, nearly quasi-static chain starts Newton close
-    Tr = sw[8:11, 0:3]
-    for a in range(3):
-        for bb in range(3):
-            Tr[a, bb] = RAe[a, 0] * RAs[bb, 0] + RAe[a, 1] * RAs[bb, 1] + RAe[a, 2] * RAs[bb, 2]
-    for k in range(n):
-        i = b0 + k
-        for a in range(3):
-            pos[i, a] = pAe[a] + Tr[a, 0] * (s_pos[k, 0] - pAs[0]) \
-                + Tr[a, 1] * (s_pos[k, 1] - pAs[1]) + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
-            for bb in range(3):
-                rot[i, a, bb] = Tr[a, 0] * s_rot[k, 0, bb] + Tr[a, 1] * s_rot[k, 1, bb] \
-                    + Tr[a, 2] * s_rot[k, 2, bb]
     rtol = prm[P_RTOL]
     maxit = int(prm[P_MAXIT])
-    nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
-                    ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw)
-    if extrap and nrm > rtol:
-        # second predictor: the last step's motion relative to the base, repeated (second-order
-        # extrapolation in the base frame).  A bristle that slides or bends steadily starts
-        # Newton O(h^2) close instead of O(h); kept only if its residual is smaller (contact
-        # onset, where extrapolation can overshoot into the plate, falls back to the rigid one).
-        _save_chain(b0, n, pos, rot, t_pos, t_rot)
-        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pAs, RAs, pAp, RAp, pAe, RAe,
-                     sw)
-        nx = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
-                       ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
-                       sw)
-        if nx < nrm:
-            nrm = nx
-        else:
-            _load_chain(b0, n, pos, rot, t_pos, t_rot)
-            nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
-                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
-                            tipF, tipK, sw)
+    # Predictors.  Extrapolation of the last steps' motion in the base frame (third order with two
+    # whole steps of history): a bristle that slides or bends steadily starts Newton O(h^3) close.
+    # Where it predicts badly (contact onset: it can overshoot into the plate; the first steps),
+    # the start configuration carried rigidly by the base's motion is tried too, and the better
+    # of the two is kept.
+    if extrap >= 2:
+        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, extrap, pAs, RAs,
+                     pAp, RAp, pAq, RAq, pAe, RAe, sw)
+        nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
+                        ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
+                        sw)
+        if nrm > EXTRAP_TRUST:
+            _save_chain(b0, n, pos, rot, t_pos, t_rot)
+            _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw)
+            nr = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
+                           Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
+                           tipF, tipK, sw)
+            if nr < nrm:
+                nrm = nr
+            else:
+                _load_chain(b0, n, pos, rot, t_pos, t_rot)
+                nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm,
+                                thp, Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res,
+                                rootw, tipF, tipK, sw)
+    else:
+        _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw)
+        nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
+                        ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
+                        sw)
     it = 0
     ok = nrm <= rtol
     key = -1.0 if static else c0 * inv_h
@@ -715,8 +761,13 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
             nrm = new
             ok = True
             break
-        if (not fresh and new > SLOW * nrm) or alpha < 1.0:
-            need = True  # old factors converge slowly or the step was cut: rebuild them
+        if alpha < 1.0:
+            need = True  # the step was cut: the factors no longer describe the way down
+        elif not fresh and new > SLOW * nrm and new > rtol:
+            # old factors converge slowly: rebuild unless the rest is cheaper at this rate
+            rho = new / nrm
+            if rho >= 1.0 or np.log(rtol / new) / np.log(rho) > REBUILD_ITERS:
+                need = True
         nrm = new
         # round-off floor: the update no longer moves the state (|alpha dq| at the level of the
         # coordinates' last bits) and the residual is within 100x of the tolerance: accept
@@ -761,10 +812,12 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm, c0
                 vel[i, a] = (c0 * pos[i, a] + cm[k, a]) * inv_h
                 omg[i, a] = (c0 * th[a] + thp[k, a]) * inv_h
         for a in range(3):
+            pppos[i, a] = ppos[i, a]
             ppos[i, a] = s_pos[k, a]
             pvel[i, a] = s_vel[k, a]
             pomg[i, a] = s_omg[k, a]
             for bb in range(3):
+                pprot[i, a, bb] = prot[i, a, bb]
                 prot[i, a, bb] = s_rot[k, a, bb]
     return True, it
 
@@ -835,12 +888,15 @@ def all_finite(x):
 
 
 @njit(cache=True)
-def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, hist_ok, tcp_p,
-                  tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, jac, ws, rootw, iters,
-                  nsub, status):
+def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, pprot,
+                  hist_ok, tcp_p, tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, jac, ws,
+                  rootw, iters, nsub, status):
     """Advance every bristle by one step h = prm[P_H] (in place).
 
-    tcp_p (3, 3), tcp_R (3, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1} (rows 0, 1, 2).
+    tcp_p (4, 3), tcp_R (4, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3).
+    pppos/pprot: positions and rotations at t_{n-2} (the third-order predictor's history).
+    hist_ok (nb,): whole steps behind each bristle's history, 0, 1 or 2 (after a sub-stepped step
+    the history is not on the step grid: 0).
     root_p (nb, 3), root_R (nb, 3, 3): root node pose of each bristle in the TCP frame.
     tip_args (nb, na), tip_state (nb, ns): tip-load parameters and per-contact state (contact.py).
     ctx = (surf, cp, tips, pair_ptr, pair_idx, mesh): surfaces, contact law parameters, every
@@ -864,6 +920,8 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
     RAe = np.empty((3, 3))
     pAp = np.empty(3)
     RAp = np.empty((3, 3))
+    pAq = np.empty(3)
+    RAq = np.empty((3, 3))
     for b in range(nb):
         b0 = bstart[b]
         n = bstart[b + 1] - b0
@@ -876,8 +934,10 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
         bk3[3, :n] = ppos[b0:b0 + n]
         bk3[4, :n] = pvel[b0:b0 + n]
         bk3[5, :n] = pomg[b0:b0 + n]
+        bk3[6, :n] = pppos[b0:b0 + n]
         bkR[0, :n] = rot[b0:b0 + n]
         bkR[1, :n] = prot[b0:b0 + n]
+        bkR[2, :n] = pprot[b0:b0 + n]
         bktip[:] = tip_state[b]
         s = 0.0
         level = 0
@@ -885,6 +945,7 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
         nsteps = 0
         status[b] = 0
         _tcp_to_base(tcp_p[0], tcp_R[0], root_p[b], root_R[b], pAp, RAp)
+        _tcp_to_base(tcp_p[3], tcp_R[3], root_p[b], root_R[b], pAq, RAq)
         while s < 1.0 - 1e-12:
             ds = 0.5**level
             if s + ds > 1.0:
@@ -898,10 +959,13 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAs, RAs)
             _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
             _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
-            extrap = whole and hist_ok[b] != 0 and prm[P_STATIC] == 0.0
-            ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, prm,
-                             c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, tip_args[b],
-                             tip_state[b], ctx, rootw[b], jac, ws, extrap)
+            # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
+            extrap = 0
+            if whole and prm[P_STATIC] == 0.0 and hist_ok[b] > 0:
+                extrap = 3 if hist_ok[b] >= 2 else 2
+            ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos,
+                             pprot, prm, c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, pAq,
+                             RAq, tip_args[b], tip_state[b], ctx, rootw[b], jac, ws, extrap)
             tot += it
             if ok:
                 s += ds
@@ -919,11 +983,13 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, his
                     ppos[b0:b0 + n] = bk3[3, :n]
                     pvel[b0:b0 + n] = bk3[4, :n]
                     pomg[b0:b0 + n] = bk3[5, :n]
+                    pppos[b0:b0 + n] = bk3[6, :n]
                     rot[b0:b0 + n] = bkR[0, :n]
                     prot[b0:b0 + n] = bkR[1, :n]
+                    pprot[b0:b0 + n] = bkR[2, :n]
                     tip_state[b] = bktip
                     break
         iters[b] = tot
         nsub[b] = nsteps
         _tip_node_state(b, b0 + n - 1, bp, pos, rot, vel, omg, ctx[2])
-        hist_ok[b] = 1 if (nsteps == 1 and status[b] == 0) else 0
+        hist_ok[b] = min(hist_ok[b] + 1, 2) if (nsteps == 1 and status[b] == 0) else 0

@@ -153,10 +153,11 @@ class State:
     """Complete dynamic state; ``copy()`` and ``Simulator.set_state`` restore it exactly.
 
     pos (N,3) [mm] body centres of mass, rot (N,3,3) body->world, vel (N,3) [mm/s],
-    omg (N,3) [rad/s] world; p* the same at the previous step (BDF2 history); hist_ok (nb,) whether
-    the previous step is a full step (else the next step starts with backward Euler);
-    tcp_p (3,3) [mm] / tcp_R (3,3,3): TCP pose at t_{n-1}, t_n (row 0, 1; row 2 is scratch);
-    tip_state (nb, ns): per-contact state; time [s]; steps.
+    omg (N,3) [rad/s] world; p* the same at the previous step (BDF2 history); hist_ok (nb,) how many
+    whole steps lie behind the history, 0-2 (0: the next step starts with backward Euler; 2: the
+    predictor extrapolates at third order); tcp_p (4,3) [mm] / tcp_R (4,3,3): TCP pose at t_{n-1},
+    t_n, t_{n-2} (rows 0, 1, 3; row 2 is scratch); tip_state (nb, ns): per-contact state;
+    time [s]; steps; pppos (N,3) [mm] / pprot (N,3,3): body poses at t_{n-2}.
     """
 
     pos: np.ndarray
@@ -174,6 +175,8 @@ class State:
     time: float = 0.0
     steps: int = 0
     jac: tuple = ()
+    pppos: np.ndarray = None
+    pprot: np.ndarray = None
 
     def copy(self, with_jacobian: bool = True) -> "State":
         """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
@@ -278,9 +281,9 @@ class Simulator:
                 rot[i] = Rw
         z = np.zeros((N, 3))
         self.state = State(pos, rot, z.copy(), z.copy(), pos.copy(), rot.copy(), z.copy(),
-                           z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 3),
-                           np.stack([tcp_R] * 3), np.zeros((nb, N_TIP_STATE)), time, 0,
-                           itg.make_jacobian_store(N, nb))
+                           z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 4),
+                           np.stack([tcp_R] * 4), np.zeros((nb, N_TIP_STATE)), time, 0,
+                           itg.make_jacobian_store(N, nb), pos.copy(), rot.copy())
         self._rootw[:] = 0.0
         itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
         return self._result(0, 0)
@@ -352,7 +355,8 @@ class Simulator:
         st.tcp_R[2] = tcp_R
         m = self.model
         itg.step_bristles(m.bstart, m.bp, m.K, st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot,
-                          st.pvel, st.pomg, st.hist_ok, st.tcp_p, st.tcp_R, m.root_p, m.root_R,
+                          st.pvel, st.pomg, st.pppos, st.pprot, st.hist_ok, st.tcp_p, st.tcp_R,
+                          m.root_p, m.root_R,
                           prm, self.tip_args, st.tip_state, self._ctx(), st.jac, self._ws,
                           self._rootw, self._iters, self._nsub, self._status)
         bad = np.flatnonzero(self._status)
@@ -365,6 +369,8 @@ class Simulator:
             self.state.jac[4][:] = 0.0
             raise SimulationDivergence(t_new, bad, "Newton did not converge on the smallest "
                                        f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})")
+        st.tcp_p[3] = st.tcp_p[0]
+        st.tcp_R[3] = st.tcp_R[0]
         st.tcp_p[0] = st.tcp_p[1]
         st.tcp_R[0] = st.tcp_R[1]
         st.tcp_p[1] = tcp_p
@@ -428,8 +434,8 @@ class Simulator:
 
 
 #: the array fields of State (copied by Simulator._snapshot)
-_STATE_ARRAYS = ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "hist_ok", "tcp_p",
-                 "tcp_R", "tip_state")
+_STATE_ARRAYS = ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "pppos", "pprot",
+                 "hist_ok", "tcp_p", "tcp_R", "tip_state")
 
 
 def _surface_rows(surfaces) -> np.ndarray:

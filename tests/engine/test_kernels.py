@@ -116,10 +116,59 @@ def test_a_failed_step_raises_and_leaves_the_state_untouched():
         assert err.value.time == pytest.approx(before.time + 1e-3)
         assert len(err.value.bristles) > 0
         now = sim.state
-        for name in ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "hist_ok",
-                     "tcp_p", "tcp_R", "tip_state"):
+        for name in ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "pppos", "pprot",
+                     "hist_ok", "tcp_p", "tcp_R", "tip_state"):
             assert np.array_equal(getattr(now, name), getattr(before, name)), name
         assert now.time == before.time and now.steps == before.steps
         assert np.array_equal(sim.tip_positions(), tips_before)
     out = sim.step(p0 + [0.0, 0.0, 4e-4], R0)  # a small move converges again
     assert np.all(np.isfinite(out.tcp_force))
+
+
+def _rodrigues(v):
+    th = np.linalg.norm(v)
+    if th == 0.0:
+        return np.eye(3)
+    k = np.asarray(v) / th
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * K @ K
+
+
+@pytest.mark.parametrize("order", [2, 3])
+def test_predictor_is_exact_for_polynomial_motion(order):
+    """The extrapolating predictor reproduces, in the moving base frame, a motion polynomial in
+    time of degree order - 1 exactly: positions x(t) and a rotation about a fixed axis with
+    angle theta(t), while the base itself translates and turns."""
+    rng = np.random.default_rng(order)
+    n, h = 4, 1e-3
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1)[:, None]
+    x0, v, acc = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=(n, 3)) * 1e3
+    th0, w, al = rng.normal(size=n), rng.normal(size=n), rng.normal(size=n) * 1e2
+    if order == 2:
+        acc[:] = 0.0
+        al[:] = 0.0
+    Q0 = np.stack([_rodrigues(rng.normal(size=3)) for _ in range(n)])
+
+    def local(t):  # positions and rotations in the base frame
+        x = x0 + v * t + 0.5 * acc * t * t
+        Q = np.stack([_rodrigues(axis[k] * (th0[k] + w[k] * t + 0.5 * al[k] * t * t)) @ Q0[k]
+                      for k in range(n)])
+        return x, Q
+
+    def base(t):  # an arbitrary moving base pose
+        return np.array([1.0, 2.0, 3.0]) + 40.0 * t * np.array([1.0, -0.5, 0.2]), \
+            _rodrigues(np.array([0.3, -0.2, 0.5]) + 5.0 * t * np.array([0.1, 0.7, -0.2]))
+
+    def world(t):
+        pA, RA = base(t)
+        x, Q = local(t)
+        return pA + x @ RA.T, np.einsum("ij,kjl->kil", RA, Q)
+
+    (pq, Rq), (pp, Rp), (ps, Rs), (pe, Re) = (world(k * h) for k in (-2, -1, 0, 1))
+    (bq, BQ), (bp, BP), (bs, BS), (be, BE) = (base(k * h) for k in (-2, -1, 0, 1))
+    pos, rot = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    itg._extrapolate(0, n, pos, rot, ps, Rs, pp, Rp, pq, Rq, order, bs, BS, bp, BP, bq, BQ, be, BE,
+                     np.zeros((itg.N_SW, 12)))
+    np.testing.assert_allclose(pos, pe, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(rot, Re, rtol=0, atol=1e-11)
