@@ -248,6 +248,7 @@ class Simulator:
         self._nsub = np.zeros(nb, np.int64)
         self._status = np.zeros(nb, np.int64)
         self.state: State | None = None
+        self._snap: State | None = None  # rollback buffers (see _snapshot)
         self._prm = self._make_prm(static=False)
 
     # ------------------------------------------------------------------ set-up
@@ -380,10 +381,10 @@ class Simulator:
         return self._result(int(self._iters.sum()), int(self._nsub.sum()))
 
     def _snapshot(self, st: State) -> State:
-        """Copy of ``st`` into buffers kept across steps (no allocation per step); the Newton
-        factors are shared, not copied: they are only a cache, and a failed step leaves them valid
-        (the rebuild key decides when they are used)."""
-        snap = getattr(self, "_snap", None)
+        """Copy of ``st`` into buffers kept across steps (no allocation per step).  The Newton
+        factors are shared, not copied: they are only a cache, and a failed step marks them all
+        stale (``_advance``)."""
+        snap = self._snap
         if snap is None or snap.pos.shape != st.pos.shape:
             snap = self._snap = st.copy(with_jacobian=False)
         else:
