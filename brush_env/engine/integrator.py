@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import (HOT, _element_gen, _local_rot_into, _lu6, _node, _rotate_left,
-                       block_factor, block_factor_head, block_solve, reorthonormalize)
+                       block_factor_head, block_solve, reorthonormalize)
 from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
                       penetration_step_limit, slip_step_limit, tip_load)
 

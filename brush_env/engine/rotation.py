@@ -13,19 +13,6 @@ from numba import njit
 from ._kernels import HOT, _log3s
 
 
-@njit(cache=True)
-def skew(a):
-    """3x3 cross-product matrix [a]x, so that skew(a) @ b == cross(a, b)."""
-    out = np.zeros((3, 3))
-    out[0, 1] = -a[2]
-    out[0, 2] = a[1]
-    out[1, 0] = a[2]
-    out[1, 2] = -a[0]
-    out[2, 0] = -a[1]
-    out[2, 1] = a[0]
-    return out
-
-
 def logmap(R) -> np.ndarray:
     """Rotation vector [rad] of the rotation matrix ``R`` (angle in [0, pi])."""
     out = np.empty(3)
