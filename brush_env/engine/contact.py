@@ -469,6 +469,12 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh, t
     return amax
 
 
+@njit(**HOT, inline="always")
+def in_contact(state):
+    """True if the tip's last evaluation touched a surface or a partner tip (S_FN or S_FTT > 0)."""
+    return state[S_FN] > 0.0 or state[S_FTT] > 0.0
+
+
 @njit(**HOT)
 def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     """Largest fraction of the tip step ``dp`` that does not carry a sliding tip's slip velocity

@@ -24,7 +24,7 @@ from numba import njit
 
 from ._kernels import (HOT, _element_gen, _local_rot_into, _lu6, _node, _rotate_left,
                        block_factor_head, block_solve, reorthonormalize)
-from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_FN, S_FTT, S_HIST, S_PN,
+from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_HIST, S_PN, in_contact,
                       penetration_step_limit, slip_step_limit, tip_load)
 
 # status codes per bristle
@@ -623,7 +623,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
     # Evaluated in this order, the usual winner (2) costs two residuals, not three.  Third order
     # only for a tip in contact: a free bristle gains too few iterations (1.04 -> 0.95 per step
     # at 3 ms) to pay for the extra rotation logs (~8 % slower in bench engine).
-    if extrap == 3 and not (tip_state[S_FN] > 0.0 or tip_state[S_FTT] > 0.0):
+    if extrap == 3 and not in_contact(tip_state):
         extrap = 2
     _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw)
     nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
@@ -666,7 +666,7 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
             else:
                 jkey[b] = 0.0
                 break
-        elif tip_state[S_FN] > 0.0 or tip_state[S_FTT] > 0.0:
+        elif in_contact(tip_state):
             # contact: the tip block at the current load, on the reused chain factors
             if not _tip_refactor(n, D, piv, S, bp, rot, b0 + n - 1, tipF, tipK, sw):
                 need = True
@@ -704,8 +704,8 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
         dpz = dq[kl, 2] + dq[kl, 3] * r0y - dq[kl, 4] * r0x
         dtip = np.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
         tipcap = MAX_TIP_STEP * tip_args[3]
-        in_contact = tip_state[S_FN] > 0.0 or tip_state[S_FTT] > 0.0
-        if in_contact and alpha * dtip > tipcap:
+        touching = in_contact(tip_state)
+        if touching and alpha * dtip > tipcap:
             alpha = tipcap / dtip
         small[6] = dpx
         small[7] = dpy

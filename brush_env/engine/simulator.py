@@ -385,7 +385,7 @@ class Simulator:
         factors are shared, not copied: they are only a cache, and a failed step marks them all
         stale (``_advance``)."""
         snap = self._snap
-        if snap is None or snap.pos.shape != st.pos.shape:
+        if snap is None:
             snap = self._snap = st.copy(with_jacobian=False)
         else:
             for name in _STATE_ARRAYS:
