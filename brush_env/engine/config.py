@@ -15,8 +15,6 @@ e.g. ``brush.grid[1].length_mm = -2.0 is out of range: must be > 0 and <= 100 (m
 from __future__ import annotations
 
 import math
-import numbers
-import operator
 import os
 import re
 from dataclasses import dataclass, field, replace
@@ -24,6 +22,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from .checks import (ConfigError, Limit, check_int, check_real, check_unit, check_vec,
+                     type_error)
 
 try:
     import tomllib
@@ -42,41 +43,6 @@ __all__ = [
     "load_materials",
     "load_brush",
 ]
-
-
-class ConfigError(ValueError):
-    """A config value is missing, unknown, of the wrong type or out of range.
-
-    The message names the key path, the bad value and what is allowed (with its unit).
-    """
-
-
-# --------------------------------------------------------------------------------------------------
-# Generic checks
-# --------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Limit:
-    """An allowed numeric range with its unit; bounds left None are open (value must be finite)."""
-
-    unit: str
-    gt: float | None = None
-    ge: float | None = None
-    lt: float | None = None
-    le: float | None = None
-
-    def describe(self) -> str:
-        ops = ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
-        parts = [f"{op} {bound:g}" for op, bound in ops if bound is not None] or ["finite"]
-        return f"must be {' and '.join(parts)} ({self.unit})"
-
-    def check(self, path: str, value: float) -> Any:
-        """Return ``value`` if it lies in the range, else raise ConfigError naming ``path``."""
-        ops = ((operator.gt, self.gt), (operator.ge, self.ge), (operator.lt, self.lt),
-               (operator.le, self.le))
-        ok = math.isfinite(value) and all(b is None or cmp(value, b) for cmp, b in ops)
-        if not ok:
-            raise ConfigError(f"{path} = {value!r} is out of range: {self.describe()}")
-        return value
 
 
 #: The allowed ranges, one place for both the loaders and the dataclass constructors.
@@ -103,45 +69,10 @@ LIMITS: dict[str, Limit] = {
 _PARALLEL_TOL = 1e-6
 
 
-def _type_error(path: str, value: Any, expected: str) -> ConfigError:
-    got = type(value).__name__
-    if isinstance(value, (list, tuple)):
-        got = f"a {got} of {len(value)}"
-    return ConfigError(f"{path} = {value!r} has the wrong type: expected {expected}, got {got}")
-
-
-def _real(path: str, value: Any, limit: Limit) -> float:
-    if not isinstance(value, numbers.Real) or isinstance(value, bool):
-        raise _type_error(path, value, f"a number ({limit.unit})")
-    return limit.check(path, float(value))
-
-
-def _int(path: str, value: Any, limit: Limit) -> int:
-    if not isinstance(value, numbers.Integral) or isinstance(value, bool):
-        raise _type_error(path, value, f"an integer ({limit.unit})")
-    return limit.check(path, int(value))
-
-
-def _vec(path: str, value: Any, n: int, limit: Limit) -> tuple[float, ...]:
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise _type_error(path, value, f"a list of {n} numbers ({limit.unit})")
-    return tuple(_real(f"{path}[{i}]", v, limit) for i, v in enumerate(value))
-
-
-def _unit(path: str, value: Any) -> np.ndarray:
-    v = np.asarray(_vec(path, value, 3, LIMITS["direction"]))
-    norm = float(np.linalg.norm(v))
-    if norm < 1e-12:
-        raise ConfigError(f"{path} = {list(value)!r} is invalid: must be a non-zero 3-vector")
-    return v / norm
-
-
 def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Unit bristle axis and width direction (Gram-Schmidt against the axis)."""
-    a = _unit(f"{path}.axis", axis)
-    w = _unit(f"{path}.width_dir", width_dir)
+    a = check_unit(f"{path}.axis", axis)
+    w = check_unit(f"{path}.width_dir", width_dir)
     w = w - a * float(a @ w)
     if np.linalg.norm(w) < _PARALLEL_TOL:
         raise ConfigError(
@@ -176,7 +107,7 @@ class Material:
 
     def __post_init__(self) -> None:
         p = f"Material({self.name!r})"
-        _set(self, **{k: _real(f"{p}.{k}", getattr(self, k), LIMITS[k]) for k in
+        _set(self, **{k: check_real(f"{p}.{k}", getattr(self, k), LIMITS[k]) for k in
                       ("E", "nu", "density", "damping_ratio")})
 
     @property
@@ -205,8 +136,8 @@ class Section:
             raise ConfigError(
                 f"Section.kind = {self.kind!r} is not allowed (allowed: {', '.join(SECTION_KINDS)})"
             )
-        b = _real("Section.width", self.width, LIMITS["section"])
-        h = _real("Section.thickness", self.thickness, LIMITS["section"])
+        b = check_real("Section.width", self.width, LIMITS["section"])
+        h = check_real("Section.thickness", self.thickness, LIMITS["section"])
         if self.kind == "circle" and b != h:
             raise ConfigError(f"Section.thickness = {h!r} must equal width = {b!r} for a circle")
         _set(self, width=b, thickness=h)
@@ -282,19 +213,19 @@ class BristleConfig:
     def __post_init__(self) -> None:
         p = "BristleConfig"
         if not isinstance(self.section, Section):
-            raise _type_error(f"{p}.section", self.section, "a Section")
+            raise type_error(f"{p}.section", self.section, "a Section")
         if not isinstance(self.material, Material):
-            raise _type_error(f"{p}.material", self.material, "a Material")
+            raise type_error(f"{p}.material", self.material, "a Material")
         axis, width_dir = _frame(p, self.axis, self.width_dir)
-        length = _real(f"{p}.length", self.length, LIMITS["length"])
+        length = check_real(f"{p}.length", self.length, LIMITS["length"])
         _set(
             self,
-            root=_vec(f"{p}.root", self.root, 3, LIMITS["position"]),
+            root=check_vec(f"{p}.root", self.root, 3, LIMITS["position"]),
             axis=axis,
             width_dir=width_dir,
             length=length,
-            bodies=_int(f"{p}.bodies", self.bodies, LIMITS["bodies"]),
-            tip_radius=_real(f"{p}.tip_radius", self.tip_radius, _tip_limit(length)),
+            bodies=check_int(f"{p}.bodies", self.bodies, LIMITS["bodies"]),
+            tip_radius=check_real(f"{p}.tip_radius", self.tip_radius, _tip_limit(length)),
         )
 
     @property
@@ -346,11 +277,11 @@ class BrushConfig:
             raise ConfigError("BrushConfig.bristles is empty: need at least 1 bristle")
         for i, b in enumerate(bristles):
             if not isinstance(b, BristleConfig):
-                raise _type_error(f"BrushConfig.bristles[{i}]", b, "a BristleConfig")
+                raise type_error(f"BrushConfig.bristles[{i}]", b, "a BristleConfig")
         _set(
             self,
-            head_offset=_vec("BrushConfig.head_offset", self.head_offset, 3, LIMITS["offset"]),
-            head_rpy=_vec("BrushConfig.head_rpy", self.head_rpy, 3, LIMITS["angle"]),
+            head_offset=check_vec("BrushConfig.head_offset", self.head_offset, 3, LIMITS["offset"]),
+            head_rpy=check_vec("BrushConfig.head_rpy", self.head_rpy, 3, LIMITS["angle"]),
             bristles=bristles,
         )
 
@@ -442,7 +373,7 @@ class _Table:
 
     def __init__(self, data: Any, path: str, allowed: tuple[str, ...]):
         if not isinstance(data, dict):
-            raise _type_error(path, data, "a table")
+            raise type_error(path, data, "a table")
         for key in data:
             if key not in allowed:
                 raise ConfigError(f"{path}: unknown key {key!r} (allowed: {', '.join(allowed)})")
@@ -460,22 +391,22 @@ class _Table:
 
     def num(self, key: str, limit: Limit, default: Any = _REQUIRED) -> float:
         v = self.get(key, default, f"a number that {limit.describe()}")
-        return v if v is None else _real(self.key(key), v, limit)
+        return v if v is None else check_real(self.key(key), v, limit)
 
     def int(self, key: str, limit: Limit, default: Any = _REQUIRED) -> int:
         v = self.get(key, default, f"an integer that {limit.describe()}")
-        return v if v is None else _int(self.key(key), v, limit)
+        return v if v is None else check_int(self.key(key), v, limit)
 
     def vec(self, key: str, n: int, limit: Limit, default: Any = _REQUIRED) -> tuple[float, ...]:
         v = self.get(key, default, f"a list of {n} numbers ({limit.unit})")
-        return v if v is None else _vec(self.key(key), v, n, limit)
+        return v if v is None else check_vec(self.key(key), v, n, limit)
 
     def str(self, key: str, default: Any = _REQUIRED, choices: Any = None, what: str = "") -> str:
         v = self.get(key, default, "a string" + (f" ({what})" if what else ""))
         if v is None:
             return v
         if not isinstance(v, str):
-            raise _type_error(self.key(key), v, "a string")
+            raise type_error(self.key(key), v, "a string")
         if choices is not None and v not in choices:
             raise ConfigError(
                 f"{self.key(key)} = {v!r} is not a known {what} (known: {', '.join(choices)})"
@@ -607,7 +538,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     lean = t.num("lean_deg", LIMITS["lean_deg"], 0.0)
     secs = t.get("sections", _REQUIRED, "[sections.<name>] tables")
     if not isinstance(secs, dict):
-        raise _type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
+        raise type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
     sections = {k: _section(t.key(f"sections.{k}"), v) for k, v in secs.items()}
     if not sections:
         raise ConfigError(f"{t.key('sections')}: no sections defined (need at least one)")
@@ -617,7 +548,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     for kind in GROUP_KEYS:
         entries = t.get(kind, [], f"an array of [[{kind}]] tables")
         if not isinstance(entries, list):
-            raise _type_error(t.key(kind), entries, f"an array of [[{kind}]] tables")
+            raise type_error(t.key(kind), entries, f"an array of [[{kind}]] tables")
         for idx, entry in enumerate(entries):
             g = _Table(entry, t.key(f"{kind}[{idx}]"), GROUP_KEYS[kind])
             bristles += _group(kind, idx, g, sections, materials, defaults)
@@ -647,7 +578,7 @@ def _group(kind: str, idx: int, g: _Table, sections: dict[str, Section],
     if "tip_radius_mm" in g.data:
         tip = g.num("tip_radius_mm", _tip_limit(length))
     else:
-        tip = _real(f"brush.tip_radius_mm (used by {g.path})", defaults["tip_radius"],
+        tip = check_real(f"brush.tip_radius_mm (used by {g.path})", defaults["tip_radius"],
                     _tip_limit(length))
     axis, width_dir = _frame(g.path, g.vec("axis", 3, LIMITS["direction"], (0.0, 0.0, 1.0)),
                              g.vec("width_dir", 3, LIMITS["direction"], (1.0, 0.0, 0.0)))

@@ -1,8 +1,8 @@
-"""SO(3) helpers for code outside the hot kernels.
+"""SO(3) maps for every layer: ``skew``, ``expmap`` (Rodrigues) and ``logmap``.
 
 Rotation matrices map body (local) coordinates to world coordinates; rotation vectors are
-axis * angle [rad].  The kernels' own allocation-free versions live in ``_kernels`` (``_log3s``,
-``_rotate_left``); these wrappers reuse them rather than repeat the formulas.
+axis * angle [rad].  The hot kernels use their own allocation-free scalar forms in ``_kernels``
+(``_log3s``, ``_rotate_left``); ``logmap`` calls ``_log3s`` so the log formula exists once.
 """
 
 from __future__ import annotations
@@ -12,12 +12,49 @@ from numba import njit
 
 from ._kernels import HOT, _log3s
 
+__all__ = ["skew", "expmap", "logmap", "rot_axis", "pose_ok"]
+
+
+def skew(w) -> np.ndarray:
+    """Cross-product matrices [w]x of rotation vectors (..., 3) -> (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    S = np.zeros(w.shape[:-1] + (3, 3))
+    S[..., 0, 1] = -w[..., 2]
+    S[..., 0, 2] = w[..., 1]
+    S[..., 1, 0] = w[..., 2]
+    S[..., 1, 2] = -w[..., 0]
+    S[..., 2, 0] = -w[..., 1]
+    S[..., 2, 1] = w[..., 0]
+    return S
+
+
+def expmap(w) -> np.ndarray:
+    """Rodrigues: rotation vector(s) (..., 3) [rad] -> rotation matrices (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    th2 = np.sum(w * w, axis=-1)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0 + th2 * th2 / 120.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(ths)) / (ths * ths))
+    K = skew(w)
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
 
 def logmap(R) -> np.ndarray:
-    """Rotation vector [rad] of the rotation matrix ``R`` (angle in [0, pi])."""
-    out = np.empty(3)
-    _log3s(*np.asarray(R, float).ravel(), out)
-    return out
+    """Rotation vector(s) [rad] of rotation matrices (..., 3, 3) -> (..., 3), angle in [0, pi]."""
+    R = np.asarray(R, dtype=float)
+    flat = R.reshape(-1, 9)
+    out = np.empty((flat.shape[0], 3))
+    for k in range(flat.shape[0]):
+        _log3s(*flat[k], out[k])
+    return out.reshape(R.shape[:-2] + (3,))
+
+
+def rot_axis(axis, angle) -> np.ndarray:
+    """Rotations about a fixed unit ``axis`` (3,) by ``angle`` [rad] (...,) -> (..., 3, 3)."""
+    angle = np.asarray(angle, dtype=float)
+    return expmap(angle[..., None] * np.asarray(axis, dtype=float))
 
 
 @njit(**HOT)
