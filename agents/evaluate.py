@@ -25,8 +25,8 @@ Metrics per episode: ``return``, ``coverage`` (final fraction), ``steps``, ``ter
 
 from __future__ import annotations
 
-import argparse
 import json
+import subprocess
 import sys
 import time
 import tomllib
@@ -37,6 +37,8 @@ import numpy as np
 
 import brush_env  # noqa: F401  (registers the ids)
 from agents.reference import RandomPolicy, ReferencePolicy
+from brush_env.engine.checks import ConfigError
+from brush_env.user_errors import OneLineParser, run_main
 
 ENV_ID = "brush_env/FlatPlate-v0"
 REWARD_TERMS = ("coverage", "total_force", "tip_force", "termination")
@@ -48,7 +50,7 @@ def parse_env_kw(items) -> dict:
     out = {}
     for item in items or []:
         if "=" not in item:
-            raise ValueError(f"--env-kw {item!r}: expected KEY=VALUE")
+            raise ConfigError(f"--env-kw {item!r}: expected KEY=VALUE")
         k, v = item.split("=", 1)
         try:
             out[k.strip()] = tomllib.loads(f"x = {v}")["x"]
@@ -67,8 +69,8 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
     if not path.exists() and path.with_suffix(".zip").exists():
         path = path.with_suffix(".zip")
     if not path.exists():
-        raise FileNotFoundError(f"--policy {spec!r}: not 'reference', 'random' or an existing "
-                                "model file")
+        raise ConfigError(f"--policy {spec!r}: not 'reference', 'random' or an existing "
+                          "model file")
     from stable_baselines3 import PPO, SAC
 
     meta_path = path.parent / "meta.json"
@@ -147,32 +149,38 @@ def _table(rows: list[dict]) -> str:
     return head + "\n".join("| " + " | ".join(fmt(r[c]) for c in cols) + " |" for r in rows)
 
 
-def _plots(out: Path, all_series: list[dict], cfg) -> None:
+def commit_id() -> str:
+    """Short git commit of the checkout (``unknown`` outside a git checkout)."""
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, cwd=Path(__file__).parent, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _plots(out: Path, all_series: list[dict], cfg, title: str) -> None:
+    """forces.png and coverage.png; titled with policy, seeds and commit, legend beside the axes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    for i, s in enumerate(all_series):
-        ax.plot(s["time"], s["total_normal_force"], lw=1, label=f"episode {i}")
-    ax.axhline(cfg.total_force_limit, color="orange", ls="--", label="safe limit")
-    ax.axhline(cfg.hard_force_limit, color="red", ls=":", label="hard limit")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("total normal force [N]")
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(out / "forces.png", dpi=120)
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    for i, s in enumerate(all_series):
-        ax.plot(s["time"], np.asarray(s["coverage"]) * 100, lw=1, label=f"episode {i}")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("patch cleaned [%]")
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(out / "coverage.png", dpi=120)
-    plt.close(fig)
+    for name, key, ylabel, scale in (("forces.png", "total_normal_force",
+                                      "total plate normal force [N]\n(push on the plate > 0)", 1),
+                                     ("coverage.png", "coverage", "patch cleaned [%]", 100)):
+        fig, ax = plt.subplots(figsize=(8, 3.6))
+        for i, s in enumerate(all_series):
+            ax.plot(s["time"], np.asarray(s[key]) * scale, lw=1, label=f"episode {i}")
+        if key == "total_normal_force":
+            ax.axhline(cfg.total_force_limit, color="orange", ls="--", label="safe limit")
+            ax.axhline(cfg.hard_force_limit, color="red", ls=":", label="hard limit")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=120)
+        plt.close(fig)
 
 
 def _save_gif(path: Path, frames: list, fps: float) -> None:
@@ -187,9 +195,8 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
              deterministic: bool = True, quiet: bool = False) -> dict:
     """Run ``episodes`` episodes of ``policy`` and write the outputs (module docstring)."""
     if episodes < 1:
-        raise ValueError(f"episodes = {episodes!r} is out of range: must be >= 1")
+        raise ConfigError(f"episodes = {episodes!r} is out of range: must be >= 1")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     env_kwargs = dict(env_kwargs or {})
     meta = Path(policy).parent / "meta.json"
     if policy not in ("reference", "random") and meta.is_file():
@@ -200,9 +207,12 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
     env = gym.make(ENV_ID, config=config, render_mode="rgb_array" if video else None,
                    **env_kwargs)
     pol, transform = load_policy(policy, env, seed=seed)
+    out.mkdir(parents=True, exist_ok=True)  # only now: every input is valid
     rows, all_series = [], []
     t0 = time.perf_counter()
-    for i in range(episodes):
+    from tqdm import tqdm
+
+    for i in tqdm(range(episodes), desc=f"evaluate {policy}", unit="episode", disable=quiet):
         m, s, frames = run_episode(env, pol, seed + i, transform, video and i == 0,
                                    deterministic)
         rows.append(m)
@@ -223,7 +233,8 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     table = _table(rows)
     (out / "table.md").write_text(table + "\n")
-    _plots(out, all_series, cfg)
+    _plots(out, all_series, cfg, f"policy {policy}, seeds {seed}..{seed + episodes - 1}, "
+           f"commit {commit_id()}")
     if not quiet:
         print(table)
         print(f"mean return {agg['return']['mean']:.3f} +- {agg['return']['std']:.3f}, "
@@ -235,11 +246,10 @@ def _jsonable(d: dict) -> dict:
     return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m agents.evaluate",
-                                description=__doc__.split("\n")[0])
+def build_parser() -> OneLineParser:
+    p = OneLineParser(prog="python -m agents.evaluate", description=__doc__.split("\n")[0])
     p.add_argument("--policy", required=True, help="reference | random | PATH to a SB3 model")
-    p.add_argument("--episodes", type=int, default=5)
+    p.add_argument("--episodes", type=int, default=5, help="number of episodes (default 5)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
     p.add_argument("--video", action="store_true", help="write episode_000.gif")
@@ -250,12 +260,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv=None) -> int:
+def _main(argv) -> int:
     args = build_parser().parse_args(argv)
     evaluate(args.policy, args.episodes, args.out, seed=args.seed, video=args.video,
              config=args.config, env_kwargs=parse_env_kw(args.env_kw),
              deterministic=not args.stochastic)
     return 0
+
+
+def main(argv=None) -> int:
+    """Entry point: user mistakes in one stderr line, exit code 2 (``--debug``: traceback)."""
+    return run_main(_main, argv, prog="python -m agents.evaluate")
 
 
 if __name__ == "__main__":

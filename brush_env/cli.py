@@ -1,39 +1,76 @@
-"""``brush-env`` command line: one subcommand per module at the edge of the package.
+"""brush-env: run the paper's reference experiment, validate the beam model, benchmark, warm up.
 
-Each subcommand module exposes ``add_arguments(parser)`` and ``run(args) -> int``.
+    brush-env reference                 # the paper's 3 mm press + 20 mm circle, default brush
+    brush-env validate all              # beam model against closed-form references
+    brush-env bench engine              # speed-versus-error tables
+    brush-env warmup                    # compile the numba kernels once (first run only)
+
+A user mistake (bad path, key or value) is reported in one line on stderr with exit code 2;
+``--debug`` shows the traceback.  Each subcommand module exposes ``add_arguments(parser)`` and
+``run(args) -> int``.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 
+from .user_errors import OneLineParser, run_main
+
+#: name -> (module, one-line help)
 SUBCOMMANDS = {
-    "validate": ("brush_env.validation", "validate the beam model against closed-form references"),
+    "reference": ("brush_env.experiment",
+                  "run the paper's circular UR5 experiment (Sec. 4-5) and write Figure 7/9 data"),
+    "validate": ("brush_env.validation",
+                 "check the beam and contact model against closed-form references"),
     "bench": ("brush_env.bench", "speed-versus-error benchmarks (engine, contact, env)"),
-    "reference": ("brush_env.experiment", "the paper's circular reference experiment"),
+    "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
 }
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="brush-env", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def add_arguments(parser) -> None:
+    """``brush-env warmup`` takes no options."""
+
+
+def run(args) -> int:
+    """``brush-env warmup``: compile (or load) every kernel set and report the time."""
+    from .engine.warmup import COMPILE_NOTICE, kernels_compiled, warm_up
+
+    if not kernels_compiled():
+        print(COMPILE_NOTICE, flush=True)
+    print(f"kernels ready in {warm_up():.1f} s")
+    return 0
+
+
+def build_parser(command: str | None = None) -> tuple[OneLineParser, dict]:
+    """The top-level parser and the loaded subcommand module(s).
+
+    Only ``command``'s module is imported (all of them when None), so a run starts in well
+    under a second and ``brush-env --help`` imports none of the heavy ones.
+    """
+    parser = OneLineParser(prog="brush-env", description=__doc__.splitlines()[0],
+                           epilog="--debug (anywhere) shows tracebacks of user errors")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                parser_class=OneLineParser)
     modules = {}
     for name, (modname, helptext) in SUBCOMMANDS.items():
-        p = sub.add_parser(name, help=helptext)
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as exc:  # a subcommand whose module is not there yet
-            if exc.name != modname:
-                raise
-            continue
-        mod.add_arguments(p)
-        modules[name] = mod
+        p = sub.add_parser(name, help=helptext, description=helptext)
+        if command is None or name == command:
+            modules[name] = importlib.import_module(modname)
+            modules[name].add_arguments(p)
+    return parser, modules
+
+
+def _main(argv) -> int:
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser, modules = build_parser(command if command in SUBCOMMANDS else "")
     args = parser.parse_args(argv)
-    if args.command not in modules:
-        parser.error(f"subcommand {args.command!r} is not available in this build")
     return int(modules[args.command].run(args) or 0)
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``brush-env`` script."""
+    return run_main(_main, argv, prog="brush-env")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .checks import (ConfigError, Limit, check_int, check_real, check_unit, check_vec,
-                     type_error)
+                     did_you_mean, type_error)
 
 try:
     import tomllib
@@ -520,12 +520,18 @@ def _brush_path(path_or_name: str | os.PathLike | None) -> Path:
         brushes = configs_dir() / "brushes"
         path = brushes / f"{s}.toml"
         if not path.is_file():
-            known = sorted(p.stem for p in brushes.glob("*.toml"))
-            raise ConfigError(
-                f"brush {s!r} is not a known brush: no {path} (known: {', '.join(known)})"
-            )
+            raise ConfigError(f"brush {s!r} is not a known brush{did_you_mean(s, _known_brushes())}"
+                              f" (known: {', '.join(_known_brushes())})")
         return path
-    return Path(s)
+    path = Path(s)
+    if not path.is_file():
+        raise ConfigError(f"brush file {s!r} does not exist (give a TOML path or a name from "
+                          f"{configs_dir() / 'brushes'}{did_you_mean(path.stem, _known_brushes())})")
+    return path
+
+
+def _known_brushes() -> list[str]:
+    return sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
 
 
 def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfig:

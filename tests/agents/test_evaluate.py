@@ -41,5 +41,6 @@ def test_parse_env_kw_and_bad_policy(tmp_path):
         "a": 3, "b": 0.5, "c": "x", "d": [1, 2], "e": True, "f": "tiny_env"}
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_env_kw(["novalue"])
-    with pytest.raises(FileNotFoundError, match="not 'reference', 'random'"):
-        evaluate(str(tmp_path / "missing.zip"), 1, tmp_path, env_kwargs=SHORT)
+    with pytest.raises(ValueError, match="not 'reference', 'random'"):
+        evaluate(str(tmp_path / "missing.zip"), 1, tmp_path / "out", env_kwargs=SHORT)
+    assert not (tmp_path / "out").exists()  # nothing written before the inputs are valid

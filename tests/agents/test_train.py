@@ -56,16 +56,22 @@ def test_short_sac_run(tmp_path):
     cfg = tmp_path / "sac.toml"
     cfg.write_text(PPO_TOML.replace('algo = "ppo"', 'algo = "sac"').replace(
         "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32")
-        .replace("reward = true", "reward = false"))
+        .replace("reward = true", "reward = false")
+        .replace("eval_freq = 64", "eval_freq = 5000")
+        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000"))
     model = train("sac", cfg, 96, 1, tmp_path / "run", progress=False)
     s = evaluate(str(model), 1, tmp_path / "eval", quiet=True)
     assert s["episodes"] == 1
+    # shorter than eval_freq and checkpoint_freq: one final evaluation and checkpoint all the same
+    assert (tmp_path / "run" / "best" / "best_model.zip").exists()
+    assert (tmp_path / "run" / "eval" / "evaluations.npz").exists()
+    assert list((tmp_path / "run" / "checkpoints").glob("sac_*_steps.zip"))
 
 
 def test_agent_config_errors(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text(PPO_TOML + "\n[extra]\nx = 1\n")
-    with pytest.raises(ValueError, match=r"unknown key\(s\) \['extra'\] in top level"):
+    with pytest.raises(ValueError, match=r"top level: unknown key 'extra'"):
         load_agent_config(cfg)
     cfg.write_text(PPO_TOML.replace("eval_freq = 64", "eval_freq = 0"))
     with pytest.raises(ValueError, match=r"\[train\] eval_freq = 0 is out of range"):
@@ -73,6 +79,20 @@ def test_agent_config_errors(tmp_path):
     cfg.write_text(PPO_TOML)
     with pytest.raises(ValueError, match="does not match algo = 'ppo'"):
         train("sac", cfg, 10, 1, tmp_path / "x")
+    assert not (tmp_path / "x").exists()  # nothing written before the inputs are valid
+
+
+def test_misspelled_hyperparameter_and_env_key_fail_before_any_worker(tmp_path):
+    """Checked in the main process against PPO's signature / the env's settings, with a hint."""
+    cfg = tmp_path / "ppo.toml"
+    cfg.write_text(PPO_TOML.replace("n_epochs = 2", "n_epoch = 2"))
+    with pytest.raises(ValueError, match=r"'n_epoch' is not an argument of PPO; did you mean "
+                                         r"n_epochs"):
+        train("ppo", cfg, 10, 2, tmp_path / "x")
+    cfg.write_text(PPO_TOML.replace("max_episode_steps = 16", "max_episode_step = 16"))
+    with pytest.raises(ValueError, match=r"max_episode_step.*did you mean max_episode_steps"):
+        train("ppo", cfg, 10, 2, tmp_path / "x")
+    assert not (tmp_path / "x").exists()
 
 
 def test_shipped_agent_configs_load():

@@ -1,0 +1,82 @@
+"""First-start compilation of the numba kernels, made visible and done once.
+
+numba compiles every kernel on its first call (~40-60 s for the whole set on one core) and caches
+the machine code beside the sources (``cache=True``), so later starts load it in about a second.
+:func:`warm_up` runs a tiny brush through every kernel set (dynamic steps with both integrators,
+contact with stick-slip friction and tip-tip pairs, a static solve) and records a stamp of the
+sources it compiled; :func:`kernels_compiled` tells a command whether it is about to compile, so
+it can say so before any progress bar (``brush-env warmup`` calls it on purpose).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+_HERE = Path(__file__).resolve().parent
+_STAMP = _HERE / "__pycache__" / "brush_env_kernels.stamp"
+
+#: Shown before the first compile; the figure is the measured first start (docs/benchmarks.md).
+COMPILE_NOTICE = "compiling numba kernels, first run only (~60 s; `brush-env warmup` does it ahead)"
+
+
+def _sources_key() -> str:
+    """Hash of the engine sources and the numba/numpy/python versions the cache depends on."""
+    import numba
+
+    h = hashlib.sha256()
+    for p in sorted(_HERE.glob("*.py")):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    h.update(f"{numba.__version__} {np.__version__} {sys.version}".encode())
+    return h.hexdigest()
+
+
+def kernels_compiled() -> bool:
+    """True if :func:`warm_up` ran on these exact sources (the numba cache is then warm)."""
+    try:
+        return _STAMP.read_text().strip() == _sources_key()
+    except OSError:
+        return False
+
+
+def warm_up() -> float:
+    """Compile (or load from cache) every kernel set on a tiny brush; returns the seconds taken."""
+    from .config import load_brush
+    from .scene import load_scene
+    from .simulator import SimSettings, Simulator
+
+    t0 = time.perf_counter()
+    brush = load_brush("tiny")
+    scene = load_scene("flat_plate", brush=brush)
+    R = np.diag([1.0, -1.0, -1.0])  # bristles pointing down onto the plate z = 0
+    top = max(b.length for b in brush.bristles) + brush.bristles[0].tip_radius
+    for integrator in ("bdf2", "euler"):
+        sim = Simulator(scene, SimSettings(dt=2e-3, integrator=integrator))
+        sim.reset(np.array([0.0, 0.0, top + 0.05]), R)
+        for k in range(1, 26):  # press 0.5 mm into the plate, then slide: stick and slip
+            z = top + 0.05 - min(k, 10) * 0.05
+            sim.step(np.array([0.02 * max(k - 10, 0), 0.0, z]), R)
+    sim = Simulator(scene, SimSettings())
+    sim.reset(np.array([0.0, 0.0, top]), R)  # static solve of a small press (tips sticking)
+    sim.solve_static(np.array([0.0, 0.0, top - 0.1]), R, increments=2)
+    seconds = time.perf_counter() - t0
+    try:
+        _STAMP.parent.mkdir(exist_ok=True)
+        _STAMP.write_text(_sources_key())
+    except OSError:  # a read-only install still works, it only compiles again next time
+        pass
+    return seconds
+
+
+def ensure_compiled(notice=print) -> float:
+    """Warm the kernels if needed, announcing it first; returns the seconds spent (0 if warm)."""
+    if kernels_compiled():
+        return 0.0
+    if notice is not None:
+        notice(COMPILE_NOTICE, flush=True) if notice is print else notice(COMPILE_NOTICE)
+    return warm_up()
