@@ -51,6 +51,11 @@ def warm_up() -> float:
     from .simulator import SimSettings, Simulator
 
     t0 = time.perf_counter()
+    if not kernels_compiled():
+        # numba's cache checks only the timestamp of a kernel's own file: a kernel that inlines
+        # code from another engine module would load stale machine code after that module changed
+        for f in (_HERE / "__pycache__").glob("*.nb[ic]"):
+            f.unlink(missing_ok=True)
     brush = load_brush("tiny")
     scene = load_scene("flat_plate", brush=brush)
     R = np.diag([1.0, -1.0, -1.0])  # bristles pointing down onto the plate z = 0
