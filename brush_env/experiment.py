@@ -33,7 +33,7 @@ import numpy as np
 from .engine import SimSettings, SimulationDivergence, Simulator, load_brush, load_scene
 from .engine.config import BrushConfig
 from .engine.scene import Plane
-from .engine.trajectory import (
+from .motion import (
     BLEND_RULE,
     R0,
     Circle,

@@ -15,7 +15,8 @@ import pytest
 
 from brush_env.engine import load_brush
 from brush_env.engine.scene import Scene
-from brush_env.engine.trajectory import R0, _exp_so3
+from brush_env.engine.rotation import expmap as _exp_so3
+from brush_env.motion import R0
 from brush_env.experiment import (
     CSV_COLUMNS,
     PAPER_JAMMING_ANGLES,

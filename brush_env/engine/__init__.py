@@ -1,7 +1,7 @@
 """brush_env.engine: the discrete flexible multibody (DFM) toothbrush engine (numpy + numba only).
 
 Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator``, ``SimSettings``,
-``load_brush``/``load_scene`` and the trajectory library.
+``load_brush``/``load_scene``.  Robot motions (trajectories) live in ``brush_env.motion``.
 """
 
 from .config import (BristleConfig, BrushConfig, ConfigError, Material, Section, configs_dir,

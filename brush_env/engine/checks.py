@@ -43,7 +43,8 @@ class Limit:
     def describe(self) -> str:
         ops = ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
         parts = [f"{op} {bound:g}" for op, bound in ops if bound is not None] or ["finite"]
-        return f"must be {' and '.join(parts)} ({self.unit})"
+        unit = f" ({self.unit})" if self.unit else ""
+        return f"must be {' and '.join(parts)}{unit}"
 
     def check(self, path: str, value: float) -> Any:
         """Return ``value`` if it lies in the range, else raise ConfigError naming ``path``."""
@@ -56,9 +57,9 @@ class Limit:
 
 
 #: Common ranges whose unit the caller does not need to spell (dimension-free checks).
-POSITIVE = Limit("-", gt=0)
-NONNEG = Limit("-", ge=0)
-FINITE = Limit("-")
+POSITIVE = Limit("", gt=0)
+NONNEG = Limit("", ge=0)
+FINITE = Limit("")
 
 
 def type_error(path: str, value: Any, expected: str) -> ConfigError:
@@ -74,14 +75,14 @@ def check_real(path: str, value: Any, limit: Limit = FINITE) -> float:
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
     if not isinstance(value, numbers.Real) or isinstance(value, bool):
-        raise type_error(path, value, f"a number ({limit.unit})")
+        raise type_error(path, value, "a number" + (f" ({limit.unit})" if limit.unit else ""))
     return limit.check(path, float(value))
 
 
 def check_int(path: str, value: Any, limit: Limit = FINITE) -> int:
     """An integer (bool refused) within ``limit``."""
     if not isinstance(value, numbers.Integral) or isinstance(value, bool):
-        raise type_error(path, value, f"an integer ({limit.unit})")
+        raise type_error(path, value, "an integer" + (f" ({limit.unit})" if limit.unit else ""))
     return limit.check(path, int(value))
 
 

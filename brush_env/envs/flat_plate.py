@@ -158,7 +158,8 @@ from gymnasium.wrappers import TimeLimit
 
 from brush_env.engine import (ConfigError, Plane, SimSettings, SimulationDivergence, Simulator,
                               load_brush, load_scene)
-from brush_env.engine.trajectory import R0
+from brush_env.engine.rotation import expmap
+from brush_env.motion import R0
 
 from .action import make_action_type
 from .config import EnvConfig, load_env_config
@@ -179,16 +180,6 @@ RESET_OPTIONS = ("tcp_position", "yaw_deg", "plate_offset")
 def _rot_z(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _exp_so3(w: np.ndarray) -> np.ndarray:
-    """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
-    th = float(np.linalg.norm(w))
-    if th < 1e-12:
-        return np.eye(3)
-    k = w / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * (K @ K)
 
 
 class BrushEnv(gym.Env):
@@ -365,7 +356,7 @@ class BrushEnv(gym.Env):
         total normal force exceeds the hard limit.  Workspace is checked on the final pose."""
         cfg = self.config
         dte = cfg.engine_dt
-        dR = _exp_so3(self._w * dte)
+        dR = expmap(self._w * dte)
         lo, hi = cfg.tip_force_window
         starts, ends = [], []
         total_int = tip_int = above_t = 0.0

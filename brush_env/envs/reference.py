@@ -2,7 +2,7 @@
 
 Pure numpy, no SB3: ``agents/reference.py`` wraps it as an SB3-style policy, and ``brush-env
 bench env`` drives the env with it.  The plan (engine-side trajectories of
-``brush_env.engine.trajectory``), built from the TCP pose of the first observation:
+``brush_env.motion``), built from the TCP pose of the first observation:
 
 1. **Approach** (quintic, MoveJ stand-in) from the start pose to ``hover`` mm above P0, the
    circle's start point ``center + radius * (cos start_angle, sin start_angle)``, turning to the
@@ -29,23 +29,14 @@ import math
 
 import numpy as np
 
-from brush_env.engine.trajectory import R0 as R_START
-from brush_env.engine.trajectory import Approach, Circle, Press, Sequence
+from brush_env.engine.rotation import logmap
+from brush_env.motion import R0 as R_START
+from brush_env.motion import Approach, Circle, Press, Sequence
 
 from .action import TcpVelocityAction
 from .observation import ObservationLayout
 
-__all__ = ["CircleReference", "log_so3"]
-
-
-def log_so3(R: np.ndarray) -> np.ndarray:
-    """Rotation vector of a rotation matrix (angle < pi)."""
-    c = min(1.0, max(-1.0, 0.5 * (np.trace(R) - 1.0)))
-    th = math.acos(c)
-    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if th < 1e-9:
-        return 0.5 * v
-    return th / (2.0 * math.sin(th)) * v
+__all__ = ["CircleReference"]
 
 
 class CircleReference:
@@ -98,7 +89,7 @@ class CircleReference:
                        self.center[1] + self.radius * math.sin(ang),
                        self.z_touch + self.hover])
         d = np.abs(P0 - p0)
-        rot = np.abs(log_so3(R_goal @ R0.T))
+        rot = np.abs(logmap(R_goal @ R0.T))
         t_app = max(self.approach_time,
                     float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
                     float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates
@@ -129,6 +120,6 @@ class CircleReference:
         P0, P1 = self._P[k0], self._P[k0 + 1]
         R0, R1 = self._R[k0], self._R[k0 + 1]
         v = (P1 - P0) / self.dt + self.kp * (P0 - p)
-        w = log_so3(R1 @ R0.T) / self.dt + self.kr * log_so3(R0 @ R.T) if self.rotates \
+        w = logmap(R1 @ R0.T) / self.dt + self.kr * logmap(R0 @ R.T) if self.rotates \
             else np.zeros(3)
         return self.action_type.normalise(v, w)

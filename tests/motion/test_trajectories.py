@@ -1,11 +1,11 @@
-"""Tests for brush_env.engine.trajectory (TCP motions: pose and twist over time)."""
+"""Tests for brush_env.motion (TCP motions: pose and twist over time)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from brush_env.engine.trajectory import (
+from brush_env.motion import (
     R0,
     Approach,
     Circle,
@@ -561,7 +561,7 @@ def test_sample_matches_pose_and_twist():
 @pytest.mark.parametrize(
     "build, match",
     [
-        (lambda: make_circle(radius=0.0), r"radius.*> 0.*0\.0"),
+        (lambda: make_circle(radius=0.0), r"radius = 0\.0 .*> 0"),
         (lambda: make_circle(speed=-1.0), r"speed.*> 0"),
         (lambda: make_circle(accel=0), r"accel.*> 0"),
         (lambda: make_circle(turns=0), r"turns.*> 0"),
@@ -573,7 +573,7 @@ def test_sample_matches_pose_and_twist():
         (lambda: Press(([0, 0, 0], R0), 1.0, -1.0), r"duration.*> 0"),
         (lambda: Press(([0, 0, 0], R0), 1.0, 1.0, profile="linear"), r"profile"),
         (lambda: Approach(([0, 0, 0], R0), ([1, 0, 0], R0), 0.0), r"duration.*> 0"),
-        (lambda: MoveL([[0, 0, 0], [1, 0, 0]], V, A, -1.0), r"blend_radius.*>= 0.*-1"),
+        (lambda: MoveL([[0, 0, 0], [1, 0, 0]], V, A, -1.0), r"blend_radius = -1\.0 .*>= 0"),
         (lambda: MoveL([[0, 0, 0], [1, 0, 0]], 0.0, A), r"speed.*> 0"),
         (lambda: MoveL([[0, 0, 0], [1, 0, 0]], V, float("inf")), r"accel.*> 0"),
         (lambda: MoveL([[0, 0, 0], [0, 0, 0]], V, A), r"non-zero length"),
