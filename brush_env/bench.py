@@ -329,7 +329,7 @@ class ContactRun:
 
 
 #: Contact grid.  ``press``/``hold``: the paper's 3 mm minimum-jerk press in 0.5 s and 0.25 s
-#: settling (experiment.DEFAULTS); ``arc``: simulated seconds of the circle after the hold.
+#: settling (experiments.plan.DEFAULTS); ``arc``: simulated seconds of the circle after the hold.
 CONTACT_GRID_FULL = dict(bodies=(3, 6), dts=(1e-3, 2e-3, 4e-3), integrators=("euler", "bdf2"),
                          tip_tip=(False, True), press=0.5, hold=0.25, arc="turn",
                          ref=(12, 2.5e-4), sample=5e-3)
@@ -347,7 +347,7 @@ def simulate_contact(bodies: int, dt: float, integrator: str, tip_tip: bool, pre
     from dataclasses import replace
 
     from .engine import SimSettings, SimulationDivergence, Simulator, load_scene
-    from .experiment import DEFAULTS, _plate_height, _touch_height, build_trajectory
+    from .experiments.plan import DEFAULTS, _plate_height, _touch_height, build_trajectory
 
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
@@ -416,7 +416,7 @@ def _arc_seconds(g: dict) -> float:
     of 4 ms, so that every dt of the grid ends on the same time."""
     if g["arc"] != "turn":
         return float(g["arc"])
-    from .experiment import DEFAULTS, build_trajectory
+    from .experiments.plan import DEFAULTS, build_trajectory
 
     traj, starts, _ = build_trajectory(
         start_xy=(0.0, 0.0), touch_z=0.0, radius=DEFAULTS["radius"], speed=DEFAULTS["speed"],

@@ -19,7 +19,7 @@ from .user_errors import OneLineParser, run_main
 
 #: name -> (module, one-line help)
 SUBCOMMANDS = {
-    "reference": ("brush_env.experiment",
+    "reference": ("brush_env.experiments.cli",
                   "run the paper's circular UR5 experiment (Sec. 4-5) and write Figure 7/9 data"),
     "validate": ("brush_env.validation",
                  "check the beam and contact model against closed-form references"),

@@ -12,7 +12,7 @@ from numba import njit
 
 from ._kernels import HOT, _log3s
 
-__all__ = ["skew", "expmap", "logmap", "rot_axis", "pose_ok"]
+__all__ = ["skew", "expmap", "logmap", "rot_axis", "rotation_vectors", "pose_ok"]
 
 
 def skew(w) -> np.ndarray:
@@ -55,6 +55,54 @@ def rot_axis(axis, angle) -> np.ndarray:
     """Rotations about a fixed unit ``axis`` (3,) by ``angle`` [rad] (...,) -> (..., 3, 3)."""
     angle = np.asarray(angle, dtype=float)
     return expmap(angle[..., None] * np.asarray(axis, dtype=float))
+
+
+def rotation_vectors(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N, 3) of rotation matrices (N, 3, 3), continuous along the sequence.
+
+    Via unit quaternions whose sign is kept continuous (q_k · q_(k-1) >= 0), so the vector does not
+    flip near a rotation of π (the brush's R0 is a half turn about x); the angle may then exceed π.
+    """
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    tr = np.trace(R, axis1=1, axis2=2)
+    # Shepperd's method, branch per row
+    q = np.empty((R.shape[0], 4))
+    d = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    k = np.argmax(d, axis=1)
+    for case in range(4):
+        m = k == case
+        if not np.any(m):
+            continue
+        Rm = R[m]
+        if case == 0:
+            s = np.sqrt(1.0 + tr[m]) * 2.0
+            q[m] = np.stack([0.25 * s, (Rm[:, 2, 1] - Rm[:, 1, 2]) / s,
+                             (Rm[:, 0, 2] - Rm[:, 2, 0]) / s, (Rm[:, 1, 0] - Rm[:, 0, 1]) / s], 1)
+        elif case == 1:
+            s = np.sqrt(1.0 + Rm[:, 0, 0] - Rm[:, 1, 1] - Rm[:, 2, 2]) * 2.0
+            q[m] = np.stack([(Rm[:, 2, 1] - Rm[:, 1, 2]) / s, 0.25 * s,
+                             (Rm[:, 0, 1] + Rm[:, 1, 0]) / s, (Rm[:, 0, 2] + Rm[:, 2, 0]) / s], 1)
+        elif case == 2:
+            s = np.sqrt(1.0 + Rm[:, 1, 1] - Rm[:, 0, 0] - Rm[:, 2, 2]) * 2.0
+            q[m] = np.stack([(Rm[:, 0, 2] - Rm[:, 2, 0]) / s, (Rm[:, 0, 1] + Rm[:, 1, 0]) / s,
+                             0.25 * s, (Rm[:, 1, 2] + Rm[:, 2, 1]) / s], 1)
+        else:
+            s = np.sqrt(1.0 + Rm[:, 2, 2] - Rm[:, 0, 0] - Rm[:, 1, 1]) * 2.0
+            q[m] = np.stack([(Rm[:, 1, 0] - Rm[:, 0, 1]) / s, (Rm[:, 0, 2] + Rm[:, 2, 0]) / s,
+                             (Rm[:, 1, 2] + Rm[:, 2, 1]) / s, 0.25 * s], 1)
+    # first quaternion: prefer a non-negative vector part along its largest component
+    if q.shape[0]:
+        j = int(np.argmax(np.abs(q[0, 1:]))) + 1
+        if q[0, 0] < 0 or (abs(q[0, 0]) < 1e-12 and q[0, j] < 0):
+            q[0] = -q[0]
+        dots = np.einsum("ij,ij->i", q[1:], q[:-1])
+        flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
+        q = q * flips[:, None]
+    v = q[:, 1:]
+    nv = np.linalg.norm(v, axis=1)
+    ang = 2.0 * np.arctan2(nv, q[:, 0])
+    scale = np.where(nv > 1e-12, ang / np.maximum(nv, 1e-300), 2.0)  # small angle: 2 v
+    return v * scale[:, None]
 
 
 @njit(**HOT)

@@ -1,0 +1,191 @@
+"""The experiment's plan: defaults (§3–5 of the paper and the choices it leaves open), the plate
+and touch heights, and the reference motion (press along the bristle axis -> hold -> the MoveL
+circle of Algorithm 1, optionally with the eq-12 pitch perturbation)."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..engine import Simulator, load_brush, load_scene
+from ..engine.checks import Limit, check_choice, check_real
+from ..engine.config import BrushConfig
+from ..engine.scene import Plane
+from ..motion import R0, Circle, Hold, PitchPerturbation, Press, Sequence, paper_circle_movel
+
+TWO_PI = 2.0 * math.pi
+
+DEFAULTS = dict(
+    turns=4.0,  # paper §4: four complete rotations
+    radius=20.0,  # paper §5.1: 20 mm circle [mm]
+    speed=20.0,  # tool speed [mm/s] (not printed in the paper)
+    accel=100.0,  # tool acceleration [mm/s^2] (not printed; ramp 0.2 s / 2 mm, inside P0 -> P1)
+    press_depth=3.0,  # paper §3: 3 mm along the bristle axis [mm]
+    press_time=0.5,  # [s] minimum-jerk press (peak speed 11.25 mm/s)
+    hold_time=0.25,  # [s] settling after the press
+    dt=1e-3,  # [s]
+    integrator="bdf2",
+    path="movel",  # "movel" (paper Algorithm 1) or "circle" (exact circle)
+    pitch_window=(2.0 * math.pi, 2.5 * math.pi),  # eq 12 support [rad]
+    tips_dt=5e-3,  # sampling interval of tips.npz [s]
+    shapes_dt=2e-2,  # sampling interval of the stored bristle centre lines [s]
+)
+
+
+def _touch_height(sim: Simulator, R: np.ndarray, plate_z: float) -> float:
+    """TCP height at which the lowest tip sphere touches the plate z = plate_z (unloaded)."""
+    m = sim.model
+    tips_tcp = np.array([m.root_p[j] + m.length[j] * (m.root_R[j][:, 0])
+                         for j in range(m.n_bristles)])
+    tips_w = tips_tcp @ R.T
+    return float(plate_z - np.min(tips_w[:, 2] - m.tip_radius))
+
+
+def _plate_height(scene) -> float:
+    planes = [s for s in scene.surfaces if isinstance(s, Plane)]
+    if not scene.surfaces:
+        return 0.0
+    if not planes:
+        kinds = [type(s).__name__ for s in scene.surfaces]
+        raise ValueError(f"scene {scene.name!r}: the reference experiment needs a flat plate (a "
+                         f"'plane' surface with normal +z), got {kinds}")
+    pl = planes[0]
+    n = np.asarray(pl.normal, dtype=float)
+    n = n / np.linalg.norm(n)
+    if abs(n[2] - 1.0) > 1e-9:
+        raise ValueError(f"scene {scene.name!r}: the plate normal must be +z (world), "
+                         f"got {pl.normal}")
+    return float(pl.point[2])
+
+
+def build_trajectory(*, start_xy, touch_z, radius, speed, accel, turns, press_depth, press_time,
+                     hold_time, path, pitch_error_deg=0.0, pitch_window=DEFAULTS["pitch_window"]):
+    """The reference motion: Press (along the bristle axis) -> Hold -> circle, optionally pitched.
+
+    Returns ``(trajectory, phase_starts, circle)`` with ``phase_starts = (0, t_hold, t_circle)``.
+    ``path='movel'``: the paper's four MoveL control points with blend radius = circle radius
+    (``paper_circle_movel``, ``ceil(turns)`` turns); ``'circle'``: the exact ``Circle``.
+    The circle is centred at (start_xy + radius · x) so that P0 (θ = 0, polar angle π) is
+    ``start_xy`` and the motion is counter-clockwise about +z.
+    """
+    p_touch = np.array([start_xy[0], start_xy[1], touch_z], dtype=float)
+    press = Press((p_touch, R0), press_depth, press_time)
+    p_pressed, _ = press.end_pose
+    segs = [press]
+    if hold_time > 0:
+        segs.append(Hold((p_pressed, R0), hold_time))
+    center = p_pressed + np.array([radius, 0.0, 0.0])
+    if path == "movel":
+        circ = paper_circle_movel(center, radius, speed, accel, turns=int(math.ceil(turns - 1e-9)),
+                                  orientation=np.array(R0))
+    elif path == "circle":
+        circ = Circle(center, radius, speed, accel, turns=turns, start_angle=math.pi, R=R0)
+    else:
+        raise ValueError(f"path must be 'movel' or 'circle', got {path!r}")
+    segs.append(circ)
+    # remove the fp residue of P0 = centre + r (cos π, sin π) so Sequence's continuity check passes
+    seq = Sequence(segs)
+    phase_starts = tuple(float(t) for t in seq.start_times[:-1])
+    traj = seq
+    if pitch_error_deg:
+        traj = PitchPerturbation(seq, math.radians(pitch_error_deg), theta_start=pitch_window[0],
+                                 theta_end=pitch_window[1])
+    return traj, phase_starts, circ
+
+
+def check_run_args(turns, dt, speed, accel, radius, press_time, tips_dt, shapes_dt, hold_time,
+                   press_depth, path, integrator) -> None:
+    """Every number of a run, checked before anything is built or written (ConfigError names the
+    argument, the value and the allowed range)."""
+    check_real("turns", turns, Limit("turns", gt=0))
+    for name, v, unit in (("dt", dt, "s"), ("speed", speed, "mm/s"), ("accel", accel, "mm/s^2"),
+                          ("radius", radius, "mm"), ("press_time", press_time, "s"),
+                          ("tips_dt", tips_dt, "s"), ("shapes_dt", shapes_dt, "s")):
+        check_real(name, v, Limit(unit, gt=0))
+    check_real("hold_time", hold_time, Limit("s", ge=0))
+    check_real("press_depth", press_depth, Limit("mm", ge=0))
+    check_choice("path", path, ("movel", "circle"), "path")
+    check_choice("integrator", integrator, ("bdf2", "euler"), "integrator")
+
+
+@dataclass
+class Plan:
+    """Everything decided before the first step: scene, simulator, motion and the time grid.
+
+    ``times`` (n_steps + 1,) [s], ``theta`` the rotation angle of each row [rad], ``phase`` 0 press,
+    1 hold, 2 circle; ``poses[name] = (P (n, 3) [mm], R (n, 3, 3))`` per run ('baseline' and,
+    with a pitch error, 'pitch'); ``pitch[name]`` the imposed eq-12 pitch [rad]."""
+
+    scene: object
+    sim: Simulator
+    plate_z: float
+    touch_z: float
+    start_xy: tuple
+    phase_starts: tuple
+    times: np.ndarray
+    theta: np.ndarray
+    phase: np.ndarray
+    poses: dict
+    pitch: dict
+    n_steps: int
+    n_full: int
+    tips_stride: int
+    shapes_stride: int
+
+
+def resolve_scene(brush, scene, bodies):
+    """The scene to run: a Scene, a path or a name (default flat_plate), with ``brush`` (a
+    BrushConfig, path or name) and ``bodies`` per bristle overriding the scene's."""
+    if scene is None or isinstance(scene, (str, os.PathLike)):
+        scene_obj = load_scene(scene, brush=brush if brush is not None else None)
+    else:
+        scene_obj = scene
+        if brush is not None:
+            b = brush if isinstance(brush, BrushConfig) else load_brush(brush)
+            scene_obj = replace(scene, brush=b)
+    if bodies is not None:
+        scene_obj = replace(scene_obj, brush=scene_obj.brush.with_bodies(int(bodies)))
+    return scene_obj
+
+
+def make_plan(scene_obj, settings, *, turns, radius, speed, accel, press_depth, press_time,
+              hold_time, path, pitch_error_deg, pitch_window, tips_dt, shapes_dt) -> Plan:
+    """Simulator, touch height, the baseline (and pitched) motion sampled on the time grid; the
+    run stops when θ reaches 2π·turns (§4: four turns)."""
+    sim = Simulator(scene_obj, settings)
+    dt = settings.dt
+    plate_z = _plate_height(scene_obj)
+    touch_z = _touch_height(sim, np.array(R0), plate_z)
+    start_xy = (0.0, 0.0)
+    common = dict(start_xy=start_xy, touch_z=touch_z, radius=radius, speed=speed, accel=accel,
+                  turns=turns, press_depth=press_depth, press_time=press_time,
+                  hold_time=hold_time, path=path)
+    traj, phase_starts, _ = build_trajectory(**common)
+    trajs = {"baseline": traj}
+    if pitch_error_deg:
+        trajs["pitch"], _, _ = build_trajectory(**common, pitch_error_deg=pitch_error_deg,
+                                                pitch_window=pitch_window)
+    T = traj.duration
+    n_full = int(math.ceil(T / dt - 1e-9))
+    times = np.arange(n_full + 1) * dt
+    theta_full = np.asarray(traj.angle(np.minimum(times, T)), dtype=float)
+    reach = np.flatnonzero(theta_full >= TWO_PI * turns - 1e-9)
+    n_steps = int(reach[0]) if reach.size else n_full
+    times = times[:n_steps + 1]
+    theta = theta_full[:n_steps + 1]
+    phase = np.searchsorted(np.asarray(phase_starts), times, side="right") - 1
+    phase = np.where(phase >= len(phase_starts) - 1, 2, phase)
+    if hold_time <= 0:
+        phase = np.where(phase >= 1, 2, phase)
+    poses = {name: tuple(tr.sample(times)[:2]) for name, tr in trajs.items()}
+    pitch = {"baseline": np.zeros(n_steps + 1)}
+    if "pitch" in trajs:
+        pitch["pitch"] = trajs["pitch"].pitch(times)
+    return Plan(scene=scene_obj, sim=sim, plate_z=plate_z, touch_z=touch_z, start_xy=start_xy,
+                phase_starts=phase_starts, times=times, theta=theta, phase=phase, poses=poses,
+                pitch=pitch, n_steps=n_steps, n_full=n_full,
+                tips_stride=max(1, int(round(tips_dt / dt))),
+                shapes_stride=max(1, int(round(shapes_dt / dt))))

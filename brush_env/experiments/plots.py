@@ -1,0 +1,207 @@
+"""Figures of a reference run (matplotlib, Agg): forces against the rotation angle (the paper's
+Figure 7, and Figure 10 with the pitch error) and the deformed bristles at the jamming points
+(Figure 9)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .analysis import PAPER_JAMMING_ANGLES, TWO_PI, pi_label
+
+def _pi_ticks(ax, lo, hi, denom=4):
+    step = math.pi / denom
+    k0, k1 = int(math.ceil(lo / step - 1e-9)), int(math.floor(hi / step + 1e-9))
+    ks = list(range(k0, k1 + 1))
+    stride = max(1, len(ks) // 14 + 1)
+    ks = ks[::stride]
+    ax.set_xticks([k * step for k in ks])
+    ax.set_xticklabels([pi_label(k * step, denom) for k in ks])
+
+
+def _plot_range(theta_end):
+    if theta_end > TWO_PI + 0.25:
+        k = int(math.ceil(theta_end / TWO_PI - 1e-9))
+        full = abs(theta_end - k * TWO_PI) < 1e-6
+        return TWO_PI, theta_end, (f"turns 2-{k}" if full and k > 2 else
+                                   f"θ in [2π, {theta_end / math.pi:.2f}π]")
+    if theta_end > 0.5 * math.pi:
+        return 0.5 * math.pi, theta_end, "θ ≥ π/2 (turn 1 after the excluded quarter)"
+    return 0.0, max(theta_end, 1e-3), "whole run (θ < π/2: no analysis range)"
+
+
+def plot_forces_vs_angle(path, recs, theta, analysis, pitch_series, pitch_window, title=""):
+    """Figure 7 (with a pitch run, Figure 10): Fx, Fy, Fz and |F_h| against θ over turns 2-4."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    base = recs["baseline"]
+    th_end = float(theta[base.n - 1])
+    lo, hi, what = _plot_range(th_end)
+    fig, axes = plt.subplots(4, 1, figsize=(11, 10), sharex=True,
+                             gridspec_kw=dict(height_ratios=[3, 3, 3, 2]))
+    styles = {"baseline": dict(color="C0", lw=1.2, label="without pitch error"),
+              "pitch": dict(color="C3", lw=1.2, ls="--", label="with pitch error (eq 12)")}
+    names = ["Fx [N]", "Fy [N]", "Fz [N]", "|F_h| [N]"]
+    for name, r in recs.items():
+        n = r.n
+        th = theta[:n]
+        m = (th >= lo) & (th <= hi)
+        F = r.step["F"][:n]
+        ys = [F[:, 0], F[:, 1], F[:, 2], np.hypot(F[:, 0], F[:, 1])]
+        st = dict(styles[name])
+        if len(recs) == 1:
+            st["label"] = None
+        for ax, y in zip(axes, ys):
+            ax.plot(th[m], y[m], **st)
+        jam = (analysis.get(name) or {}).get("jamming")
+        if jam:
+            for p in jam["peaks"]:
+                if lo <= p["theta_rad"] <= hi:
+                    i = int(np.argmin(np.abs(th - p["theta_rad"])))
+                    for ax, y in zip(axes, ys):
+                        ax.axvline(p["theta_rad"], color=st["color"], lw=0.6, ls=":", alpha=0.8)
+                        ax.plot(th[i], y[i], "v", color=st["color"], ms=6, mec="k", mew=0.5)
+    # the paper's jamming angles 9π/4 + 2πk and 13π/4 + 2πk
+    for a0 in PAPER_JAMMING_ANGLES:
+        k = math.floor((lo - a0) / TWO_PI)
+        a = a0 + k * TWO_PI
+        while a <= hi:
+            if a >= lo:
+                for ax in axes:
+                    ax.axvline(a, color="0.6", lw=1.0, ls="-.", alpha=0.6, zorder=0)
+            a += TWO_PI
+    if "pitch" in recs:
+        for ax in axes:
+            ax.axvspan(pitch_window[0], pitch_window[1], color="C3", alpha=0.08, zorder=0)
+        ax2 = axes[3].twinx()
+        m = (theta >= lo) & (theta <= hi)
+        ax2.plot(theta[m], np.degrees(pitch_series["pitch"][m]), color="C3", lw=0.8, alpha=0.6)
+        ax2.set_ylabel("pitch [deg]", color="C3")
+    for ax, nm in zip(axes, names):
+        ax.set_ylabel(nm)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("rotation angle θ [rad]  (0 at P0; ▼ detected jamming peaks of |F_h|; "
+                        "dash-dot: the paper's 9π/4 + 2πk, 13π/4 + 2πk)")
+    _pi_ticks(axes[-1], lo, hi, 4)
+    axes[0].set_xlim(lo, hi)
+    if "pitch" in recs:
+        axes[0].legend(loc="upper right", fontsize=8)
+        fig.suptitle(f"Forces vs rotation angle, {what}: with and without the pitch error "
+                     f"(paper Figure 10)\n{title}", fontsize=10)
+    else:
+        fig.suptitle(f"Forces vs rotation angle, {what} (paper Figure 7)\n{title}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _shape_events(analysis, theta_lo, theta_hi):
+    """The angles to show in deformed_shapes.png: the jamming peaks of the first turn that has
+    them (>= 2 if possible), else the paper's angles in range, else two evenly spaced angles."""
+    jam = analysis.get("jamming") if analysis else None
+    peaks = jam["peaks"] if jam else []
+    if peaks:
+        turns = sorted({p["turn"] for p in peaks})
+        t = next((k for k in turns if k >= 2), turns[0])
+        sel = [p for p in peaks if p["turn"] == t][:2]
+        return [(p["theta_rad"], f"jamming peak at θ = {p['theta_label']} "
+                                 f"({p['theta_mod_2pi_deg']:.0f}° mod 2π)") for p in sel]
+    out = []
+    for a0 in PAPER_JAMMING_ANGLES:
+        for a in (a0 - TWO_PI, a0, a0 + TWO_PI):
+            if theta_lo <= a <= theta_hi:
+                out.append((a, f"paper's jamming angle {pi_label(a)} (no peak detected)"))
+                break
+    if out:
+        return out[:2]
+    return [(theta_lo + f * (theta_hi - theta_lo), "no jamming peak detected")
+            for f in (0.35, 0.85)]
+
+
+def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times,
+                         offsets=(-math.pi / 8, -math.pi / 24, 0.0, math.pi / 8)):
+    """Figure 9: bristle centre lines around each jamming point, side (x-z) and top (x-y) views.
+
+    Coordinates are world (robot base) axes relative to the TCP position; the plate is z = 0 in the
+    side view.  Columns: angles θ_peak + offsets; rows: side and top view of each event.  Tips in
+    contact are drawn red, the others black; the arrow in the top view is the TCP velocity.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ns = rec.ns
+    rows = rec.shapes["row"][:ns]
+    th_s = theta[rows]
+    th_end = float(theta[rec.n - 1])
+    lo = 0.5 * math.pi if th_end > 0.5 * math.pi else 0.0
+    events = _shape_events(analysis, lo, th_end)
+    m = sim.model
+    P, R = pose
+    groups = [b.group for b in brush_cfg.bristles]
+    gnames = sorted(set(groups))
+    gcol = {g: f"C{k}" for k, g in enumerate(gnames)}
+    ncol = len(offsets)
+    fig, axes = plt.subplots(2 * len(events), ncol, figsize=(3.2 * ncol, 3.0 * 2 * len(events)),
+                             squeeze=False)
+    L = brush_cfg.max_length
+    span = np.ptp(m.root_p[:, 0]) / 2 + 0.7 * L
+    spany = np.ptp(m.root_p[:, 1]) / 2 + 0.7 * L
+    for e, (th0, label) in enumerate(events):
+        for c, off in enumerate(offsets):
+            want = th0 + off
+            k = int(np.argmin(np.abs(th_s - want)))
+            i = int(rows[k])
+            p_tcp, R_tcp = P[i], R[i]
+            body = rec.shapes["body"][k].astype(float)
+            tips = rec.shapes["tip"][k].astype(float)
+            cont = rec.shapes["contact"][k]
+            roots = p_tcp + m.root_p @ R_tcp.T
+            ax_s, ax_t = axes[2 * e, c], axes[2 * e + 1, c]
+            for j in range(m.n_bristles):
+                line = np.vstack([roots[j], body[m.bstart[j]:m.bstart[j + 1]], tips[j]])
+                rel = line - [p_tcp[0], p_tcp[1], 0.0]
+                col = gcol[groups[j]]
+                ax_s.plot(rel[:, 0], rel[:, 2], "-", color=col, lw=1.0, alpha=0.8)
+                ax_t.plot(rel[:, 0], rel[:, 1], "-", color=col, lw=1.0, alpha=0.8)
+                tc = "r" if cont[j] else "k"
+                ax_s.plot(rel[-1, 0], rel[-1, 2], "o", color=tc, ms=2.5)
+                ax_t.plot(rel[-1, 0], rel[-1, 1], "o", color=tc, ms=2.5)
+                ax_t.plot(rel[0, 0], rel[0, 1], "s", color=col, ms=2.5)
+            ax_s.axhline(0.0, color="0.3", lw=1.5)
+            ax_s.set_xlim(-span, span)
+            ax_s.set_ylim(min(-1.0, float(tips[:, 2].min()) - 0.5), p_tcp[2] + 1.0)
+            ax_t.set_xlim(-span, span)
+            ax_t.set_ylim(-spany, spany)
+            if i + 1 < len(P):
+                v = (P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)])
+                nv = np.linalg.norm(v[:2])
+                if nv > 0:
+                    d = v[:2] / nv * 0.5 * spany
+                    ax_t.annotate("", xy=(d[0], d[1]), xytext=(0, 0),
+                                  arrowprops=dict(arrowstyle="->", color="C3", lw=1.5))
+            for ax in (ax_s, ax_t):
+                ax.set_aspect("equal")
+                ax.grid(alpha=0.3)
+                ax.tick_params(labelsize=7)
+            ax_s.set_title(f"θ = {th_s[k] / math.pi:.3f}π ({math.degrees(th_s[k] % TWO_PI):.0f}°)"
+                           f"{'  [peak]' if off == 0 else ''}", fontsize=8)
+            if c == 0:
+                ax_s.set_ylabel(f"side: z [mm]\n{label}", fontsize=7)
+                ax_t.set_ylabel("top: y - y_TCP [mm]", fontsize=7)
+            ax_s.set_xlabel("x - x_TCP [mm]", fontsize=7)
+            ax_t.set_xlabel("x - x_TCP [mm]", fontsize=7)
+    handles = [plt.Line2D([], [], color=gcol[g], label=g) for g in gnames]
+    handles += [plt.Line2D([], [], ls="", marker="o", color="r", label="tip in contact"),
+                plt.Line2D([], [], color="C3", label="TCP velocity (top view)")]
+    fig.legend(handles=handles, loc="lower center", fontsize=8, ncol=len(handles))
+    fig.suptitle(f"Deformed bristles around the jamming points (paper Figure 9), brush "
+                 f"'{brush_cfg.name}'; world axes relative to the TCP, plate at z = 0", fontsize=10)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

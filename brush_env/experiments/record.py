@@ -1,0 +1,176 @@
+"""Simulating the planned motion and recording it: per-step wrench and contact sums, sampled tip
+states and bristle centre lines (preallocated)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..engine import SimulationDivergence
+
+class _Recorder:
+    """Preallocated per-step and sampled (tips, shapes) records of one run."""
+
+    def __init__(self, n_rows, nb, nbody, tips_stride, shapes_stride):
+        self.n = 0
+        self.tips_stride, self.shapes_stride = tips_stride, shapes_stride
+        self.step = dict(
+            time=np.zeros(n_rows), F=np.zeros((n_rows, 3)), M=np.zeros((n_rows, 3)),
+            Fn=np.zeros(n_rows), Ft=np.zeros(n_rows), Ft_abs=np.zeros(n_rows),
+            n_contact=np.zeros(n_rows, np.int32), max_pen=np.zeros(n_rows),
+            iters=np.zeros(n_rows, np.int32), subs=np.zeros(n_rows, np.int32))
+        nt = (n_rows - 1) // tips_stride + 1
+        ns = (n_rows - 1) // shapes_stride + 1
+        f32 = np.float32
+        self.tips = dict(
+            row=np.zeros(nt, np.int64), pos=np.zeros((nt, nb, 3), f32),
+            vel=np.zeros((nt, nb, 3), f32), fn=np.zeros((nt, nb), f32),
+            ft=np.zeros((nt, nb, 3), f32), fc=np.zeros((nt, nb, 3), f32),
+            contact=np.zeros((nt, nb), bool), sliding=np.zeros((nt, nb), bool),
+            pen=np.zeros((nt, nb), f32), tiptip=np.zeros((nt, nb), f32))
+        self.nt = 0
+        self.shapes = dict(row=np.zeros(ns, np.int64), body=np.zeros((ns, nbody, 3), f32),
+                           tip=np.zeros((ns, nb, 3), f32), contact=np.zeros((ns, nb), bool))
+        self.ns = 0
+
+    def copy(self):
+        new = _Recorder.__new__(_Recorder)
+        new.n, new.nt, new.ns = self.n, self.nt, self.ns
+        new.tips_stride, new.shapes_stride = self.tips_stride, self.shapes_stride
+        new.step = {k: v.copy() for k, v in self.step.items()}
+        new.tips = {k: v.copy() for k, v in self.tips.items()}
+        new.shapes = {k: v.copy() for k, v in self.shapes.items()}
+        return new
+
+    def add(self, out, sim):
+        i = self.n
+        s = self.step
+        s["time"][i] = out.time
+        s["F"][i] = out.tcp_force
+        s["M"][i] = out.tcp_moment
+        fn = out.tip_normal_force
+        ft = out.tip_tangential_force
+        s["Fn"][i] = float(fn.sum())
+        s["Ft"][i] = float(np.linalg.norm(ft.sum(axis=0)))
+        s["Ft_abs"][i] = float(np.linalg.norm(ft, axis=1).sum())
+        s["n_contact"][i] = int(np.count_nonzero(out.tip_in_contact))
+        s["max_pen"][i] = float(out.tip_penetration.max()) if out.tip_penetration.size else 0.0
+        s["iters"][i] = out.iterations
+        s["subs"][i] = out.substeps
+        if i % self.tips_stride == 0:
+            k = self.nt
+            t = self.tips
+            t["row"][k] = i
+            t["pos"][k] = out.tip_pos
+            t["vel"][k] = out.tip_vel
+            t["fn"][k] = fn
+            t["ft"][k] = ft
+            d = out.tip_pos - out.tip_contact_point
+            nd = np.linalg.norm(d, axis=1, keepdims=True)
+            nrm = np.where(nd > 1e-12, d / np.maximum(nd, 1e-300), 0.0)
+            t["fc"][k] = np.where(out.tip_in_contact[:, None], fn[:, None] * nrm + ft, 0.0)
+            t["contact"][k] = out.tip_in_contact
+            t["sliding"][k] = out.tip_sliding
+            t["pen"][k] = out.tip_penetration
+            tt = out.extra.get("tip_tip_force") if out.extra else None
+            if tt is not None:
+                t["tiptip"][k] = tt
+            self.nt += 1
+        if i % self.shapes_stride == 0:
+            k = self.ns
+            sh = self.shapes
+            sh["row"][k] = i
+            sh["body"][k] = sim.state.pos
+            sh["tip"][k] = out.tip_pos
+            sh["contact"][k] = out.tip_in_contact
+            self.ns += 1
+        self.n += 1
+
+
+def _simulate(sim, P, R, rec, theta, i0, i1, bar, label):
+    """Step rows i0..i1-1 (row i is the pose at time i·dt; row 0 is the reset)."""
+    last = i0
+    for i in range(i0, i1):
+        out = sim.step(P[i], R[i])
+        rec.add(out, sim)
+        if bar is not None and (i % 50 == 0 or i == i1 - 1):
+            bar.update(i + 1 - last)
+            last = i + 1
+            bar.set_postfix_str(f"{label} θ={theta[i] / math.pi:5.2f}π "
+                                f"Fz={out.tcp_force[2]:+.2f} N", refresh=False)
+
+
+def _shared_prefix(poses, n_steps) -> int:
+    """First row whose pose differs between the baseline and the pitched run (n_steps + 1 when
+    the perturbation does not start within the run)."""
+    if "pitch" not in poses:
+        return n_steps + 1
+    (P, R), (Pp, Rp) = poses["baseline"], poses["pitch"]
+    diff = np.flatnonzero((np.abs(Pp - P).max(axis=1) > 0) | (np.abs(Rp - R).max(axis=(1, 2)) > 0))
+    return int(diff[0]) if diff.size else n_steps + 1
+
+
+def simulate_runs(plan, progress: bool):
+    """Step the simulator along the baseline motion and, with a pitch error, along the pitched
+    one, which shares the baseline's prefix up to the perturbation (its state is restored there).
+    Returns ``(recorders, status, perf)`` by run name; a divergence ends that run and is reported
+    in its status."""
+    from tqdm.auto import tqdm
+
+    sim, theta, n_steps = plan.sim, plan.theta, plan.n_steps
+    P, R = plan.poses["baseline"]
+    rec = _Recorder(n_steps + 1, sim.model.n_bristles, sim.model.n_bodies, plan.tips_stride,
+                    plan.shapes_stride)
+    rec.add(sim.reset(P[0], R[0]), sim)
+    branch = _shared_prefix(plan.poses, n_steps)
+    total = n_steps + (n_steps + 1 - branch if "pitch" in plan.poses else 0)
+    bar = tqdm(total=total, unit="step", desc="reference", mininterval=0.5,
+               dynamic_ncols=True) if progress else None
+    status, recs, perf = {}, {}, {}
+    snapshot = rec_snapshot = None
+    t0 = time.perf_counter()
+    try:
+        if branch <= n_steps:
+            _simulate(sim, P, R, rec, theta, 1, branch, bar, "baseline")
+            snapshot, rec_snapshot = sim.get_state(), rec.copy()
+            _simulate(sim, P, R, rec, theta, branch, n_steps + 1, bar, "baseline")
+        else:
+            _simulate(sim, P, R, rec, theta, 1, n_steps + 1, bar, "baseline")
+        status["baseline"] = "ok"
+    except SimulationDivergence as exc:
+        status["baseline"] = f"diverged: {exc}"
+    recs["baseline"] = rec
+    perf["baseline"] = dict(wall_s=time.perf_counter() - t0, steps=rec.n - 1,
+                            simulated_s=float(rec.step["time"][rec.n - 1]))
+    if "pitch" in plan.poses:
+        recs["pitch"], status["pitch"], perf["pitch"] = _pitch_run(
+            plan, rec, status["baseline"], branch, snapshot, rec_snapshot, bar)
+    if bar is not None:
+        bar.close()
+    return recs, status, perf
+
+
+def _pitch_run(plan, rec, baseline_status, branch, snapshot, rec_snapshot, bar):
+    """The pitched run from the shared prefix's state: (recorder, status, perf)."""
+    sim, n_steps = plan.sim, plan.n_steps
+    not_run = dict(wall_s=0.0, steps=0, shared_prefix_steps=rec.n - 1, simulated_s=0.0)
+    if branch > n_steps:  # the perturbation does not start within the run: same as baseline
+        return rec.copy(), baseline_status, not_run
+    if snapshot is None:  # the baseline diverged before the perturbation starts
+        return (rec.copy(), "not run: the baseline diverged before the perturbation starts",
+                not_run)
+    Pp, Rp = plan.poses["pitch"]
+    t0 = time.perf_counter()
+    sim.set_state(snapshot)
+    rec_p = rec_snapshot
+    try:
+        _simulate(sim, Pp, Rp, rec_p, plan.theta, branch, n_steps + 1, bar, "pitch")
+        status = "ok"
+    except SimulationDivergence as exc:
+        status = f"diverged: {exc}"
+    perf = dict(wall_s=time.perf_counter() - t0, steps=rec_p.n - branch,
+                shared_prefix_steps=branch - 1,
+                simulated_s=float(rec_p.step["time"][rec_p.n - 1] - plan.times[branch - 1]))
+    return rec_p, status, perf
