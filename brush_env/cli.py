@@ -21,9 +21,9 @@ from .user_errors import OneLineParser, run_main
 SUBCOMMANDS = {
     "reference": ("brush_env.experiments.cli",
                   "run the paper's circular UR5 experiment (Sec. 4-5) and write Figure 7/9 data"),
-    "validate": ("brush_env.validation",
+    "validate": ("brush_env.validation.cli",
                  "check the beam and contact model against closed-form references"),
-    "bench": ("brush_env.bench", "speed-versus-error benchmarks (engine, contact, env)"),
+    "bench": ("brush_env.bench.cli", "speed-versus-error benchmarks (engine, contact, env)"),
     "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
 }
 

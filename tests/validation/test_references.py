@@ -1,11 +1,11 @@
-"""Checks of the independent reference solutions in brush_env.engine.reference."""
+"""Checks of the independent reference solutions in brush_env.validation.references."""
 
 import math
 
 import numpy as np
 import pytest
 
-from brush_env.engine.reference import (
+from brush_env.validation.references import (
     axial_tip,
     cantilever_frequency_roots,
     elastica_cantilever,

@@ -1,15 +1,8 @@
-"""``brush-env validate``: the discrete beam model against closed-form references.
-
-One straight bristle is clamped at the origin along world x, its section width along world y
-(so local x, y, z = world x, y, z); gravity is off.  Units: mm, N, s, tonne, E in MPa.
-
-* ``validate cantilever --alpha A --bodies N``: dead tip load P = A E I / L^2 perpendicular to the
-  axis, static solve.  Bending about the thin direction (load along local z, I = I_y = b h^3/12)
-  unless ``--plane wide`` (load along local y, I = I_z = h b^3/12).  Reference: linear Timoshenko
-  (with shear) for A <= 0.1, the exact elastica (inextensible, unshearable) above.
-* ``validate frequency --bodies N``: first bending frequency (thin direction) against
-  Euler-Bernoulli.
-* ``validate all``: the acceptance suite (table, non-zero exit on any failure).
+"""The validate cases: the discrete beam model against the independent references in
+``references`` (one straight bristle clamped along world x, width along world y, gravity off;
+units mm, N, s, tonne, E in MPa).  ``cantilever`` (linear Timoshenko for alpha <= 0.1, the exact
+elastica above), ``frequency`` (Euler-Bernoulli), ``axial``, ``torsion``, and ``suite`` (the
+acceptance table of ``brush-env validate all``).
 
 Geometry defaults are the paper's inner bristle (L = 10, b = 1.8, h = 0.8 mm, L/h = 12.5).  The
 elastica and Euler-Bernoulli references neglect shear, axial strain and rotary inertia, so the
@@ -18,15 +11,14 @@ suite checks them on a slender bristle (L = 40, b = 1.0, h = 0.5 mm, L/h = 80).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .engine import BristleConfig, BrushConfig, Material, Section, SimSettings, Simulator
-from .engine import reference as ref
-from .engine.modal import bristle_stiffness_mass, natural_frequencies
+from ..engine import BristleConfig, BrushConfig, Material, Section, SimSettings, Simulator
+from ..engine.modal import bristle_stiffness_mass, natural_frequencies
+from . import references as ref
 
 LINEAR_ALPHA_MAX = 0.1  # alpha <= this: linear Timoshenko reference
 
@@ -254,64 +246,3 @@ def format_table(rows: list[Check]) -> str:
     lines = ["  ".join(c.ljust(w[i]) for i, c in enumerate(x)).rstrip() for x in [head, *body]]
     lines.insert(1, "  ".join("-" * n for n in w))
     return "\n".join(lines)
-
-
-# --------------------------------------------------------------------------- CLI
-def _geometry_args(p) -> None:
-    g = PAPER_INNER
-    p.add_argument("--bodies", type=int, default=6, help="rigid bodies per bristle (default 6)")
-    p.add_argument("--length", type=float, default=g.length, help="L [mm] (default %(default)s)")
-    p.add_argument("--width", type=float, default=g.width, help="b [mm] (default %(default)s)")
-    p.add_argument("--thickness", type=float, default=g.thickness,
-                   help="h [mm] (default %(default)s)")
-    p.add_argument("--E", type=float, default=g.E, help="Young's modulus [MPa] (default 7)")
-    p.add_argument("--nu", type=float, default=g.nu, help="Poisson ratio (default 0.48)")
-    p.add_argument("--plane", choices=("thin", "wide"), default="thin",
-                   help="bending about the thin (load along h) or wide direction")
-    p.add_argument("--json", action="store_true", help="print JSON")
-
-
-def add_arguments(parser) -> None:
-    sub = parser.add_subparsers(dest="case", required=True)
-    p = sub.add_parser("cantilever", help="static tip load, against Timoshenko / elastica")
-    p.add_argument("--alpha", type=float, required=True, help="load P L^2 / (E I) [-]")
-    p.add_argument("--increments", type=int, default=None,
-                   help="load steps of the static solve (default ceil(alpha))")
-    _geometry_args(p)
-    p = sub.add_parser("frequency", help="first bending frequency, against Euler-Bernoulli")
-    _geometry_args(p)
-    p = sub.add_parser("all", help="the acceptance suite; exit 1 on any failure")
-    p.add_argument("--json", action="store_true", help="print JSON")
-
-
-def run(args) -> int:
-    if args.case == "all":
-        rows = suite()
-        ok = all(r.passed for r in rows)
-        if args.json:
-            print(json.dumps({"passed": ok, "checks": [{**asdict(r), "passed": r.passed}
-                                                       for r in rows]}, indent=1))
-        else:
-            print(format_table(rows))
-            print(f"\n{sum(r.passed for r in rows)}/{len(rows)} checks passed")
-        return 0 if ok else 1
-    geom = Geometry(args.length, args.width, args.thickness, args.E, args.nu)
-    if args.case == "cantilever":
-        res = cantilever(args.alpha, args.bodies, geom, args.increments, args.plane)
-        if args.json:
-            print(json.dumps(res, indent=1))
-        else:
-            print(f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
-                  f"reference: {res['reference_kind']} ({res['reference_note']})")
-            for k in res["computed"]:
-                print(f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
-                      f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}")
-        return 0
-    res = frequency(args.bodies, geom, args.plane)
-    if args.json:
-        print(json.dumps(res, indent=1))
-    else:
-        print(f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
-              f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
-              f"rel. error {res['rel_error']:+.3e}")
-    return 0

@@ -1,0 +1,23 @@
+"""``bench env``: env steps per second of the Gymnasium env, one env and vectorised (the
+measurement itself lives in ``brush_env.envs.bench_env``, beside the env).
+"""
+
+from __future__ import annotations
+
+
+
+
+
+def bench_env_target(args) -> int:
+    """Run the env benchmark (brush_env.envs.bench_env) with the parsed options."""
+    from brush_env.envs import bench_env  # gymnasium only when the env is benchmarked
+
+    return bench_env.run(args)
+
+
+def add_arguments(p) -> None:
+    """The env benchmark's options (they live beside the env, in brush_env.envs.bench_env)."""
+    from brush_env.envs import bench_env
+
+    p.add_argument("--json", action="store_true", help="one JSON object per row on stdout")
+    bench_env.add_arguments(p)
