@@ -90,6 +90,7 @@ force exceeded ``hard_force_limit`` (15 N) at an engine step (the robot's protec
 step ends there); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
 (TCP z - z_t) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
+``envs/horizon.py`` hands its limit to the env at ``gym.make``;
 default 300 = 12 s at 25 Hz).
 
 Arguments
@@ -150,11 +151,9 @@ import dataclasses
 
 import math
 import os
-import sys
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.wrappers import TimeLimit
 
 from brush_env.engine import (ConfigError, Plane, SimSettings, SimulationDivergence, Simulator,
                               load_brush, load_scene)
@@ -252,33 +251,20 @@ class BrushEnv(gym.Env):
 
     @property
     def horizon(self) -> int:
-        """Time limit in control steps that ``time_remaining`` counts down: the enclosing
-        ``TimeLimit`` wrapper's ``max_episode_steps`` as found at the last reset (so
-        ``gym.make(id, max_episode_steps=N)`` works), else the config's ``max_episode_steps``."""
+        """Time limit in control steps that ``time_remaining`` counts down and at which the env
+        truncates: the env setting ``max_episode_steps``, or the ``TimeLimit`` of
+        ``gym.make(id, max_episode_steps=N)`` handed over by ``envs.horizon``."""
         return self._horizon
 
-    def _time_limit_from_caller(self) -> int | None:
-        """``max_episode_steps`` of the ``TimeLimit`` wrapper whose ``reset`` is calling us.
-
-        ``gym.make`` consumes its ``max_episode_steps`` argument for the wrapper and never
-        passes it to the env, and the env's own spec has ``max_episode_steps=None``; the wrapper
-        is however on the call stack of every ``reset`` that goes through it (directly, in
-        ``SubprocVecEnv``/``AsyncVectorEnv`` workers, under ``Monitor``...).  Read once per reset.
-        """
-        frame = sys._getframe(2)
-        for _ in range(16):
-            if frame is None:
-                return None
-            obj = frame.f_locals.get("self")
-            if isinstance(obj, TimeLimit) and obj.unwrapped is self:
-                return int(obj._max_episode_steps)
-            frame = frame.f_back
-        return None
+    def set_horizon(self, steps: int) -> None:
+        """Set the horizon [control steps] (``HorizonFromTimeLimit`` calls it after ``make``)."""
+        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
+            raise ConfigError(f"horizon = {steps!r} is out of range: must be an integer >= 1")
+        self._horizon = steps
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        self._horizon = self._time_limit_from_caller() or self.config.max_episode_steps
         cfg, rng = self.config, self.np_random
         # draws in a fixed order (reproducibility): start x, y, height, yaw, plate offset
         xy = np.asarray(cfg.start_center) + rng.uniform(-cfg.start_xy_range, cfg.start_xy_range,

@@ -114,7 +114,7 @@ def test_dt_and_render_fps(make_env, engine_dt, frame_skip):
 def test_time_limit_from_make_overrides_config(make_env):
     """gym.make's max_episode_steps (the TimeLimit) is what time_remaining counts down."""
     env = make_env(max_episode_steps=4)
-    assert env.unwrapped.horizon == 300  # the config's, until a reset through the TimeLimit
+    assert env.unwrapped.horizon == 4  # handed over at make (envs/horizon.py), before any reset
     env.reset(seed=0)
     assert env.unwrapped.horizon == 4
     for k in range(4):
