@@ -31,11 +31,6 @@ from numba import njit
 #: Without NRT a view is a plain struct.  Kernels that do allocate keep the default options.
 HOT = dict(cache=True, _nrt=False)
 
-# status codes per bristle
-OK = 0
-NEWTON_FAILED = 1
-NONFINITE = 2
-
 
 
 # --------------------------------------------------------------------------- small linear algebra

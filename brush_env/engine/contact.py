@@ -49,7 +49,7 @@ S_BETA = 22  # beta of the step start (committed), see tip_load
 S_BNEW = 23  # beta at the slip speed of the last evaluation
 N_TIP_STATE = 24
 
-# --- contact parameter vector cp (per scene)
+# --- contact parameter vector cp (per scene: scene.ContactParams.as_array(), Tables 2-3)
 C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
 C_MUS, C_MUD, C_VS, C_VD, C_DMAX = 5, 6, 7, 8, 9  # friction (Table 2)
 C_KT, C_M1T, C_CT, C_M2T, C_M3T = 10, 11, 12, 13, 14  # tip-tip normal law (Table 3)
@@ -61,18 +61,7 @@ SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis 
 SURF_MESH = 2.0  # the scene's triangle mesh (ctx mesh arrays); row: kind, search radius [mm]
 N_SURF = 8
 
-DELTA_TANGENT_FLOOR = 1e-3  # [mm] penetration whose slope the pre-search zone's tangent uses
-PRESEARCH = 1.01  # bounding-sphere factor of the pre-search (paper Sec. 3)
 PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
-
-
-def paper_contact_params() -> np.ndarray:
-    """Tables 2 and 3 of the paper, in mm, N, s."""
-    cp = np.zeros(N_CP)
-    cp[[C_K, C_M1, C_C, C_M2, C_M3]] = (100.0, 1.3, 0.2, 1.0, 2.0)
-    cp[[C_MUS, C_MUD, C_VS, C_VD, C_DMAX]] = (0.8, 0.76, 1.2, 1.5, 0.1)
-    cp[[C_KT, C_M1T, C_CT, C_M2T, C_M3T]] = (100.0, 1.3, 0.2, 1.0, 2.0)
-    return cp
 
 
 @njit(**HOT)

@@ -27,10 +27,9 @@ from ._kernels import (HOT, _element_gen, _local_rot_into, _lu6, _node, _rotate_
 from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_HIST, S_PN, in_contact,
                       penetration_step_limit, slip_step_limit, tip_load)
 
-# status codes per bristle
+# status codes per bristle (step_bristles' ``status``)
 OK = 0
-NEWTON_FAILED = 1
-NONFINITE = 2
+NEWTON_FAILED = 1  # Newton failed on the smallest sub-step; the bristle is restored
 
 # layout of the float64 settings vector ``prm``
 P_H = 0  # time step [s]
@@ -488,7 +487,6 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
     for k in range(n):
         i = b0 + k
         hB = bp[i, 4]
-        ln = bp[i, 5]
         _rotate_left(alpha * dq[k, 3], alpha * dq[k, 4], alpha * dq[k, 5], t_rot[k], rot[i])
         # old nodes and node increments: dp = dc + dtheta x (R r)
         for a in range(3):
@@ -938,7 +936,7 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
         level = 0
         tot = 0
         nsteps = 0
-        status[b] = 0
+        status[b] = OK
         _tcp_to_base(tcp_p[0], tcp_R[0], root_p[b], root_R[b], pAp, RAp)
         _tcp_to_base(tcp_p[3], tcp_R[3], root_p[b], root_R[b], pAq, RAq)
         while s < 1.0 - 1e-12:
@@ -971,7 +969,7 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
             else:
                 level += 1
                 if level > maxlev:
-                    status[b] = 1
+                    status[b] = NEWTON_FAILED
                     pos[b0:b0 + n] = bk3[0, :n]
                     vel[b0:b0 + n] = bk3[1, :n]
                     omg[b0:b0 + n] = bk3[2, :n]
@@ -987,4 +985,4 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
         iters[b] = tot
         nsub[b] = nsteps
         _tip_node_state(b, b0 + n - 1, bp, pos, rot, vel, omg, ctx[2])
-        hist_ok[b] = min(hist_ok[b] + 1, 2) if (nsteps == 1 and status[b] == 0) else 0
+        hist_ok[b] = min(hist_ok[b] + 1, 2) if (nsteps == 1 and status[b] == OK) else 0

@@ -16,11 +16,12 @@ Contact laws default to the paper's Tables 2 and 3 (see ``contact.py``).
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
+from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
 
 
@@ -82,14 +83,61 @@ class MeshPlate:
 
 
 @dataclass(frozen=True)
+class ContactParams:
+    """Contact parameters of the paper's Table 2 (tip sphere - surface: normal law eq 6 and
+    stick-slip friction eqs 7-10) and Table 3 (tip - tip: normal law, no friction).
+
+    Units: k [N/mm^m1], c [N s/mm^(m2) / mm^(m3)], exponents [-], v [mm/s], delta_max [mm].
+    Defaults are the tables' values.  In a scene file: the ``[contact]`` table, same keys."""
+
+    k: float = 100.0            # Table 2 k_con: normal stiffness [N/mm^m1]
+    m1: float = 1.3             # Table 2 m1: stiffness exponent [-]
+    c: float = 0.2              # Table 2 c_con: damping coefficient [N s/mm]
+    m2: float = 1.0             # Table 2 m2: damping (velocity) exponent [-]
+    m3: float = 2.0             # Table 2 m3: indentation exponent of the damping [-]
+    mu_s: float = 0.8           # Table 2 mu_s: static (stiction) friction coefficient [-]
+    mu_d: float = 0.76          # Table 2 mu_d: dynamic (sliding) friction coefficient [-]
+    v_s: float = 1.2            # Table 2 v_s: stiction transition speed [mm/s]
+    v_d: float = 1.5            # Table 2 v_d: sliding transition speed [mm/s]
+    delta_max: float = 0.1      # Table 2 Delta: largest stiction deformation [mm]
+    k_tt: float = 100.0         # Table 3 k_con: tip-tip normal stiffness [N/mm^m1]
+    m1_tt: float = 1.3          # Table 3 m1 [-]
+    c_tt: float = 0.2           # Table 3 c_con: tip-tip damping [N s/mm]
+    m2_tt: float = 1.0          # Table 3 m2 [-]
+    m3_tt: float = 2.0          # Table 3 m3 [-]
+
+    def __post_init__(self):
+        for f in fields(self):
+            check_real(f"contact.{f.name}", getattr(self, f.name), CONTACT_LIMITS[f.name])
+
+    def as_array(self) -> np.ndarray:
+        """The kernels' parameter vector (contact.C_* columns), in the order of the fields."""
+        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+
+
+_STIFF = Limit("N/mm^m1", gt=0, le=1e7)
+_EXP = Limit("dimensionless exponent", ge=0.5, le=4)
+_DAMP = Limit("N s/mm", ge=0, le=1e4)
+CONTACT_LIMITS = dict(
+    k=_STIFF, m1=Limit("dimensionless exponent", ge=1, le=4), c=_DAMP, m2=_EXP,
+    m3=Limit("dimensionless exponent", ge=0, le=4), mu_s=Limit("dimensionless", ge=0, le=5),
+    mu_d=Limit("dimensionless", ge=0, le=5), v_s=Limit("mm/s", gt=0, le=1e3),
+    v_d=Limit("mm/s", gt=0, le=1e3), delta_max=Limit("mm", gt=0, le=10), k_tt=_STIFF,
+    m1_tt=Limit("dimensionless exponent", ge=1, le=4), c_tt=_DAMP, m2_tt=_EXP,
+    m3_tt=Limit("dimensionless exponent", ge=0, le=4))
+
+
+@dataclass(frozen=True)
 class Scene:
-    """A brush and its environment.  ``surfaces`` empty means a free brush (no contact)."""
+    """A brush and its environment.  ``surfaces`` empty means a free brush (no contact);
+    ``contact`` the parameters of Tables 2-3."""
 
     brush: BrushConfig
     surfaces: tuple = field(default_factory=tuple)
     tip_tip: bool = True
     name: str = ""
     tip_travel_fraction: float = 0.6
+    contact: ContactParams = field(default_factory=ContactParams)
 
 
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
@@ -100,10 +148,13 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
     if not p.exists():
         raise ConfigError(f"scene {str(path_or_name)!r}: no such file {p}")
     data = tomllib.loads(p.read_text())
-    allowed = {"name", "brush", "tip_tip", "surface"}
-    for k in data:
-        if k not in allowed:
-            raise ConfigError(f"{p}: unknown key {k!r} (allowed: {', '.join(sorted(allowed))})")
+    check_keys(str(p), data, ("name", "brush", "tip_tip", "surface", "contact"))
+    table = data.get("contact", {})
+    check_keys(f"{p} [contact]", table, [f.name for f in fields(ContactParams)])
+    try:
+        contact = ContactParams(**table)
+    except ConfigError as e:
+        raise ConfigError(f"{p}: {e}") from None
     if brush is None:
         brush = load_brush(data.get("brush", "default"))
     elif not isinstance(brush, BrushConfig):
@@ -122,4 +173,5 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
         else:
             raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of "
                               "['plane', 'mesh_plate', 'cylinder']")
-    return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem))
+    return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem),
+                 contact=contact)

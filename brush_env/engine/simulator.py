@@ -20,7 +20,8 @@ from . import integrator as itg
 from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
 from . import contact as ct
 from .contact import N_TIP_ARGS, N_TIP_STATE
-from .config import BrushConfig, ConfigError
+from .checks import ConfigError, Limit, check_choice, check_int, check_real
+from .config import BrushConfig
 from .rotation import pose_ok
 from .scene import Scene
 
@@ -37,15 +38,6 @@ class SimulationDivergence(RuntimeError):
         self.reason = reason
         super().__init__(f"simulation diverged at t = {time:.6g} s in bristle(s) "
                          f"{self.bristles[:10]}: {reason}")
-
-
-def _check(name, value, lo, hi, unit, lo_open=True, hi_open=False):
-    ok_lo = value > lo if lo_open else value >= lo
-    ok_hi = value < hi if hi_open else value <= hi
-    if not (ok_lo and ok_hi and np.isfinite(value)):
-        lb = "(" if lo_open else "["
-        rb = ")" if hi_open else "]"
-        raise ConfigError(f"{name} = {value!r} is out of range: must be in {lb}{lo}, {hi}{rb} {unit}")
 
 
 @dataclass(frozen=True)
@@ -69,15 +61,13 @@ class SimSettings:
     jacobian_max_age: int = 25
 
     def __post_init__(self):
-        _check("settings.dt", self.dt, 0.0, 0.1, "s")
-        if self.integrator not in INTEGRATORS:
-            raise ConfigError(f"settings.integrator = {self.integrator!r}: must be one of "
-                              f"{sorted(INTEGRATORS)}")
-        _check("settings.newton_rtol", self.newton_rtol, 0.0, 1e-2, "(relative)")
-        _check("settings.newton_max_iter", self.newton_max_iter, 1, 1000, "", lo_open=False)
-        _check("settings.max_substep_levels", self.max_substep_levels, 0, 30, "", lo_open=False)
-        _check("settings.jacobian_max_age", self.jacobian_max_age, 0, 10000, "steps",
-               lo_open=False)
+        check_real("settings.dt", self.dt, Limit("s", gt=0, le=0.1))
+        check_choice("settings.integrator", self.integrator, sorted(INTEGRATORS), "integrator")
+        check_real("settings.newton_rtol", self.newton_rtol, Limit("relative", gt=0, le=1e-2))
+        check_int("settings.newton_max_iter", self.newton_max_iter, Limit("", ge=1, le=1000))
+        check_int("settings.max_substep_levels", self.max_substep_levels, Limit("", ge=0, le=30))
+        check_int("settings.jacobian_max_age", self.jacobian_max_age,
+                  Limit("steps", ge=0, le=10000))
         if len(self.gravity) != 3 or not np.all(np.isfinite(self.gravity)):
             raise ConfigError(f"settings.gravity = {self.gravity!r}: must be 3 finite numbers "
                               "(mm/s^2)")
@@ -231,7 +221,7 @@ class Simulator:
         nb = self.model.n_bristles
         self.tip_args = np.zeros((nb, N_TIP_ARGS))
         self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
-        self.contact_params = ct.paper_contact_params()
+        self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
         self.surfaces = _surface_rows(scene.surfaces)
         meshes = [srf for srf in scene.surfaces if hasattr(srf, "triangles")]
         if len(meshes) > 1:
