@@ -29,11 +29,11 @@ import json
 import subprocess
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import tomllib
 
 import brush_env  # noqa: F401  (registers the ids)
 from agents.reference import RandomPolicy, ReferencePolicy
@@ -69,15 +69,14 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
     if not path.exists() and path.with_suffix(".zip").exists():
         path = path.with_suffix(".zip")
     if not path.exists():
-        raise ConfigError(f"--policy {spec!r}: not 'reference', 'random' or an existing "
-                          "model file")
+        raise ConfigError(f"--policy {spec!r}: not 'reference', 'random' or an existing model file")
     from stable_baselines3 import PPO, SAC
 
     meta_path = path.parent / "meta.json"
     algo = json.loads(meta_path.read_text()).get("algo") if meta_path.exists() else None
     classes = {"ppo": PPO, "sac": SAC}
     model = None
-    for name in ([algo] if algo in classes else list(classes)):
+    for name in [algo] if algo in classes else list(classes):
         try:
             model = classes[name].load(path, device="cpu")
             break
@@ -96,14 +95,19 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
     return model, transform
 
 
-def run_episode(env, policy, seed: int, transform=None, video: bool = False,
-                deterministic: bool = True) -> tuple[dict, dict, list]:
+def run_episode(
+    env, policy, seed: int, transform=None, video: bool = False, deterministic: bool = True
+) -> tuple[dict, dict, list]:
     """One episode; returns (metrics, time series, frames)."""
     obs, info = env.reset(seed=seed)
     u = env.unwrapped
     cfg = u.config
-    series = {"time": [0.0], "total_normal_force": [0.0], "peak_normal_force": [0.0],
-              "coverage": [0.0]}
+    series = {
+        "time": [0.0],
+        "total_normal_force": [0.0],
+        "peak_normal_force": [0.0],
+        "coverage": [0.0],
+    }
     frames = [env.render()] if video else []
     terms = dict.fromkeys(REWARD_TERMS, 0.0)
     ret, steps, above, peak_f, peak_tip = 0.0, 0, 0.0, 0.0, 0.0
@@ -130,17 +134,32 @@ def run_episode(env, policy, seed: int, transform=None, video: bool = False,
         if terminated or truncated:
             termination = info["termination"]
             break
-    metrics = {"seed": seed, "return": ret, "coverage": info["coverage"], "steps": steps,
-               "termination": termination, "time_above_force_limit": above,
-               "peak_normal_force": peak_f, "peak_tip_force": peak_tip,
-               "hard_limit_hit": bool(peak_f > cfg.hard_force_limit)}
+    metrics = {
+        "seed": seed,
+        "return": ret,
+        "coverage": info["coverage"],
+        "steps": steps,
+        "termination": termination,
+        "time_above_force_limit": above,
+        "peak_normal_force": peak_f,
+        "peak_tip_force": peak_tip,
+        "hard_limit_hit": bool(peak_f > cfg.hard_force_limit),
+    }
     metrics.update({f"reward_{k}": v for k, v in terms.items()})
     return metrics, series, frames
 
 
 def _table(rows: list[dict]) -> str:
-    cols = ["seed", "return", "coverage", "steps", "termination", "time_above_force_limit",
-            "peak_normal_force", "peak_tip_force"] + [f"reward_{k}" for k in REWARD_TERMS]
+    cols = [
+        "seed",
+        "return",
+        "coverage",
+        "steps",
+        "termination",
+        "time_above_force_limit",
+        "peak_normal_force",
+        "peak_tip_force",
+    ] + [f"reward_{k}" for k in REWARD_TERMS]
     head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
 
     def fmt(v):
@@ -152,8 +171,13 @@ def _table(rows: list[dict]) -> str:
 def commit_id() -> str:
     """Short git commit of the checkout (``unknown`` outside a git checkout)."""
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, cwd=Path(__file__).parent, check=True).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            cwd=Path(__file__).parent,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
@@ -165,9 +189,15 @@ def _plots(out: Path, all_series: list[dict], cfg, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    for name, key, ylabel, scale in (("forces.png", "total_normal_force",
-                                      "total plate normal force [N]\n(push on the plate > 0)", 1),
-                                     ("coverage.png", "coverage", "patch cleaned [%]", 100)):
+    for name, key, ylabel, scale in (
+        (
+            "forces.png",
+            "total_normal_force",
+            "total plate normal force [N]\n(push on the plate > 0)",
+            1,
+        ),
+        ("coverage.png", "coverage", "patch cleaned [%]", 100),
+    ):
         fig, ax = plt.subplots(figsize=(8, 3.6))
         for i, s in enumerate(all_series):
             ax.plot(s["time"], np.asarray(s[key]) * scale, lw=1, label=f"episode {i}")
@@ -190,9 +220,18 @@ def _save_gif(path: Path, frames: list, fps: float) -> None:
     imgs[0].save(path, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)
 
 
-def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, video: bool = False,
-             config: str = "flat_plate", env_kwargs: dict | None = None,
-             deterministic: bool = True, quiet: bool = False) -> dict:
+def evaluate(
+    policy: str,
+    episodes: int,
+    out: str | Path,
+    *,
+    seed: int = 0,
+    video: bool = False,
+    config: str = "flat_plate",
+    env_kwargs: dict | None = None,
+    deterministic: bool = True,
+    quiet: bool = False,
+) -> dict:
     """Run ``episodes`` episodes of ``policy`` and write the outputs (module docstring)."""
     if episodes < 1:
         raise ConfigError(f"episodes = {episodes!r} is out of range: must be >= 1")
@@ -204,8 +243,7 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
         trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))
         config = trained.pop("config", config)
         env_kwargs = {**trained, **env_kwargs}
-    env = gym.make(ENV_ID, config=config, render_mode="rgb_array" if video else None,
-                   **env_kwargs)
+    env = gym.make(ENV_ID, config=config, render_mode="rgb_array" if video else None, **env_kwargs)
     pol, transform = load_policy(policy, env, seed=seed)
     out.mkdir(parents=True, exist_ok=True)  # only now: every input is valid
     rows, all_series = [], []
@@ -213,8 +251,7 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
     from tqdm import tqdm
 
     for i in tqdm(range(episodes), desc=f"evaluate {policy}", unit="episode", disable=quiet):
-        m, s, frames = run_episode(env, pol, seed + i, transform, video and i == 0,
-                                   deterministic)
+        m, s, frames = run_episode(env, pol, seed + i, transform, video and i == 0, deterministic)
         rows.append(m)
         all_series.append(s)
         if frames:
@@ -223,22 +260,41 @@ def evaluate(policy: str, episodes: int, out: str | Path, *, seed: int = 0, vide
     cfg = env.unwrapped.config
     env.close()
     keys = [k for k, v in rows[0].items() if isinstance(v, (int, float)) and k != "seed"]
-    agg = {k: {"mean": float(np.mean([r[k] for r in rows])),
-               "std": float(np.std([r[k] for r in rows]))} for k in keys}
-    summary = {"policy": policy, "episodes": episodes, "seed": seed, "config": config,
-               "env_kwargs": env_kwargs, "env_settings": _jsonable(cfg.__dict__),
-               "wall_time_s": wall, "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
-               "mean": {k: v["mean"] for k, v in agg.items()},
-               "std": {k: v["std"] for k, v in agg.items()}, "per_episode": rows}
+    agg = {
+        k: {
+            "mean": float(np.mean([r[k] for r in rows])),
+            "std": float(np.std([r[k] for r in rows])),
+        }
+        for k in keys
+    }
+    summary = {
+        "policy": policy,
+        "episodes": episodes,
+        "seed": seed,
+        "config": config,
+        "env_kwargs": env_kwargs,
+        "env_settings": _jsonable(cfg.__dict__),
+        "wall_time_s": wall,
+        "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
+        "mean": {k: v["mean"] for k, v in agg.items()},
+        "std": {k: v["std"] for k, v in agg.items()},
+        "per_episode": rows,
+    }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     table = _table(rows)
     (out / "table.md").write_text(table + "\n")
-    _plots(out, all_series, cfg, f"policy {policy}, seeds {seed}..{seed + episodes - 1}, "
-           f"commit {commit_id()}")
+    _plots(
+        out,
+        all_series,
+        cfg,
+        f"policy {policy}, seeds {seed}..{seed + episodes - 1}, commit {commit_id()}",
+    )
     if not quiet:
         print(table)
-        print(f"mean return {agg['return']['mean']:.3f} +- {agg['return']['std']:.3f}, "
-              f"coverage {100 * agg['coverage']['mean']:.2f} %, written to {out}")
+        print(
+            f"mean return {agg['return']['mean']:.3f} +- {agg['return']['std']:.3f}, "
+            f"coverage {100 * agg['coverage']['mean']:.2f} %, written to {out}"
+        )
     return summary
 
 
@@ -254,17 +310,28 @@ def build_parser() -> OneLineParser:
     p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
     p.add_argument("--video", action="store_true", help="write episode_000.gif")
     p.add_argument("--config", default="flat_plate", help="env config name or TOML path")
-    p.add_argument("--env-kw", action="append", metavar="KEY=VALUE",
-                   help="env setting override, repeatable (e.g. brush=\"tiny_env\")")
+    p.add_argument(
+        "--env-kw",
+        action="append",
+        metavar="KEY=VALUE",
+        help='env setting override, repeatable (e.g. brush="tiny_env")',
+    )
     p.add_argument("--stochastic", action="store_true", help="sample SB3 policy actions")
     return p
 
 
 def _main(argv) -> int:
     args = build_parser().parse_args(argv)
-    evaluate(args.policy, args.episodes, args.out, seed=args.seed, video=args.video,
-             config=args.config, env_kwargs=parse_env_kw(args.env_kw),
-             deterministic=not args.stochastic)
+    evaluate(
+        args.policy,
+        args.episodes,
+        args.out,
+        seed=args.seed,
+        video=args.video,
+        config=args.config,
+        env_kwargs=parse_env_kw(args.env_kw),
+        deterministic=not args.stochastic,
+    )
     return 0
 
 

@@ -38,8 +38,9 @@ def _env_facts(env):
     wrapper, which ``gym.make(..., max_episode_steps=N)`` sets), else the config's: the same
     number ``BrushEnv.horizon`` finds at reset."""
     if hasattr(env, "get_attr") and hasattr(env, "num_envs"):  # SB3 VecEnv
-        layout, config, dt, spec = (env.get_attr(k, [0])[0]
-                                    for k in ("layout", "config", "dt", "spec"))
+        layout, config, dt, spec = (
+            env.get_attr(k, [0])[0] for k in ("layout", "config", "dt", "spec")
+        )
     else:
         u = env.unwrapped
         layout, config, dt, spec = u.layout, u.config, u.dt, env.spec
@@ -61,13 +62,14 @@ class ReferencePolicy:
         CircleReference(layout, self.action_type, dt, horizon, **kwargs)  # validate now
 
     @classmethod
-    def for_env(cls, env, **kwargs) -> "ReferencePolicy":
+    def for_env(cls, env, **kwargs) -> ReferencePolicy:
         return cls(*_env_facts(env), **kwargs)
 
     def _controller(self, i: int) -> CircleReference:
         while len(self._controllers) <= i:
-            self._controllers.append(CircleReference(self.layout, self.action_type, self.dt,
-                                                     self.horizon, **self.kwargs))
+            self._controllers.append(
+                CircleReference(self.layout, self.action_type, self.dt, self.horizon, **self.kwargs)
+            )
         return self._controllers[i]
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
@@ -75,14 +77,16 @@ class ReferencePolicy:
         tr = self.layout.block(observation, "time_remaining")
         batched = tr.ndim == 2
         if not batched:
-            observation = (observation if not isinstance(observation, dict) else
-                           {k: np.asarray(v)[None] for k, v in observation.items()})
+            observation = (
+                observation
+                if not isinstance(observation, dict)
+                else {k: np.asarray(v)[None] for k, v in observation.items()}
+            )
             if not isinstance(observation, dict):
                 observation = np.asarray(observation)[None]
         k = self.layout.elapsed_steps(observation, self.horizon)
         p, R = self.layout.tcp_pose(observation)
-        actions = np.stack([self._controller(i).act(int(k[i]), p[i], R[i])
-                            for i in range(len(k))])
+        actions = np.stack([self._controller(i).act(int(k[i]), p[i], R[i]) for i in range(len(k))])
         return (actions if batched else actions[0]), state
 
     def controller(self, i: int = 0) -> CircleReference:

@@ -29,8 +29,9 @@ import inspect
 import json
 import sys
 import time
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 from brush_env.engine.checks import ConfigError, check_keys, did_you_mean
 from brush_env.user_errors import OneLineParser, run_main
@@ -51,19 +52,23 @@ def load_agent_config(path: str | Path) -> dict:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
-    for keys, allowed, where in ((data, AGENT_KEYS, "top level"),
-                                 (data.get("env", {}), ENV_KEYS, "[env]"),
-                                 (data.get("normalize", {}), NORMALIZE_KEYS, "[normalize]"),
-                                 (data.get("train", {}), TRAIN_KEYS, "[train]")):
+    for keys, allowed, where in (
+        (data, AGENT_KEYS, "top level"),
+        (data.get("env", {}), ENV_KEYS, "[env]"),
+        (data.get("normalize", {}), NORMALIZE_KEYS, "[normalize]"),
+        (data.get("train", {}), TRAIN_KEYS, "[train]"),
+    ):
         check_keys(f"{path} {where}", keys, sorted(allowed))
     if data.get("algo") not in ALGOS:
-        raise ConfigError(f"{path}: algo = {data.get('algo')!r} is not allowed: must be one of "
-                          f"{ALGOS}")
+        raise ConfigError(
+            f"{path}: algo = {data.get('algo')!r} is not allowed: must be one of {ALGOS}"
+        )
     for key in ("eval_freq", "eval_episodes", "checkpoint_freq"):
         v = data.get("train", {}).get(key, 1)
         if not isinstance(v, int) or v < 1:
-            raise ConfigError(f"{path}: [train] {key} = {v!r} is out of range: must be an "
-                              "integer >= 1")
+            raise ConfigError(
+                f"{path}: [train] {key} = {v!r} is out of range: must be an integer >= 1"
+            )
     return data
 
 
@@ -80,8 +85,9 @@ def _progress_callback(total: int, announce: bool):
 
         def _on_training_start(self) -> None:
             todo = self.locals.get("total_timesteps", total) - self.model.num_timesteps
-            self.bar = tqdm(total=todo, unit="step", desc="train", dynamic_ncols=True,
-                            disable=not announce)
+            self.bar = tqdm(
+                total=todo, unit="step", desc="train", dynamic_ncols=True, disable=not announce
+            )
             self.t0, self.todo, self.told = time.perf_counter(), todo, False
 
         def _on_step(self) -> bool:
@@ -91,8 +97,10 @@ def _progress_callback(total: int, announce: bool):
             if announce and not self.told and (wall > 20.0 or done >= 0.05 * self.todo):
                 rate = done / max(wall, 1e-9)
                 eta = (self.todo - done) / max(rate, 1e-9)
-                self.bar.write(f"measured {rate:.1f} env steps/s: about {eta / 60:.1f} min for "
-                               f"the remaining {self.todo - done} steps")
+                self.bar.write(
+                    f"measured {rate:.1f} env steps/s: about {eta / 60:.1f} min for "
+                    f"the remaining {self.todo - done} steps"
+                )
                 self.told = True
             return True
 
@@ -111,8 +119,7 @@ def _reference_gap_callback(reference_mean: float):
         def _on_step(self) -> bool:
             ev = self.parent
             self.logger.record("eval/reference_mean_reward", reference_mean)
-            self.logger.record("eval/gap_to_reference", float(ev.last_mean_reward) -
-                               reference_mean)
+            self.logger.record("eval/gap_to_reference", float(ev.last_mean_reward) - reference_mean)
             return True
 
     return ReferenceGap()
@@ -125,17 +132,31 @@ def check_hyperparameters(algo: str, hyper: dict, source: str) -> None:
 
     cls = {"ppo": PPO, "sac": SAC}[algo]
     params = inspect.signature(cls.__init__).parameters
-    allowed = [k for k in params if k not in ("self", "policy", "env", "seed", "device",
-                                              "tensorboard_log", "verbose", "_init_setup_model")]
+    allowed = [
+        k
+        for k in params
+        if k
+        not in (
+            "self",
+            "policy",
+            "env",
+            "seed",
+            "device",
+            "tensorboard_log",
+            "verbose",
+            "_init_setup_model",
+        )
+    ]
     for key in hyper:
         if key not in allowed:
-            raise ConfigError(f"{source}: [hyperparameters] {key!r} is not an argument of "
-                              f"{cls.__name__}{did_you_mean(key, allowed)} (allowed: "
-                              f"{', '.join(allowed)})")
+            raise ConfigError(
+                f"{source}: [hyperparameters] {key!r} is not an argument of "
+                f"{cls.__name__}{did_you_mean(key, allowed)} (allowed: "
+                f"{', '.join(allowed)})"
+            )
 
 
-def check_inputs(algo: str, config, timesteps: int, n_envs: int,
-                 env_kwargs: dict | None) -> dict:
+def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dict | None) -> dict:
     """Validate everything the run needs in this process (nothing written, no worker started);
     returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train."""
     from brush_env.envs.config import load_env_config
@@ -148,15 +169,23 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int,
     if cfg["algo"] != algo:
         raise ConfigError(f"--algo {algo!r} does not match algo = {cfg['algo']!r} in {config}")
     envc = cfg.get("env", {})
-    kwargs = {"config": envc.get("config", "flat_plate"), **envc.get("kwargs", {}),
-              **(env_kwargs or {})}
+    kwargs = {
+        "config": envc.get("config", "flat_plate"),
+        **envc.get("kwargs", {}),
+        **(env_kwargs or {}),
+    }
     env_settings = {k: v for k, v in kwargs.items() if k not in ("config", "render_mode")}
     load_env_config(kwargs["config"], **env_settings)  # names a bad env key or value here
     hyper = dict(cfg.get("hyperparameters", {}))
     check_hyperparameters(algo, hyper, str(config))
-    return {"cfg": cfg, "env_id": envc.get("id", "brush_env:brush_env/FlatPlate-v0"),
-            "kwargs": kwargs, "hyper": hyper, "norm": cfg.get("normalize", {}),
-            "train": cfg.get("train", {})}
+    return {
+        "cfg": cfg,
+        "env_id": envc.get("id", "brush_env:brush_env/FlatPlate-v0"),
+        "kwargs": kwargs,
+        "hyper": hyper,
+        "norm": cfg.get("normalize", {}),
+        "train": cfg.get("train", {}),
+    }
 
 
 def _make_envs(run: dict, n_envs: int, seed: int):
@@ -172,10 +201,21 @@ def _make_envs(run: dict, n_envs: int, seed: int):
     if norm.get("obs", False) or norm.get("reward", False):
         gamma = float(run["hyper"].get("gamma", 0.99))
         clip = float(norm.get("clip_obs", 10.0))
-        venv = VecNormalize(venv, norm_obs=bool(norm.get("obs")),
-                            norm_reward=bool(norm.get("reward")), clip_obs=clip, gamma=gamma)
-        eval_env = VecNormalize(eval_env, training=False, norm_obs=bool(norm.get("obs")),
-                                norm_reward=False, clip_obs=clip, gamma=gamma)
+        venv = VecNormalize(
+            venv,
+            norm_obs=bool(norm.get("obs")),
+            norm_reward=bool(norm.get("reward")),
+            clip_obs=clip,
+            gamma=gamma,
+        )
+        eval_env = VecNormalize(
+            eval_env,
+            training=False,
+            norm_obs=bool(norm.get("obs")),
+            norm_reward=False,
+            clip_obs=clip,
+            gamma=gamma,
+        )
     return venv, eval_env
 
 
@@ -187,11 +227,15 @@ def _evaluate_reference(run: dict, seed: int, n_eval: int, out: Path) -> float:
     from agents.reference import ReferencePolicy
 
     ref_env = make_vec_env(run["env_id"], n_envs=1, seed=seed + 10_000, env_kwargs=run["kwargs"])
-    ref_mean, ref_std = evaluate_policy(ReferencePolicy.for_env(ref_env), ref_env,
-                                        n_eval_episodes=n_eval, deterministic=True)
+    ref_mean, ref_std = evaluate_policy(
+        ReferencePolicy.for_env(ref_env), ref_env, n_eval_episodes=n_eval, deterministic=True
+    )
     ref_env.close()
-    (out / "reference.json").write_text(json.dumps(
-        {"mean_reward": float(ref_mean), "std_reward": float(ref_std), "episodes": n_eval}))
+    (out / "reference.json").write_text(
+        json.dumps(
+            {"mean_reward": float(ref_mean), "std_reward": float(ref_std), "episodes": n_eval}
+        )
+    )
     return float(ref_mean)
 
 
@@ -206,22 +250,31 @@ def _make_model(algo: str, run: dict, venv, seed: int, out: Path, verbose: int):
     if tb is None and verbose:
         _say("tensorboard is not installed: logging to stdout/CSV only")
     cls = {"ppo": PPO, "sac": SAC}[algo]
-    model = cls(policy, venv, seed=seed, verbose=verbose, tensorboard_log=tb, device="cpu",
-                **run["hyper"])
+    model = cls(
+        policy, venv, seed=seed, verbose=verbose, tensorboard_log=tb, device="cpu", **run["hyper"]
+    )
     formats = ["csv"] + (["stdout"] if verbose > 1 else []) + (["tensorboard"] if tb else [])
     model.set_logger(configure(str(out), formats))
     return model, policy
 
 
-def train(algo: str, config: str | Path, timesteps: int, n_envs: int, out: str | Path, *,
-          seed: int | None = None, env_kwargs: dict | None = None, progress: bool = True,
-          verbose: int = 0) -> Path:
+def train(
+    algo: str,
+    config: str | Path,
+    timesteps: int,
+    n_envs: int,
+    out: str | Path,
+    *,
+    seed: int | None = None,
+    env_kwargs: dict | None = None,
+    progress: bool = True,
+    verbose: int = 0,
+) -> Path:
     """Train and save; returns the path of ``model.zip`` (see the module docstring).
 
     Stages: check inputs -> envs -> reference evaluation -> model -> learn (evaluations and
     checkpoints) -> final evaluation/checkpoint if the run was too short for one -> save."""
-    from stable_baselines3.common.callbacks import (CallbackList, CheckpointCallback,
-                                                    EvalCallback)
+    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
     run = check_inputs(algo, config, timesteps, n_envs, env_kwargs)
@@ -233,24 +286,36 @@ def train(algo: str, config: str | Path, timesteps: int, n_envs: int, out: str |
     say = _say if progress else (lambda msg: None)
     say(f"[1/4] starting {n_envs} env(s) of {run['env_id']} (numba kernels load or compile)")
     venv, eval_env = _make_envs(run, n_envs, seed)
-    say(f"[2/4] evaluating the reference policy on {n_eval} episode(s) (its return is the "
-        "baseline logged beside every evaluation)")
+    say(
+        f"[2/4] evaluating the reference policy on {n_eval} episode(s) (its return is the "
+        "baseline logged beside every evaluation)"
+    )
     ref_mean = _evaluate_reference(run, seed, n_eval, out)
     say(f"      reference mean return {ref_mean:.2f}")
     model, policy = _make_model(algo, run, venv, seed, out, verbose)
     normalize = isinstance(venv, VecNormalize)
-    eval_cb = EvalCallback(eval_env, n_eval_episodes=n_eval,
-                           eval_freq=max(tr.get("eval_freq", 10_000) // n_envs, 1),
-                           best_model_save_path=str(out / "best"), log_path=str(out / "eval"),
-                           deterministic=True, verbose=0,
-                           callback_after_eval=_reference_gap_callback(ref_mean))
-    ckpt_cb = CheckpointCallback(save_freq=max(tr.get("checkpoint_freq", 50_000) // n_envs, 1),
-                                 save_path=str(out / "checkpoints"), name_prefix=algo,
-                                 save_vecnormalize=normalize)
+    eval_cb = EvalCallback(
+        eval_env,
+        n_eval_episodes=n_eval,
+        eval_freq=max(tr.get("eval_freq", 10_000) // n_envs, 1),
+        best_model_save_path=str(out / "best"),
+        log_path=str(out / "eval"),
+        deterministic=True,
+        verbose=0,
+        callback_after_eval=_reference_gap_callback(ref_mean),
+    )
+    ckpt_cb = CheckpointCallback(
+        save_freq=max(tr.get("checkpoint_freq", 50_000) // n_envs, 1),
+        save_path=str(out / "checkpoints"),
+        name_prefix=algo,
+        save_vecnormalize=normalize,
+    )
     say(f"[3/4] training {algo.upper()} for {timesteps} env steps")
     t0 = time.perf_counter()
-    model.learn(total_timesteps=timesteps, callback=CallbackList(
-        [eval_cb, ckpt_cb, _progress_callback(timesteps, progress)]))
+    model.learn(
+        total_timesteps=timesteps,
+        callback=CallbackList([eval_cb, ckpt_cb, _progress_callback(timesteps, progress)]),
+    )
     wall = time.perf_counter() - t0
     say("[4/4] final evaluation and checkpoint, saving")
     _finish_short_run(eval_cb, ckpt_cb)
@@ -260,11 +325,22 @@ def train(algo: str, config: str | Path, timesteps: int, n_envs: int, out: str |
         venv.save(str(out / "vecnormalize.pkl"))
     import stable_baselines3
 
-    meta = {"algo": algo, "env_id": run["env_id"], "env_kwargs": run["kwargs"],
-            "timesteps": timesteps, "n_envs": n_envs, "seed": seed, "config": str(config),
-            "normalize": run["norm"], "hyperparameters": run["hyper"], "policy": policy,
-            "wall_time_s": wall, "env_steps_per_s": timesteps / wall,
-            "reference_mean_reward": ref_mean, "stable_baselines3": stable_baselines3.__version__}
+    meta = {
+        "algo": algo,
+        "env_id": run["env_id"],
+        "env_kwargs": run["kwargs"],
+        "timesteps": timesteps,
+        "n_envs": n_envs,
+        "seed": seed,
+        "config": str(config),
+        "normalize": run["norm"],
+        "hyperparameters": run["hyper"],
+        "policy": policy,
+        "wall_time_s": wall,
+        "env_steps_per_s": timesteps / wall,
+        "reference_mean_reward": ref_mean,
+        "stable_baselines3": stable_baselines3.__version__,
+    }
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
     venv.close()
     eval_env.close()
@@ -287,15 +363,24 @@ def build_parser() -> OneLineParser:
     p.add_argument("--algo", required=True, choices=ALGOS, help="algorithm (must match the config)")
     p.add_argument("--config", required=True, help="agent TOML, e.g. configs/agents/ppo.toml")
     p.add_argument("--timesteps", type=int, required=True, help="total env steps to train")
-    p.add_argument("--n-envs", type=int, default=1,
-                   help="parallel envs (SubprocVecEnv when > 1; default 1)")
+    p.add_argument(
+        "--n-envs", type=int, default=1, help="parallel envs (SubprocVecEnv when > 1; default 1)"
+    )
     p.add_argument("--out", required=True, help="output directory (model, logs, checkpoints)")
     p.add_argument("--seed", type=int, default=None, help="default: [train] seed of the config")
-    p.add_argument("--env-kw", action="append", metavar="KEY=VALUE",
-                   help="env setting override, repeatable (TOML values)")
+    p.add_argument(
+        "--env-kw",
+        action="append",
+        metavar="KEY=VALUE",
+        help="env setting override, repeatable (TOML values)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no phase lines, bar or ETA")
-    p.add_argument("--verbose", type=int, default=1,
-                   help="0 quiet, 1 phases and progress (default), 2 also SB3's stdout logs")
+    p.add_argument(
+        "--verbose",
+        type=int,
+        default=1,
+        help="0 quiet, 1 phases and progress (default), 2 also SB3's stdout logs",
+    )
     return p
 
 
@@ -303,9 +388,17 @@ def _main(argv) -> int:
     from agents.evaluate import parse_env_kw
 
     args = build_parser().parse_args(argv)
-    path = train(args.algo, args.config, args.timesteps, args.n_envs, args.out, seed=args.seed,
-                 env_kwargs=parse_env_kw(args.env_kw), progress=not args.no_progress,
-                 verbose=args.verbose)
+    path = train(
+        args.algo,
+        args.config,
+        args.timesteps,
+        args.n_envs,
+        args.out,
+        seed=args.seed,
+        env_kwargs=parse_env_kw(args.env_kw),
+        progress=not args.no_progress,
+        verbose=args.verbose,
+    )
     print(f"saved {path}")
     return 0
 

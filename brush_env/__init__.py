@@ -26,12 +26,19 @@ def _register() -> None:
     env (brush_env/envs/horizon.py)."""
     from gymnasium.envs.registration import WrapperSpec, register, registry
 
-    horizon = WrapperSpec(name="HorizonFromTimeLimit",
-                          entry_point="brush_env.envs.horizon:HorizonFromTimeLimit", kwargs={})
+    horizon = WrapperSpec(
+        name="HorizonFromTimeLimit",
+        entry_point="brush_env.envs.horizon:HorizonFromTimeLimit",
+        kwargs={},
+    )
     for env_id, (entry_point, steps) in ENV_IDS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point=entry_point, max_episode_steps=steps,
-                     additional_wrappers=(horizon,))
+            register(
+                id=env_id,
+                entry_point=entry_point,
+                max_episode_steps=steps,
+                additional_wrappers=(horizon,),
+            )
 
 
 class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):

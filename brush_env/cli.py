@@ -19,10 +19,14 @@ from .user_errors import OneLineParser, run_main
 
 #: name -> (module, one-line help)
 SUBCOMMANDS = {
-    "reference": ("brush_env.experiments.cli",
-                  "run the paper's circular UR5 experiment (Sec. 4-5) and write Figure 7/9 data"),
-    "validate": ("brush_env.validation.cli",
-                 "check the beam and contact model against closed-form references"),
+    "reference": (
+        "brush_env.experiments.cli",
+        "run the paper's circular UR5 experiment (Sec. 4-5) and write Figure 7/9 data",
+    ),
+    "validate": (
+        "brush_env.validation.cli",
+        "check the beam and contact model against closed-form references",
+    ),
     "bench": ("brush_env.bench.cli", "speed-versus-error benchmarks (engine, contact, env)"),
     "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
 }
@@ -48,10 +52,14 @@ def build_parser(command: str | None = None) -> tuple[OneLineParser, dict]:
     Only ``command``'s module is imported (all of them when None), so a run starts in well
     under a second and ``brush-env --help`` imports none of the heavy ones.
     """
-    parser = OneLineParser(prog="brush-env", description=__doc__.splitlines()[0],
-                           epilog="--debug (anywhere) shows tracebacks of user errors")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
-                                parser_class=OneLineParser)
+    parser = OneLineParser(
+        prog="brush-env",
+        description=__doc__.splitlines()[0],
+        epilog="--debug (anywhere) shows tracebacks of user errors",
+    )
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser
+    )
     modules = {}
     for name, (modname, helptext) in SUBCOMMANDS.items():
         p = sub.add_parser(name, help=helptext, description=helptext)

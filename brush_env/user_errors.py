@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 __all__ = ["UserError", "USER_ERRORS", "OneLineParser", "run_main", "one_line"]
 
@@ -22,8 +22,14 @@ class UserError(Exception):
 
 
 #: Exceptions that mean "the input was wrong", reported without a traceback.
-USER_ERRORS = (UserError, ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError,
-               PermissionError)
+USER_ERRORS = (
+    UserError,
+    ValueError,
+    FileNotFoundError,
+    NotADirectoryError,
+    IsADirectoryError,
+    PermissionError,
+)
 
 
 def one_line(exc: BaseException) -> str:
@@ -41,8 +47,11 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def run_main(main: Callable[[Sequence[str] | None], int], argv: Sequence[str] | None = None,
-             prog: str | None = None) -> int:
+def run_main(
+    main: Callable[[Sequence[str] | None], int],
+    argv: Sequence[str] | None = None,
+    prog: str | None = None,
+) -> int:
     """Run ``main(argv)``; turn a user mistake into one stderr line and exit code 2.
 
     ``--debug`` is taken out of ``argv`` and makes errors show their traceback.

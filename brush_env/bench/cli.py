@@ -15,31 +15,50 @@ from . import contact, convergence, engine, env
 
 #: name -> (run function, one-line help)
 TARGETS = {
-    "engine": (engine.bench_engine, "free brush under a moving TCP: error vs a converged "
-               "reference and speed, over bodies x dt x integrator"),
-    "contact": (contact.bench_contact, "3 mm press + one turn of the circle on the plate: error "
-                "and speed over bodies x dt x integrator x tip-tip"),
-    "convergence": (convergence.bench_convergence, "self-convergence of the contact run in time "
-                    "step and in bodies per bristle"),
+    "engine": (
+        engine.bench_engine,
+        "free brush under a moving TCP: error vs a converged "
+        "reference and speed, over bodies x dt x integrator",
+    ),
+    "contact": (
+        contact.bench_contact,
+        "3 mm press + one turn of the circle on the plate: error "
+        "and speed over bodies x dt x integrator x tip-tip",
+    ),
+    "convergence": (
+        convergence.bench_convergence,
+        "self-convergence of the contact run in time step and in bodies per bristle",
+    ),
     "env": (env.bench_env_target, "Gymnasium env steps per second, single and vectorised"),
 }
 
 
 def _common(p: argparse.ArgumentParser, cold_start: bool = True) -> None:
-    p.add_argument("--json", action="store_true",
-                   help="one JSON object per row on stdout (machine info on stderr)")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="one JSON object per row on stdout (machine info on stderr)",
+    )
     p.add_argument("--quick", action="store_true", help="reduced grid (for tests)")
-    p.add_argument("--repeats", type=int, default=3,
-                   help="runs per row; the fastest wall time is reported (default 3)")
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=3,
+        help="runs per row; the fastest wall time is reported (default 3)",
+    )
     if cold_start:
-        p.add_argument("--no-cold-start", action="store_true",
-                       help="skip the cold-start measurement (fresh numba compile)")
+        p.add_argument(
+            "--no-cold-start",
+            action="store_true",
+            help="skip the cold-start measurement (fresh numba compile)",
+        )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """One sub-parser per target, each with its own options and help."""
-    sub = parser.add_subparsers(dest="target", required=True, metavar="TARGET",
-                                parser_class=type(parser))
+    sub = parser.add_subparsers(
+        dest="target", required=True, metavar="TARGET", parser_class=type(parser)
+    )
     for name, (_, helptext) in TARGETS.items():
         p = sub.add_parser(name, help=helptext, description=helptext)
         if name == "env":

@@ -1,7 +1,8 @@
 """``bench contact``: the ``flat_plate`` scene (default brush, 40 bristles, plate at z = 0) with the
 tips touching the plate at t = 0, pressed 3 mm along the bristle axis (0.5 s, minimum jerk), held
 0.25 s, then driven once round the paper's 20 mm circle at 20 mm/s (exact circle, 100 mm/s^2
-ramps; ``arc`` = "turn": 6.484 s, 7.234 s in all, a multiple of every dt).  Grid: bodies {3, 6} x dt {1, 2, 4} ms
+ramps; ``arc`` = "turn": 6.484 s, 7.234 s in all, a multiple of every dt).
+Grid: bodies {3, 6} x dt {1, 2, 4} ms
 x {euler, bdf2} x tip_tip {off, on}
 (``dataclasses.replace(scene, tip_tip=...)``; the scene file has it on).  Each tip_tip setting
 has its own reference (12 bodies, dt = 2.5e-4 s, BDF2, same tip_tip); the TCP force is
@@ -16,7 +17,8 @@ raises ``SimulationDivergence`` are kept with status "diverged at t=..." and NaN
 reference diverges, its rows are compared over the span it reached (``error_window_s``).
 Also per row: rtf, Newton iterations per step per bristle, extra sub-steps (sub-steps beyond one
 per bristle and step, summed over the run).  Wall times (both targets) are the fastest of
-``--repeats`` identical runs (default 3; the results are deterministic, only the timing varies).  Cold start as for ``engine``, on the plate scene.
+``--repeats`` identical runs (default 3; the results are deterministic, only the timing varies).
+Cold start as for ``engine``, on the plate scene.
 """
 
 from __future__ import annotations
@@ -30,8 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion import R0
-from .harness import (_COLD_CONTACT, _best_of, _print_cold_start, cold_start,
-                      machine_info, markdown_table)
+from .harness import (
+    _COLD_CONTACT,
+    _best_of,
+    _print_cold_start,
+    cold_start,
+    machine_info,
+    markdown_table,
+)
 
 
 @dataclass
@@ -54,15 +62,33 @@ class ContactRun:
 
 #: Contact grid.  ``press``/``hold``: the paper's 3 mm minimum-jerk press in 0.5 s and 0.25 s
 #: settling (experiments.plan.DEFAULTS); ``arc``: simulated seconds of the circle after the hold.
-CONTACT_GRID_FULL = dict(bodies=(3, 6), dts=(1e-3, 2e-3, 4e-3), integrators=("euler", "bdf2"),
-                         tip_tip=(False, True), press=0.5, hold=0.25, arc="turn",
-                         ref=(12, 2.5e-4), sample=5e-3)
-CONTACT_GRID_QUICK = dict(bodies=(3,), dts=(4e-3,), integrators=("bdf2",), tip_tip=(False, True),
-                          press=0.1, hold=0.0, arc=0.06, ref=(3, 2e-3), sample=1e-2)
+CONTACT_GRID_FULL = dict(
+    bodies=(3, 6),
+    dts=(1e-3, 2e-3, 4e-3),
+    integrators=("euler", "bdf2"),
+    tip_tip=(False, True),
+    press=0.5,
+    hold=0.25,
+    arc="turn",
+    ref=(12, 2.5e-4),
+    sample=5e-3,
+)
+CONTACT_GRID_QUICK = dict(
+    bodies=(3,),
+    dts=(4e-3,),
+    integrators=("bdf2",),
+    tip_tip=(False, True),
+    press=0.1,
+    hold=0.0,
+    arc=0.06,
+    ref=(3, 2e-3),
+    sample=1e-2,
+)
 
 
-def simulate_contact(bodies: int, dt: float, integrator: str, tip_tip: bool, press: float,
-                     hold: float, arc: float) -> ContactRun:
+def simulate_contact(
+    bodies: int, dt: float, integrator: str, tip_tip: bool, press: float, hold: float, arc: float
+) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
     touching the plate at t = 0, pressed 3 mm along the bristle axis (``press`` s, minimum jerk),
     held ``hold`` s, then driven ``arc`` s along the 20 mm circle at 20 mm/s (100 mm/s^2 ramp),
@@ -71,16 +97,24 @@ def simulate_contact(bodies: int, dt: float, integrator: str, tip_tip: bool, pre
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
-    from ..experiments.plan import DEFAULTS, _plate_height, _touch_height, build_trajectory
+    from ..experiments.plan import DEFAULTS, _plate_height, build_trajectory
 
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator))
-    touch_z = _touch_height(sim, R0, _plate_height(scene))
+    touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts, circ = build_trajectory(
-        start_xy=(0.0, 0.0), touch_z=touch_z, radius=DEFAULTS["radius"], speed=DEFAULTS["speed"],
-        accel=DEFAULTS["accel"], turns=1.0, press_depth=DEFAULTS["press_depth"],
-        press_time=press, hold_time=hold, path="circle")
+        start_xy=(0.0, 0.0),
+        touch_z=touch_z,
+        radius=DEFAULTS["radius"],
+        speed=DEFAULTS["speed"],
+        accel=DEFAULTS["accel"],
+        turns=1.0,
+        press_depth=DEFAULTS["press_depth"],
+        press_time=press,
+        hold_time=hold,
+        path="circle",
+    )
     t_circle = starts[-1]
     n = int(round((t_circle + arc) / dt))
     times = np.arange(n + 1) * dt
@@ -102,8 +136,18 @@ def simulate_contact(bodies: int, dt: float, integrator: str, tip_tip: bool, pre
     except SimulationDivergence as exc:
         status = f"diverged at t={exc.time:.4g} s"
     wall = time.perf_counter() - t0
-    return ContactRun(times[:k], F[:k], wall, newton, subs, k - 1, sim.model.n_bristles, status,
-                      t_circle, theta_end)
+    return ContactRun(
+        times[:k],
+        F[:k],
+        wall,
+        newton,
+        subs,
+        k - 1,
+        sim.model.n_bristles,
+        status,
+        t_circle,
+        theta_end,
+    )
 
 
 def _contact_errors(run: ContactRun, ref: ContactRun, grid: np.ndarray) -> tuple[float, float]:
@@ -126,13 +170,22 @@ def _contact_errors(run: ContactRun, ref: ContactRun, grid: np.ndarray) -> tuple
 def _contact_row(run: ContactRun, bodies, dt, integ, tip_tip, errs, reference=False) -> dict:
     steps = max(run.steps, 1)
     sim_t = float(run.t[-1])
-    return {"bodies": bodies, "dt": dt, "integrator": integ, "tip_tip": tip_tip,
-            "reference": reference, "rms_force_error": errs[0], "rms_force_error_circle": errs[1],
-            "status": run.status, "simulated_s": sim_t, "wall_s": run.wall,
-            "rtf": sim_t / run.wall if run.wall > 0 else math.nan,
-            "newton_per_step_per_bristle": run.newton / steps / run.n_bristles,
-            "substeps_extra": run.substeps - run.steps * run.n_bristles,
-            "steps": run.steps}
+    return {
+        "bodies": bodies,
+        "dt": dt,
+        "integrator": integ,
+        "tip_tip": tip_tip,
+        "reference": reference,
+        "rms_force_error": errs[0],
+        "rms_force_error_circle": errs[1],
+        "status": run.status,
+        "simulated_s": sim_t,
+        "wall_s": run.wall,
+        "rtf": sim_t / run.wall if run.wall > 0 else math.nan,
+        "newton_per_step_per_bristle": run.newton / steps / run.n_bristles,
+        "substeps_extra": run.substeps - run.steps * run.n_bristles,
+        "steps": run.steps,
+    }
 
 
 def _arc_seconds(g: dict) -> float:
@@ -143,9 +196,17 @@ def _arc_seconds(g: dict) -> float:
     from ..experiments.plan import DEFAULTS, build_trajectory
 
     traj, starts, _ = build_trajectory(
-        start_xy=(0.0, 0.0), touch_z=0.0, radius=DEFAULTS["radius"], speed=DEFAULTS["speed"],
-        accel=DEFAULTS["accel"], turns=1.0, press_depth=DEFAULTS["press_depth"],
-        press_time=g["press"], hold_time=g["hold"], path="circle")
+        start_xy=(0.0, 0.0),
+        touch_z=0.0,
+        radius=DEFAULTS["radius"],
+        speed=DEFAULTS["speed"],
+        accel=DEFAULTS["accel"],
+        turns=1.0,
+        press_depth=DEFAULTS["press_depth"],
+        press_time=g["press"],
+        hold_time=g["hold"],
+        path="circle",
+    )
     return math.ceil((traj.duration - starts[-1]) / 4e-3 - 1e-9) * 4e-3
 
 
@@ -158,22 +219,30 @@ def bench_contact(args) -> int:
     simulate_contact(3, 4e-3, "bdf2", False, 0.02, 0.0, 0.0)  # warm-up: numba compile / cache
     cold = {}
     if not args.quick and not args.no_cold_start:
-        cold = {"compile (empty numba cache)": cold_start(True, _COLD_CONTACT),
-                "cache load": cold_start(False, _COLD_CONTACT)}
+        cold = {
+            "compile (empty numba cache)": cold_start(True, _COLD_CONTACT),
+            "cache load": cold_start(False, _COLD_CONTACT),
+        }
     rb, rdt = g["ref"]
     motion = (g["press"], g["hold"], g["arc"])
     refs, rows = {}, []
     for tt in g["tip_tip"]:
-        print(f"reference: {rb} bodies, dt={rdt:g} s, bdf2, tip_tip={tt} ...", file=sys.stderr,
-              flush=True)
+        print(
+            f"reference: {rb} bodies, dt={rdt:g} s, bdf2, tip_tip={tt} ...",
+            file=sys.stderr,
+            flush=True,
+        )
         refs[tt] = simulate_contact(rb, rdt, "bdf2", tt, *motion)
     ref0 = refs[g["tip_tip"][0]]
     deg = math.degrees(ref0.theta_end)
-    print(f"motion: flat_plate scene (default brush, 40 bristles), tips touching the plate at t=0, "
-          f"3 mm press in {g['press']} s (minimum jerk), {g['hold']} s hold, then the first "
-          f"{g['arc']:g} s of the 20 mm circle at 20 mm/s (0.2 s ramp; theta reaches {deg:.1f} deg "
-          f"of the 360 deg turn), {ref0.t_circle + g['arc']:g} s in all; force error on a "
-          f"{g['sample']:g} s grid relative to the reference's RMS |F|", file=log)
+    print(
+        f"motion: flat_plate scene (default brush, 40 bristles), tips touching the plate at t=0, "
+        f"3 mm press in {g['press']} s (minimum jerk), {g['hold']} s hold, then the first "
+        f"{g['arc']:g} s of the 20 mm circle at 20 mm/s (0.2 s ramp; theta reaches {deg:.1f} deg "
+        f"of the 360 deg turn), {ref0.t_circle + g['arc']:g} s in all; force error on a "
+        f"{g['sample']:g} s grid relative to the reference's RMS |F|",
+        file=log,
+    )
     for tt, ref in refs.items():
         T_ref = float(ref.t[-1])
         row = _contact_row(ref, rb, rdt, "bdf2", tt, (0.0, 0.0), reference=True)
@@ -181,31 +250,51 @@ def bench_contact(args) -> int:
         if args.json:
             print(json.dumps(row), flush=True)
         grid = np.arange(0.0, T_ref + 1e-12, g["sample"])
-        rms = math.sqrt(np.mean(np.sum(np.stack(
-            [np.interp(grid, ref.t, ref.F[:, c]) for c in range(3)], axis=1) ** 2, axis=1)))
-        print(f"reference tip_tip={'on' if tt else 'off'} ({rb} bodies, dt={rdt:g} s, bdf2): "
-              f"{ref.status}, wall {ref.wall:.1f} s, RMS |F_ref| = {rms:.3g} N"
-              + ("" if ref.status == "ok" else
-                 f"; rows of this tip_tip setting are compared over [0, {T_ref:.4g}] s only"),
-              file=log, flush=True)
+        rms = math.sqrt(
+            np.mean(
+                np.sum(
+                    np.stack([np.interp(grid, ref.t, ref.F[:, c]) for c in range(3)], axis=1) ** 2,
+                    axis=1,
+                )
+            )
+        )
+        print(
+            f"reference tip_tip={'on' if tt else 'off'} ({rb} bodies, dt={rdt:g} s, bdf2): "
+            f"{ref.status}, wall {ref.wall:.1f} s, RMS |F_ref| = {rms:.3g} N"
+            + (
+                ""
+                if ref.status == "ok"
+                else f"; rows of this tip_tip setting are compared over [0, {T_ref:.4g}] s only"
+            ),
+            file=log,
+            flush=True,
+        )
         for bodies in g["bodies"]:
             # the same discretisation, time-converged: separates the solver's error (dt,
             # integrator, coupling) from the discretisation's (bodies); the paper's model is 6
             # bodies, so this is the error of a fast setting against the paper's model itself
-            print(f"  same-bodies reference: {bodies} bodies, dt={rdt:g}, bdf2, tip_tip={tt} ...",
-                  file=sys.stderr, flush=True)
+            print(
+                f"  same-bodies reference: {bodies} bodies, dt={rdt:g}, bdf2, tip_tip={tt} ...",
+                file=sys.stderr,
+                flush=True,
+            )
             same = ref if bodies == rb else simulate_contact(bodies, rdt, "bdf2", tt, *motion)
             for dt in g["dts"]:
                 for integ in g["integrators"]:
-                    print(f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...",
-                          file=sys.stderr, flush=True)
-                    run = _best_of(args, lambda: simulate_contact(bodies, dt, integ, tt,
-                                                                  *motion))
-                    row = _contact_row(run, bodies, dt, integ, tt,
-                                       _contact_errors(run, ref, grid))
+                    print(
+                        f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+                    run = _best_of(
+                        args,
+                        lambda b=bodies, d=dt, i=integ, t=tt: simulate_contact(b, d, i, t, *motion),
+                    )
+                    row = _contact_row(run, bodies, dt, integ, tt, _contact_errors(run, ref, grid))
                     ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
                     row["rms_force_error_same_bodies"] = (
-                        _contact_errors(run, same, grid)[0] if ok_same else math.nan)
+                        _contact_errors(run, same, grid)[0] if ok_same else math.nan
+                    )
                     if ref.status != "ok":
                         row["error_window_s"] = T_ref
                     rows.append(row)
@@ -221,20 +310,24 @@ def format_contact_table(rows: list[dict]) -> str:
     """Markdown table of the contact rows (references first, marked "ref")."""
 
     def err(key):
-        return lambda r: "—" if r["reference"] else (
-            "NaN" if not math.isfinite(r[key]) else f"{r[key]:.2e}")
+        return lambda r: (
+            "—" if r["reference"] else ("NaN" if not math.isfinite(r[key]) else f"{r[key]:.2e}")
+        )
 
-    return markdown_table(rows, [
-        ("bodies", lambda r: f"{r['bodies']}{' (ref)' if r['reference'] else ''}"),
-        ("dt [s]", lambda r: f"{r['dt']:g}"),
-        ("integrator", lambda r: r["integrator"]),
-        ("tip_tip", lambda r: "on" if r["tip_tip"] else "off"),
-        ("RMS F err", err("rms_force_error")),
-        ("RMS F err (circle)", err("rms_force_error_circle")),
-        ("RMS F err vs same bodies", err("rms_force_error_same_bodies")),
-        ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
-        ("RTF", lambda r: f"{r['rtf']:.3g}"),
-        ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
-        ("extra substeps", lambda r: f"{r['substeps_extra']}"),
-        ("status", lambda r: r["status"]),
-    ])
+    return markdown_table(
+        rows,
+        [
+            ("bodies", lambda r: f"{r['bodies']}{' (ref)' if r['reference'] else ''}"),
+            ("dt [s]", lambda r: f"{r['dt']:g}"),
+            ("integrator", lambda r: r["integrator"]),
+            ("tip_tip", lambda r: "on" if r["tip_tip"] else "off"),
+            ("RMS F err", err("rms_force_error")),
+            ("RMS F err (circle)", err("rms_force_error_circle")),
+            ("RMS F err vs same bodies", err("rms_force_error_same_bodies")),
+            ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
+            ("RTF", lambda r: f"{r['rtf']:.3g}"),
+            ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
+            ("extra substeps", lambda r: f"{r['substeps_extra']}"),
+            ("status", lambda r: r["status"]),
+        ],
+    )

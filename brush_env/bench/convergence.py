@@ -1,5 +1,6 @@
-"""``bench convergence``: the ``bench contact`` motion (BDF2, tip-tip on) at 6 bodies for dt = 1, 0.5,
-0.25, 0.125 ms, each against the finest, and at dt = 0.25 ms for 6, 12, 24 bodies, each against
+"""``bench convergence``: the ``bench contact`` motion (BDF2, tip-tip on) at 6 bodies for
+dt = 1, 0.5, 0.25, 0.125 ms, each against the finest, and at dt = 0.25 ms for 6, 12, 24 bodies,
+each against
 24: how far from converged the contact run is in time step and in bodies (self-convergence).
 """
 
@@ -10,10 +11,14 @@ import sys
 
 import numpy as np
 
-from .contact import (CONTACT_GRID_FULL, CONTACT_GRID_QUICK, _arc_seconds, _contact_errors,
-                      simulate_contact)
+from .contact import (
+    CONTACT_GRID_FULL,
+    CONTACT_GRID_QUICK,
+    _arc_seconds,
+    _contact_errors,
+    simulate_contact,
+)
 from .harness import machine_info, markdown_table
-
 
 #: ``bench convergence``: how far the contact run (``bench contact``'s motion, BDF2, tip-tip on) is
 #: from converged, in time step (6 bodies) and in bodies per bristle (dt = 2.5e-4 s).
@@ -35,8 +40,9 @@ def bench_convergence(args) -> int:
     info = machine_info()
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
     rows = []
-    series = [("dt", 6 if not args.quick else 3, dt) for dt in g["dts"]] + \
-        [("bodies", b, g["body_dt"]) for b in g["bodies"]]
+    series = [("dt", 6 if not args.quick else 3, dt) for dt in g["dts"]] + [
+        ("bodies", b, g["body_dt"]) for b in g["bodies"]
+    ]
     runs = {}
     for kind, bodies, dt in series:
         print(f"  {kind}: {bodies} bodies, dt={dt:g} ...", file=sys.stderr, flush=True)
@@ -49,19 +55,37 @@ def bench_convergence(args) -> int:
         for k in keys:
             run = runs[k]
             whole, circ = _contact_errors(run, ref, grid) if k != finest else (0.0, 0.0)
-            row = {"series": kind, "bodies": k[1], "dt": k[2], "integrator": "bdf2",
-                   "tip_tip": True, "against": f"{finest[1]} bodies, dt={finest[2]:g}",
-                   "rms_force_error": whole, "rms_force_error_circle": circ,
-                   "wall_s": run.wall, "rtf": run.t[-1] / run.wall, "status": run.status}
+            row = {
+                "series": kind,
+                "bodies": k[1],
+                "dt": k[2],
+                "integrator": "bdf2",
+                "tip_tip": True,
+                "against": f"{finest[1]} bodies, dt={finest[2]:g}",
+                "rms_force_error": whole,
+                "rms_force_error_circle": circ,
+                "wall_s": run.wall,
+                "rtf": run.t[-1] / run.wall,
+                "status": run.status,
+            }
             rows.append(row)
             if args.json:
                 print(json.dumps(row), flush=True)
     if not args.json:
-        print(markdown_table(rows, [
-            ("series", lambda r: r["series"]), ("bodies", lambda r: str(r["bodies"])),
-            ("dt [s]", lambda r: f"{r['dt']:g}"), ("against", lambda r: r["against"]),
-            ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
-            ("RMS F err (circle)", lambda r: f"{r['rms_force_error_circle']:.2e}"),
-            ("wall [s]", lambda r: f"{r['wall_s']:.1f}"), ("RTF", lambda r: f"{r['rtf']:.3g}"),
-            ("status", lambda r: r["status"])]))
+        print(
+            markdown_table(
+                rows,
+                [
+                    ("series", lambda r: r["series"]),
+                    ("bodies", lambda r: str(r["bodies"])),
+                    ("dt [s]", lambda r: f"{r['dt']:g}"),
+                    ("against", lambda r: r["against"]),
+                    ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
+                    ("RMS F err (circle)", lambda r: f"{r['rms_force_error_circle']:.2e}"),
+                    ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
+                    ("RTF", lambda r: f"{r['rtf']:.3g}"),
+                    ("status", lambda r: r["status"]),
+                ],
+            )
+        )
     return 0

@@ -1,5 +1,6 @@
-"""``bench engine``: the default brush (``load_brush()``, 40 bristles) on a TCP at R0 = diag(1,-1,-1),
-p = (0, 0, 10) mm (bristles hang toward -z), gravity on, no surfaces.  The TCP starts from the
+"""``bench engine``: the default brush (``load_brush()``, 40 bristles) on a TCP at
+R0 = diag(1,-1,-1), p = (0, 0, 10) mm (bristles hang toward -z), gravity on, no surfaces.  The TCP
+starts from the
 static equilibrium and follows a horizontal circle (radius 2 mm, 2 Hz) plus a vertical oscillation
 (1 mm, 5 Hz), both faded in by a C^2 quintic ramp over the first 50 ms, for 0.5 s.  Every
 (bodies, dt, integrator) of the grid is compared with a converged reference (24 bodies,
@@ -29,9 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion import R0
-from .harness import (REF_RTOL, _best_of, _print_cold_start, cold_start, machine_info,
-                      markdown_table)
-
+from .harness import REF_RTOL, _best_of, _print_cold_start, cold_start, machine_info, markdown_table
 
 P0 = np.array([0.0, 0.0, 10.0])  # [mm]
 
@@ -61,8 +60,9 @@ class Run:
     n_bristles: int
 
 
-def simulate(bodies: int, dt: float, integrator: str, duration: float,
-             newton_rtol: float | None = None) -> Run:
+def simulate(
+    bodies: int, dt: float, integrator: str, duration: float, newton_rtol: float | None = None
+) -> Run:
     """Drive the default brush (``bodies`` per bristle) along :func:`tcp_position`."""
     from ..engine import SimSettings, Simulator, load_brush
 
@@ -93,6 +93,7 @@ STEADY_FROM = 0.1
 
 def _rel_rms(run: Run, ref: Run, grid: np.ndarray, t0: float = 0.0) -> tuple[float, float]:
     """(force, moment) RMS error over grid >= t0, relative to the reference's dynamic part."""
+
     def on_grid(t, Y):
         return np.stack([np.interp(grid, t, Y[:, c]) for c in range(3)], axis=1)
 
@@ -113,8 +114,13 @@ def _rel_rms(run: Run, ref: Run, grid: np.ndarray, t0: float = 0.0) -> tuple[flo
 #: measured.
 
 
-GRID_FULL = dict(bodies=(3, 6, 12), dts=(1e-4, 5e-4, 1e-3, 2e-3, 3e-3, 4e-3, 5e-3), duration=0.5,
-                 ref=(24, 2e-5), sample=5e-3)
+GRID_FULL = dict(
+    bodies=(3, 6, 12),
+    dts=(1e-4, 5e-4, 1e-3, 2e-3, 3e-3, 4e-3, 5e-3),
+    duration=0.5,
+    ref=(24, 2e-5),
+    sample=5e-3,
+)
 GRID_QUICK = dict(bodies=(3,), dts=(2e-3, 5e-3), duration=0.1, ref=(6, 2e-4), sample=1e-2)
 
 
@@ -123,13 +129,15 @@ def bench_engine(args) -> int:
     info = machine_info()
     log = sys.stderr if args.json else sys.stdout
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
-    print(f"motion: default brush, R0 = diag(1,-1,-1), p0 = {P0.tolist()} mm, gravity on, "
-          f"circle r=2 mm @ 2 Hz + vertical 1 mm @ 5 Hz (50 ms ramp), {g['duration']} s", file=log)
+    print(
+        f"motion: default brush, R0 = diag(1,-1,-1), p0 = {P0.tolist()} mm, gravity on, "
+        f"circle r=2 mm @ 2 Hz + vertical 1 mm @ 5 Hz (50 ms ramp), {g['duration']} s",
+        file=log,
+    )
     simulate(3, 1e-3, "bdf2", 2e-3)  # warm-up: numba compile / cache load
     cold = {}
     if not args.quick and not args.no_cold_start:
-        cold = {"compile (empty numba cache)": cold_start(True),
-                "cache load": cold_start(False)}
+        cold = {"compile (empty numba cache)": cold_start(True), "cache load": cold_start(False)}
     rb, rdt = g["ref"]
     print(f"reference: {rb} bodies, dt={rdt:g} s, bdf2 ...", file=sys.stderr, flush=True)
     ref = simulate(rb, rdt, "bdf2", g["duration"], newton_rtol=REF_RTOL)
@@ -138,23 +146,34 @@ def bench_engine(args) -> int:
     for bodies in g["bodies"]:
         for dt in g["dts"]:
             for integ in ("euler", "bdf2"):
-                run = _best_of(args, lambda: simulate(bodies, dt, integ, g["duration"]))
+                run = _best_of(
+                    args, lambda b=bodies, d=dt, i=integ: simulate(b, d, i, g["duration"])
+                )
                 ef, em = _rel_rms(run, ref, grid)
                 sf, sm = _rel_rms(run, ref, grid, STEADY_FROM)
                 steps = len(run.t) - 1
-                row = {"bodies": bodies, "dt": dt, "integrator": integ, "rms_force_error": ef,
-                       "rms_moment_error": em, "rms_force_error_steady": sf,
-                       "rms_moment_error_steady": sm, "wall_s": run.wall,
-                       "rtf": g["duration"] / run.wall,
-                       "newton_per_step_per_bristle": run.newton / steps / run.n_bristles}
+                row = {
+                    "bodies": bodies,
+                    "dt": dt,
+                    "integrator": integ,
+                    "rms_force_error": ef,
+                    "rms_moment_error": em,
+                    "rms_force_error_steady": sf,
+                    "rms_moment_error_steady": sm,
+                    "wall_s": run.wall,
+                    "rtf": g["duration"] / run.wall,
+                    "newton_per_step_per_bristle": run.newton / steps / run.n_bristles,
+                }
                 rows.append(row)
                 if args.json:
                     print(json.dumps(row), flush=True)
     yr = np.stack([np.interp(grid, ref.t, ref.F[:, c]) for c in range(3)], axis=1)
-    summary = (f"reference ({rb} bodies, dt={rdt:g} s, bdf2, newton_rtol={REF_RTOL:g}): wall "
-               f"{ref.wall:.1f} s; static "
-               f"|F(0)| = {np.linalg.norm(ref.F[0]):.3e} N, dynamic RMS |F - F(0)| = "
-               f"{np.sqrt(np.mean(np.sum((yr - ref.F[0])**2, axis=1))):.3e} N")
+    summary = (
+        f"reference ({rb} bodies, dt={rdt:g} s, bdf2, newton_rtol={REF_RTOL:g}): wall "
+        f"{ref.wall:.1f} s; static "
+        f"|F(0)| = {np.linalg.norm(ref.F[0]):.3e} N, dynamic RMS |F - F(0)| = "
+        f"{np.sqrt(np.mean(np.sum((yr - ref.F[0]) ** 2, axis=1))):.3e} N"
+    )
     print(summary, file=log)
     _print_cold_start(cold, log)
     if not args.json:
@@ -164,15 +183,18 @@ def bench_engine(args) -> int:
 
 def format_table(rows: list[dict]) -> str:
     """Markdown table of the engine rows."""
-    return markdown_table(rows, [
-        ("bodies", lambda r: f"{r['bodies']}"),
-        ("dt [s]", lambda r: f"{r['dt']:g}"),
-        ("integrator", lambda r: r["integrator"]),
-        ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
-        ("RMS M err", lambda r: f"{r['rms_moment_error']:.2e}"),
-        (f"F err t≥{STEADY_FROM:g} s", lambda r: f"{r['rms_force_error_steady']:.2e}"),
-        (f"M err t≥{STEADY_FROM:g} s", lambda r: f"{r['rms_moment_error_steady']:.2e}"),
-        ("wall [s]", lambda r: f"{r['wall_s']:.2f}"),
-        ("RTF", lambda r: f"{r['rtf']:.3g}"),
-        ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
-    ])
+    return markdown_table(
+        rows,
+        [
+            ("bodies", lambda r: f"{r['bodies']}"),
+            ("dt [s]", lambda r: f"{r['dt']:g}"),
+            ("integrator", lambda r: r["integrator"]),
+            ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
+            ("RMS M err", lambda r: f"{r['rms_moment_error']:.2e}"),
+            (f"F err t≥{STEADY_FROM:g} s", lambda r: f"{r['rms_force_error_steady']:.2e}"),
+            (f"M err t≥{STEADY_FROM:g} s", lambda r: f"{r['rms_moment_error_steady']:.2e}"),
+            ("wall [s]", lambda r: f"{r['wall_s']:.2f}"),
+            ("RTF", lambda r: f"{r['rtf']:.3g}"),
+            ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
+        ],
+    )

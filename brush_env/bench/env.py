@@ -5,9 +5,6 @@ measurement itself lives in ``brush_env.envs.bench_env``, beside the env).
 from __future__ import annotations
 
 
-
-
-
 def bench_env_target(args) -> int:
     """Run the env benchmark (brush_env.envs.bench_env) with the parsed options."""
     from brush_env.envs import bench_env  # gymnasium only when the env is benchmarked

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 
-
 def machine_info() -> dict:
     """Platform, CPU model, cores (total and usable by this process), versions, git commit."""
     import numba
@@ -34,18 +33,26 @@ def machine_info() -> dict:
 
     def git(*a):
         try:
-            return subprocess.run(["git", *a], cwd=root, capture_output=True, text=True,
-                                  timeout=10).stdout.strip()
+            return subprocess.run(
+                ["git", *a], cwd=root, capture_output=True, text=True, timeout=10
+            ).stdout.strip()
         except (OSError, subprocess.SubprocessError):
             return ""
 
     commit = git("rev-parse", "--short", "HEAD") or "unknown"
     if git("status", "--porcelain", "--untracked-files=no", "brush_env"):
         commit += " (+ uncommitted changes in brush_env/)"
-    return {"platform": platform.platform(), "cpu": cpu, "cores": os.cpu_count(),
-            "cores_usable": usable, "python": platform.python_version(),
-            "numpy": np.__version__, "numba": numba.__version__, "commit": commit,
-            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+    return {
+        "platform": platform.platform(),
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "cores_usable": usable,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "commit": commit,
+        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+    }
 
 
 _COLD = """
@@ -83,8 +90,9 @@ def cold_start(fresh_cache: bool, script: str = _COLD) -> dict:
         if fresh_cache:
             env["NUMBA_CACHE_DIR"] = tmp
         t0 = time.perf_counter()
-        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
-                             text=True, check=True)
+        out = subprocess.run(
+            [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True
+        )
         total = time.perf_counter() - t0
     imp, first = (float(x) for x in out.stdout.split())
     return {"import_s": imp, "first_step_s": first, "process_s": total}
@@ -114,5 +122,8 @@ def markdown_table(rows: list[dict], columns) -> str:
 
 def _print_cold_start(cold: dict, log, what: str = "") -> None:
     for name, c in cold.items():
-        print(f"cold start{what}, {name}: import {c['import_s']:.2f} s, build + first step "
-              f"{c['first_step_s']:.2f} s, whole process {c['process_s']:.2f} s", file=log)
+        print(
+            f"cold start{what}, {name}: import {c['import_s']:.2f} s, build + first step "
+            f"{c['first_step_s']:.2f} s, whole process {c['process_s']:.2f} s",
+            file=log,
+        )

@@ -4,13 +4,36 @@ Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator`
 ``load_brush``/``load_scene``.  Robot motions (trajectories) live in ``brush_env.motion``.
 """
 
-from .config import (BristleConfig, BrushConfig, ConfigError, Material, Section, configs_dir,
-                     load_brush, load_materials)
+from .config import (
+    BristleConfig,
+    BrushConfig,
+    ConfigError,
+    Material,
+    Section,
+    configs_dir,
+    load_brush,
+    load_materials,
+)
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import SimSettings, SimulationDivergence, Simulator, State, StepResult
 
 __all__ = [
-    "BristleConfig", "BrushConfig", "ConfigError", "Material", "Section", "configs_dir",
-    "load_brush", "load_materials", "SimSettings", "SimulationDivergence", "Simulator", "State",
-    "StepResult", "Plane", "Cylinder", "MeshPlate", "Scene", "load_scene",
+    "BristleConfig",
+    "BrushConfig",
+    "ConfigError",
+    "Material",
+    "Section",
+    "configs_dir",
+    "load_brush",
+    "load_materials",
+    "SimSettings",
+    "SimulationDivergence",
+    "Simulator",
+    "State",
+    "StepResult",
+    "Plane",
+    "Cylinder",
+    "MeshPlate",
+    "Scene",
+    "load_scene",
 ]

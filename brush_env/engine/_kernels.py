@@ -24,7 +24,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-
 #: numba options of the hot kernels: no NRT reference counting.  These kernels never allocate
 #: (scratch memory comes from the caller), and with NRT on numba increfs/decrefs (atomically)
 #: every array view it hands to a helper -- measured with ``perf`` at ~30 % of a whole step.
@@ -32,11 +31,10 @@ from numba import njit
 HOT = dict(cache=True, _nrt=False)
 
 
-
 # --------------------------------------------------------------------------- small linear algebra
 @njit(**HOT, inline="always")
 def _log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
-    """Rotation vector of the rotation matrix given by its 9 entries, into ``out`` (no allocation)."""
+    """Rotation vector of the rotation matrix given by its 9 entries, into ``out`` (no alloc)."""
     c = 0.5 * (r00 + r11 + r22 - 1.0)
     if c > 1.0:
         c = 1.0
@@ -74,15 +72,18 @@ def _log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
 @njit(**HOT)
 def _local_rot_into(R, Rn, out):
     """out = log(R Rn^T): world-frame rotation vector taking Rn to R."""
-    _log3s(R[0, 0] * Rn[0, 0] + R[0, 1] * Rn[0, 1] + R[0, 2] * Rn[0, 2],
-           R[0, 0] * Rn[1, 0] + R[0, 1] * Rn[1, 1] + R[0, 2] * Rn[1, 2],
-           R[0, 0] * Rn[2, 0] + R[0, 1] * Rn[2, 1] + R[0, 2] * Rn[2, 2],
-           R[1, 0] * Rn[0, 0] + R[1, 1] * Rn[0, 1] + R[1, 2] * Rn[0, 2],
-           R[1, 0] * Rn[1, 0] + R[1, 1] * Rn[1, 1] + R[1, 2] * Rn[1, 2],
-           R[1, 0] * Rn[2, 0] + R[1, 1] * Rn[2, 1] + R[1, 2] * Rn[2, 2],
-           R[2, 0] * Rn[0, 0] + R[2, 1] * Rn[0, 1] + R[2, 2] * Rn[0, 2],
-           R[2, 0] * Rn[1, 0] + R[2, 1] * Rn[1, 1] + R[2, 2] * Rn[1, 2],
-           R[2, 0] * Rn[2, 0] + R[2, 1] * Rn[2, 1] + R[2, 2] * Rn[2, 2], out)
+    _log3s(
+        R[0, 0] * Rn[0, 0] + R[0, 1] * Rn[0, 1] + R[0, 2] * Rn[0, 2],
+        R[0, 0] * Rn[1, 0] + R[0, 1] * Rn[1, 1] + R[0, 2] * Rn[1, 2],
+        R[0, 0] * Rn[2, 0] + R[0, 1] * Rn[2, 1] + R[0, 2] * Rn[2, 2],
+        R[1, 0] * Rn[0, 0] + R[1, 1] * Rn[0, 1] + R[1, 2] * Rn[0, 2],
+        R[1, 0] * Rn[1, 0] + R[1, 1] * Rn[1, 1] + R[1, 2] * Rn[1, 2],
+        R[1, 0] * Rn[2, 0] + R[1, 1] * Rn[2, 1] + R[1, 2] * Rn[2, 2],
+        R[2, 0] * Rn[0, 0] + R[2, 1] * Rn[0, 1] + R[2, 2] * Rn[0, 2],
+        R[2, 0] * Rn[1, 0] + R[2, 1] * Rn[1, 1] + R[2, 2] * Rn[1, 2],
+        R[2, 0] * Rn[2, 0] + R[2, 1] * Rn[2, 1] + R[2, 2] * Rn[2, 2],
+        out,
+    )
 
 
 @njit(**HOT, inline="always")
@@ -201,8 +202,7 @@ def _node(c, R, half, out):
 
 
 @njit(**HOT)
-def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist, gs, hs,
-                 out12, e):
+def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist, gs, hs, out12, e):
     """Generalised forces of one Timoshenko element (eq 5) on the centres of its bodies A and B.
 
     Nodes: p_A = c_A + halfA R_A e_x (or ``pAbase`` for the root element, whose A is the head) and

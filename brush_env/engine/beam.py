@@ -8,8 +8,9 @@ Discretisation (documented choice, see docs/model.md):
   with the section's own second moments), its centre of mass sits at the segment's midpoint, and
   its distal end *is* node ``k``.  The tip sphere is centred on node ``n``.
 * Element ``k`` (the Timoshenko 6x6 stiffness of eq 1 with the shear factors of eq 2-3) joins node
-  ``k-1`` (frame of body ``k-1``, or of the root) to node ``k`` (frame of body ``k``).  Because every
-  element is an exact Timoshenko beam between two nodes, the linear static response of the chain
+  ``k-1`` (frame of body ``k-1``, or of the root) to node ``k`` (frame of body ``k``).  Because
+  every element is an exact Timoshenko beam between two nodes, the linear static response of the
+  chain
   to nodal loads is exact for any ``n``; ``n`` only controls geometric nonlinearity (large
   deflection) and the mass distribution (dynamics).
 * Element strain (co-rotational, in the proximal frame A): ``d = R_A^T (p_B - p_A) - l e_x`` and
@@ -60,7 +61,9 @@ def segment_inertia(density, A, I_y, I_z, l):
     Jz = m (I_z/A + l^2/12), which reduces to eq 11 for a circle.
     """
     m = density * A * l
-    return m, np.array([m * (I_y + I_z) / A, m * (I_y / A + l * l / 12.0), m * (I_z / A + l * l / 12.0)])
+    return m, np.array(
+        [m * (I_y + I_z) / A, m * (I_y / A + l * l / 12.0), m * (I_z / A + l * l / 12.0)]
+    )
 
 
 def first_bending_omega(E, I_min, density, A, L) -> float:

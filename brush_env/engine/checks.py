@@ -11,15 +11,27 @@ import difflib
 import math
 import numbers
 import operator
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 __all__ = [
-    "ConfigError", "Limit", "check_real", "check_int", "check_vec", "check_unit",
-    "check_rotation", "check_choice", "check_keys", "did_you_mean", "type_error",
-    "POSITIVE", "NONNEG", "FINITE",
+    "ConfigError",
+    "Limit",
+    "check_real",
+    "check_int",
+    "check_vec",
+    "check_unit",
+    "check_rotation",
+    "check_choice",
+    "check_keys",
+    "did_you_mean",
+    "type_error",
+    "POSITIVE",
+    "NONNEG",
+    "FINITE",
 ]
 
 
@@ -48,8 +60,12 @@ class Limit:
 
     def check(self, path: str, value: float) -> Any:
         """Return ``value`` if it lies in the range, else raise ConfigError naming ``path``."""
-        ops = ((operator.gt, self.gt), (operator.ge, self.ge), (operator.lt, self.lt),
-               (operator.le, self.le))
+        ops = (
+            (operator.gt, self.gt),
+            (operator.ge, self.ge),
+            (operator.lt, self.lt),
+            (operator.le, self.le),
+        )
         ok = math.isfinite(value) and all(b is None or cmp(value, b) for cmp, b in ops)
         if not ok:
             raise ConfigError(f"{path} = {value!r} is out of range: {self.describe()}")
@@ -115,8 +131,10 @@ def check_rotation(path: str, value: Any, tol: float = 1e-6) -> np.ndarray:
     err = float(np.max(np.abs(R.T @ R - np.eye(3))))
     det = float(np.linalg.det(R))
     if err > tol or det <= 0.0:
-        raise ConfigError(f"{path} must be a rotation matrix (R^T R = I within {tol:g}, "
-                          f"det = +1); got |R^T R - I|max = {err:.3g}, det = {det:.6g}")
+        raise ConfigError(
+            f"{path} must be a rotation matrix (R^T R = I within {tol:g}, "
+            f"det = +1); got |R^T R - I|max = {err:.3g}, det = {det:.6g}"
+        )
     return R
 
 
@@ -130,8 +148,10 @@ def check_choice(path: str, value: Any, choices: Iterable[str], what: str = "val
     """One of ``choices`` (strings), with a did-you-mean hint."""
     choices = list(choices)
     if not isinstance(value, str) or value not in choices:
-        raise ConfigError(f"{path} = {value!r} is not a known {what}{did_you_mean(value, choices)}"
-                          f" (known: {', '.join(choices)})")
+        raise ConfigError(
+            f"{path} = {value!r} is not a known {what}{did_you_mean(value, choices)}"
+            f" (known: {', '.join(choices)})"
+        )
     return value
 
 
@@ -140,5 +160,7 @@ def check_keys(path: str, keys: Iterable[str], allowed: Iterable[str]) -> None:
     allowed = list(allowed)
     for key in keys:
         if key not in allowed:
-            raise ConfigError(f"{path}: unknown key {key!r}{did_you_mean(key, allowed)} "
-                              f"(allowed: {', '.join(allowed)})")
+            raise ConfigError(
+                f"{path}: unknown key {key!r}{did_you_mean(key, allowed)} "
+                f"(allowed: {', '.join(allowed)})"
+            )

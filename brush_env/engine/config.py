@@ -17,14 +17,23 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from .checks import (ConfigError, Limit, check_int, check_real, check_unit, check_vec,
-                     did_you_mean, type_error)
+from .checks import (
+    ConfigError,
+    Limit,
+    check_int,
+    check_real,
+    check_unit,
+    check_vec,
+    did_you_mean,
+    type_error,
+)
 
 try:
     import tomllib
@@ -107,8 +116,13 @@ class Material:
 
     def __post_init__(self) -> None:
         p = f"Material({self.name!r})"
-        _set(self, **{k: check_real(f"{p}.{k}", getattr(self, k), LIMITS[k]) for k in
-                      ("E", "nu", "density", "damping_ratio")})
+        _set(
+            self,
+            **{
+                k: check_real(f"{p}.{k}", getattr(self, k), LIMITS[k])
+                for k in ("E", "nu", "density", "damping_ratio")
+            },
+        )
 
     @property
     def G(self) -> float:
@@ -246,13 +260,21 @@ def _tip_limit(length: float) -> Limit:
 
 def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll) (fixed-axis x-y-z) [rad]."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 @dataclass(frozen=True)
@@ -349,8 +371,9 @@ class BrushConfig:
             d = centres[j] - centres[i]
             dn = np.linalg.norm(d, axis=1, keepdims=True)
             line = np.where(dn > 1e-12, d / np.maximum(dn, 1e-12), [1.0, 0.0])
-            axes = np.concatenate([np.broadcast_to(normals[i], (len(j), 2, 2)), normals[j],
-                                   line[:, None, :]], axis=1)  # (m, 5, 2)
+            axes = np.concatenate(
+                [np.broadcast_to(normals[i], (len(j), 2, 2)), normals[j], line[:, None, :]], axis=1
+            )  # (m, 5, 2)
             pi = np.einsum("vd,mad->mav", poly[i], axes)
             pj = np.einsum("mvd,mad->mav", poly[j], axes)
             lo_i, hi_i = pi.min(-1) - radii[i], pi.max(-1) + radii[i]
@@ -461,8 +484,20 @@ def _material(name: str, data: Any) -> Material:
     )
 
 
-BRUSH_KEYS = ("name", "material", "materials_file", "bodies_per_bristle", "tip_radius_mm",
-              "head_offset_mm", "head_rpy_deg", "lean_deg", "sections", "grid", "row", "bristle")
+BRUSH_KEYS = (
+    "name",
+    "material",
+    "materials_file",
+    "bodies_per_bristle",
+    "tip_radius_mm",
+    "head_offset_mm",
+    "head_rpy_deg",
+    "lean_deg",
+    "sections",
+    "grid",
+    "row",
+    "bristle",
+)
 _EXTRAS = ("axis", "width_dir", "material", "bodies", "tip_radius_mm", "name")
 GROUP_KEYS = {
     "grid": ("section", "length_mm", "nx", "ny", "pitch_x_mm", "pitch_y_mm", "center_mm") + _EXTRAS,
@@ -520,13 +555,17 @@ def _brush_path(path_or_name: str | os.PathLike | None) -> Path:
         brushes = configs_dir() / "brushes"
         path = brushes / f"{s}.toml"
         if not path.is_file():
-            raise ConfigError(f"brush {s!r} is not a known brush{did_you_mean(s, _known_brushes())}"
-                              f" (known: {', '.join(_known_brushes())})")
+            raise ConfigError(
+                f"brush {s!r} is not a known brush{did_you_mean(s, _known_brushes())}"
+                f" (known: {', '.join(_known_brushes())})"
+            )
         return path
     path = Path(s)
     if not path.is_file():
-        raise ConfigError(f"brush file {s!r} does not exist (give a TOML path or a name from "
-                          f"{configs_dir() / 'brushes'}{did_you_mean(path.stem, _known_brushes())})")
+        raise ConfigError(
+            f"brush file {s!r} does not exist (give a TOML path or a name from "
+            f"{configs_dir() / 'brushes'}{did_you_mean(path.stem, _known_brushes())})"
+        )
     return path
 
 
@@ -560,22 +599,36 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
             bristles += _group(kind, idx, g, sections, materials, defaults)
     if not bristles:
         raise ConfigError("brush: no bristles: add at least one [[grid]], [[row]] or [[bristle]]")
-    return BrushConfig(name, head_offset, tuple(math.radians(a) for a in head_rpy),
-                       tuple(bristles), source, math.radians(lean))
+    return BrushConfig(
+        name,
+        head_offset,
+        tuple(math.radians(a) for a in head_rpy),
+        tuple(bristles),
+        source,
+        math.radians(lean),
+    )
 
 
 def _section(path: str, data: Any) -> Section:
     kind = _Table(data, path, ("kind", "width_mm", "thickness_mm", "diameter_mm")).str(
-        "kind", choices=SECTION_KINDS, what="section kind")
+        "kind", choices=SECTION_KINDS, what="section kind"
+    )
     t = _Table(data, path, SECTION_KEYS[kind])
     if kind == "circle":
         return Section.circle(t.num("diameter_mm", LIMITS["section"]))
-    return Section.rect(t.num("width_mm", LIMITS["section"]), t.num("thickness_mm",
-                                                                     LIMITS["section"]))
+    return Section.rect(
+        t.num("width_mm", LIMITS["section"]), t.num("thickness_mm", LIMITS["section"])
+    )
 
 
-def _group(kind: str, idx: int, g: _Table, sections: dict[str, Section],
-           materials: dict[str, Material], defaults: dict) -> list[BristleConfig]:
+def _group(
+    kind: str,
+    idx: int,
+    g: _Table,
+    sections: dict[str, Section],
+    materials: dict[str, Material],
+    defaults: dict,
+) -> list[BristleConfig]:
     """The bristles of one [[grid]], [[row]] or [[bristle]] entry."""
     section = sections[g.str("section", choices=sections, what="section")]
     length = g.num("length_mm", LIMITS["length"])
@@ -584,18 +637,25 @@ def _group(kind: str, idx: int, g: _Table, sections: dict[str, Section],
     if "tip_radius_mm" in g.data:
         tip = g.num("tip_radius_mm", _tip_limit(length))
     else:
-        tip = check_real(f"brush.tip_radius_mm (used by {g.path})", defaults["tip_radius"],
-                    _tip_limit(length))
-    axis, width_dir = _frame(g.path, g.vec("axis", 3, LIMITS["direction"], (0.0, 0.0, 1.0)),
-                             g.vec("width_dir", 3, LIMITS["direction"], (1.0, 0.0, 0.0)))
+        tip = check_real(
+            f"brush.tip_radius_mm (used by {g.path})", defaults["tip_radius"], _tip_limit(length)
+        )
+    axis, width_dir = _frame(
+        g.path,
+        g.vec("axis", 3, LIMITS["direction"], (0.0, 0.0, 1.0)),
+        g.vec("width_dir", 3, LIMITS["direction"], (1.0, 0.0, 0.0)),
+    )
     pos = LIMITS["position"]
     if kind == "grid":
         nx, ny = g.int("nx", LIMITS["count"]), g.int("ny", LIMITS["count"])
         px = g.num("pitch_x_mm", LIMITS["pitch"], None if nx == 1 else _REQUIRED) or 0.0
         py = g.num("pitch_y_mm", LIMITS["pitch"], None if ny == 1 else _REQUIRED) or 0.0
         cx, cy = g.vec("center_mm", 2, pos)
-        roots = [(cx + (ix - (nx - 1) / 2) * px, cy + (iy - (ny - 1) / 2) * py, 0.0)
-                 for iy in range(ny) for ix in range(nx)]
+        roots = [
+            (cx + (ix - (nx - 1) / 2) * px, cy + (iy - (ny - 1) / 2) * py, 0.0)
+            for iy in range(ny)
+            for ix in range(nx)
+        ]
     elif kind == "row":
         n = g.int("n", LIMITS["count"])
         sx, sy = g.vec("start_mm", 2, pos)
@@ -607,15 +667,19 @@ def _group(kind: str, idx: int, g: _Table, sections: dict[str, Section],
         for c, v in zip("xyz", r):
             pos.check(f"{g.path} bristle {k} root {c}", v)
     group = g.str("name", f"{kind}[{idx}]")
-    return [BristleConfig(r, axis, width_dir, length, section, materials[material], bodies, tip,
-                          group) for r in roots]
+    return [
+        BristleConfig(r, axis, width_dir, length, section, materials[material], bodies, tip, group)
+        for r in roots
+    ]
 
 
 def _apply_overrides(data: dict, overrides: Mapping[str, Any], prefix: str = "") -> None:
     """Merge ``overrides`` (nested tables and/or dotted keys with [i] indices) into ``data``."""
     for dotted, value in overrides.items():
-        parts: list[Any] = [int(p[1:-1]) if p.startswith("[") else p
-                            for p in re.findall(r"\[\d+\]|[^.\[\]]+", str(dotted))]
+        parts: list[Any] = [
+            int(p[1:-1]) if p.startswith("[") else p
+            for p in re.findall(r"\[\d+\]|[^.\[\]]+", str(dotted))
+        ]
         where = f"overrides[{prefix + str(dotted)!r}]"
         if not parts:
             raise ConfigError(f"{where}: empty key")

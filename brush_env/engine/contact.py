@@ -1,4 +1,5 @@
-"""Tip contact: penalty normal law (eq 6), stick-slip friction (eq 7-10, Table 1), tip-tip (Table 3).
+"""Tip contact: penalty normal law (eq 6), stick-slip friction (eq 7, 8, 9, 10, Table 1), tip-tip
+(Table 3).
 
 All kernels act on one bristle's tip sphere (centre ``pt`` at the tip node, radius R).
 
@@ -10,8 +11,9 @@ Friction (eq 7-10, our reading of Table 1, documented in docs/model.md):
     F_t = -(1 - beta) mu_s Fn g(|Delta| / Delta_max) Delta_hat  -  mu_d Fn s(|v| / v_d) v_hat
 with beta = step(|v|, 0, 0, v_s, 1) (0 at rest, 1 for |v| >= v_s; C1 variant of the printed
 step(|v|, -v_s, -1, v_s, 1), see the kernel), g(x) = step(x, -1, -1, 1, 1)
-(0 at x = 0, 1 at x = 1: the printed step of F_s between -Delta_max and +Delta_max) and s(x) the same
-step (the printed step of F_d between -v_t and +v_t).  v is the tangential slip velocity of the tip
+(0 at x = 0, 1 at x = 1: the printed step of F_s between -Delta_max and +Delta_max) and s(x) the
+same step (the printed step of F_d between -v_t and +v_t).  v is the tangential slip velocity of
+the tip
 and Delta the stiction deformation: a per-contact state created at contact onset, advanced with the
 tangential tip displacement of each step, bounded by Delta_max, kept across steps and dropped on
 separation.  So a tip at rest holds up to mu_s Fn (reached at |Delta| = Delta_max), and a sliding
@@ -107,7 +109,8 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
 
 @njit(**HOT)
 def _closest_on_triangle(p, a, b, c):
-    """Closest point (x, y, z) to p on triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+    """Closest point (x, y, z) to p on triangle abc (Ericson, Real-Time Collision Detection
+    5.1.5)."""
     ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
     ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
@@ -169,8 +172,9 @@ def _mesh_gap(pt, search, mesh, nrm, cpt):
                 c = (ix * ny + iy) * nz + iz
                 for k in range(cell_start[c], cell_start[c + 1]):
                     t = cell_tris[k]
-                    q0, q1, q2 = _closest_on_triangle(pt, verts[tris[t, 0]], verts[tris[t, 1]],
-                                                      verts[tris[t, 2]])
+                    q0, q1, q2 = _closest_on_triangle(
+                        pt, verts[tris[t, 0]], verts[tris[t, 1]], verts[tris[t, 2]]
+                    )
                     d0 = pt[0] - q0
                     d1 = pt[1] - q1
                     d2 = pt[2] - q2
@@ -178,8 +182,10 @@ def _mesh_gap(pt, search, mesh, nrm, cpt):
                     if dist < bestd:
                         bestd = dist
                         side = d0 * tnrm[t, 0] + d1 * tnrm[t, 1] + d2 * tnrm[t, 2]
-                        if dist > 1e-12 * (1.0 + abs(pt[0]) + abs(pt[1]) + abs(pt[2])) and \
-                                abs(side) < (1.0 - 1e-12) * dist:
+                        if (
+                            dist > 1e-12 * (1.0 + abs(pt[0]) + abs(pt[1]) + abs(pt[2]))
+                            and abs(side) < (1.0 - 1e-12) * dist
+                        ):
                             # closest point on an edge or vertex: normal along p - q
                             sg = 1.0 if side >= 0.0 else -1.0
                             nrm[0] = sg * d0 / dist
@@ -231,8 +237,9 @@ def _surface_gap(surf, pt, nrm, cpt, mesh):
 
 
 @njit(**HOT)
-def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F,
-             Kt, tw):
+def tip_load(
+    b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F, Kt, tw
+):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
 
     Sums the dead external force, the tip-surface contact (eq 6-10) of the deepest surface and the
@@ -287,7 +294,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 F[a] += Fn * nrm[a]
                 for bb in range(3):
                     Kt[a, bb] -= kk * nrm[a] * nrm[bb]
-            # ---- friction (eq 7-10)
+            # ---- friction: eq 7 (F_mu = stiction + sliding), eq 8, eq 9, the steps of eq 10
             mus = cp[C_MUS]
             if mus > 0.0 or cp[C_MUD] > 0.0:
                 # slip velocity and stiction deformation in the tangent plane
@@ -323,8 +330,8 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 state[S_BNEW] = step10(vmag, 0.0, 0.0, v_s, 1.0)
                 gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
                 gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
-                fst = (1.0 - beta) * mus * Fn * gst  # stiction force magnitude
-                fsl = cp[C_MUD] * Fn * gsl  # sliding force magnitude
+                fst = (1.0 - beta) * mus * Fn * gst  # eq 8: stiction force magnitude
+                fsl = cp[C_MUD] * Fn * gsl  # eq 9: sliding force magnitude
                 ft = tw[1, 6:9]
                 for a in range(3):
                     ft[a] = 0.0
@@ -334,7 +341,7 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 if vmag > 0.0:
                     for a in range(3):
                         ft[a] -= fsl * vs[a] / vmag
-                for a in range(3):
+                for a in range(3):  # eq 7: F_mu = F_stiction + F_sliding
                     F[a] += ft[a]
                     state[S_FT + a] = ft[a]
                 state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
@@ -345,8 +352,13 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                 if dmag > 0.0:
                     dfd = 0.0
                     if dmag < dmax:
-                        dfd = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0,
-                                                                  1.0) / dmax
+                        dfd = (
+                            (1.0 - beta)
+                            * mus
+                            * Fn
+                            * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
+                            / dmax
+                        )
                     ftr = fst / dmag
                     for a in range(3):
                         ua = dn[a] / dmag
@@ -373,8 +385,9 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
                         dfv = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
                         for a in range(3):
                             for bb in range(3):
-                                Kt[a, bb] -= rate * dfv * ((1.0 if a == bb else 0.0)
-                                                           - nrm[a] * nrm[bb])
+                                Kt[a, bb] -= (
+                                    rate * dfv * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+                                )
                 # friction is proportional to Fn: dF_t = (F_t / Fn) dFn, dFn = -kk n^T dpt
                 for a in range(3):
                     for bb in range(3):
@@ -396,10 +409,12 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
             u2 = d2 / dist
             rv = 0.0
             if not static:
-                rv = (u0 * (vt[0] - tips[j, 3]) + u1 * (vt[1] - tips[j, 4])
-                      + u2 * (vt[2] - tips[j, 5]))
-            Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T],
-                                    cp[C_M3T])
+                rv = (
+                    u0 * (vt[0] - tips[j, 3])
+                    + u1 * (vt[1] - tips[j, 4])
+                    + u2 * (vt[2] - tips[j, 5])
+                )
+            Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
             if Fn <= 0.0:
                 continue
             state[S_FTT] += Fn
@@ -413,8 +428,9 @@ def tip_load(b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pa
             geo = Fn / dist
             for a in range(3):
                 for bb in range(3):
-                    Kt[a, bb] += -kk * u[a] * u[bb] + geo * ((1.0 if a == bb else 0.0)
-                                                             - u[a] * u[bb])
+                    Kt[a, bb] += -kk * u[a] * u[bb] + geo * (
+                        (1.0 if a == bb else 0.0) - u[a] * u[bb]
+                    )
 
 
 @njit(**HOT)
@@ -475,7 +491,8 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     the step larger than the closest approach of v to zero (at small sub-steps v changes by
     c0 |dp| / h, ~10^3 mm/s per 0.01 mm).  Stopping there (or where the path reaches
     |v| = v_d / 2, whichever comes first) lands in the smooth part of eq 10, where the exact
-    tangent converges.  Uses the contact normal of the last evaluation; 1 when not in contact or static.
+    tangent converges.  Uses the contact normal of the last evaluation; 1 when not in contact or
+    static.
     """
     if state[S_FN] <= 0.0 or inv_h == 0.0:
         return 1.0
@@ -521,8 +538,14 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
 
 def empty_mesh():
     """The mesh arrays of a scene without a triangle mesh (numba needs fixed types)."""
-    return (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(7),
-            np.zeros(1, np.int64), np.zeros(0, np.int64))
+    return (
+        np.zeros((0, 3)),
+        np.zeros((0, 3), np.int64),
+        np.zeros((0, 3)),
+        np.zeros(7),
+        np.zeros(1, np.int64),
+        np.zeros(0, np.int64),
+    )
 
 
 def build_mesh(vertices, triangles, cell: float | None = None):

@@ -22,10 +22,30 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import (HOT, _element_gen, _local_rot_into, _lu6, _node, _rotate_left,
-                       block_factor_head, block_solve, reorthonormalize)
-from .contact import (C_VD, S_BETA, S_BNEW, S_DELTA, S_DNEW, S_HIST, S_PN, in_contact,
-                      penetration_step_limit, slip_step_limit, tip_load)
+from ._kernels import (
+    HOT,
+    _element_gen,
+    _local_rot_into,
+    _lu6,
+    _node,
+    _rotate_left,
+    block_factor_head,
+    block_solve,
+    reorthonormalize,
+)
+from .contact import (
+    C_VD,
+    S_BETA,
+    S_BNEW,
+    S_DELTA,
+    S_DNEW,
+    S_HIST,
+    S_PN,
+    in_contact,
+    penetration_step_limit,
+    slip_step_limit,
+    tip_load,
+)
 
 # status codes per bristle (step_bristles' ``status``)
 OK = 0
@@ -58,18 +78,30 @@ N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see th
 
 def make_workspace(nmax: int, n_tip_state: int):
     """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
-    return (np.zeros((8, nmax, 3, 3)), np.zeros((6, nmax, 6)), np.zeros((nmax, 6, 6)),
-            np.zeros((N_SW, 12)), np.zeros(32), np.zeros((7, nmax, 3)), np.zeros((3, nmax, 3, 3)),
-            np.zeros(n_tip_state))
+    return (
+        np.zeros((8, nmax, 3, 3)),
+        np.zeros((6, nmax, 6)),
+        np.zeros((nmax, 6, 6)),
+        np.zeros((N_SW, 12)),
+        np.zeros(32),
+        np.zeros((7, nmax, 3)),
+        np.zeros((3, nmax, 3, 3)),
+        np.zeros(n_tip_state),
+    )
 
 
 def make_jacobian_store(n_bodies: int, n_bristles: int):
     """Per-bristle factored Newton matrices kept across steps (see ``_newton``): D, G, L, pivots,
     key, age, and the tip body's Schur complement without the tip load (nb, 6, 6)."""
-    return (np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)), np.zeros((n_bodies, 6, 6)),
-            np.zeros((n_bodies, 6), np.int64), np.zeros(n_bristles), np.zeros(n_bristles,
-                                                                               np.int64),
-            np.zeros((n_bristles, 6, 6)))
+    return (
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6), np.int64),
+        np.zeros(n_bristles),
+        np.zeros(n_bristles, np.int64),
+        np.zeros((n_bristles, 6, 6)),
+    )
 
 
 @njit(**HOT, inline="always")
@@ -104,8 +136,37 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
 
 
 @njit(**HOT)
-def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn, ehist, gs,
-              hs, pAb, RAb, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw):
+def _residual(
+    b,
+    b0,
+    n,
+    bp,
+    K,
+    pos,
+    rot,
+    gvec,
+    static,
+    c0,
+    inv_h,
+    cm,
+    vm,
+    Lm,
+    thp,
+    Rn,
+    ehist,
+    gs,
+    hs,
+    pAb,
+    RAb,
+    tip_args,
+    tip_state,
+    ctx,
+    res,
+    rootw,
+    tipF,
+    tipK,
+    sw,
+):
     """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm).
 
     Returns the scaled max norm: forces / bristle force scale and moments / (scale * l).  Also
@@ -141,13 +202,43 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
     for k in range(n):
         i = b0 + k
         if k == 0:
-            _element_gen(True, pAb, RAb, 0.0, pAb, pos[i], rot[i], bp[i, 4], K[i], bp[i, 5],
-                         ehist[k], gs[k], hs[k], out12, e)
+            _element_gen(
+                True,
+                pAb,
+                RAb,
+                0.0,
+                pAb,
+                pos[i],
+                rot[i],
+                bp[i, 4],
+                K[i],
+                bp[i, 5],
+                ehist[k],
+                gs[k],
+                hs[k],
+                out12,
+                e,
+            )
             for a in range(6):
                 rootw[a] = out12[a]
         else:
-            _element_gen(False, pos[i - 1], rot[i - 1], bp[i - 1, 4], pAb, pos[i], rot[i],
-                         bp[i, 4], K[i], bp[i, 5], ehist[k], gs[k], hs[k], out12, e)
+            _element_gen(
+                False,
+                pos[i - 1],
+                rot[i - 1],
+                bp[i - 1, 4],
+                pAb,
+                pos[i],
+                rot[i],
+                bp[i, 4],
+                K[i],
+                bp[i, 5],
+                ehist[k],
+                gs[k],
+                hs[k],
+                out12,
+                e,
+            )
             for a in range(6):
                 res[k - 1, a] -= out12[a]
         for a in range(6):
@@ -155,8 +246,24 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
     il = b0 + n - 1
     _node(pos[il], rot[il], bp[il, 4], pt)
     surf, cp, tips, pair_ptr, pair_idx, mesh = ctx
-    tip_load(b, pt, c0, inv_h, static, tip_args, tip_state, surf, cp, tips, pair_ptr, pair_idx,
-             mesh, tipF, tipK, sw[2:4])
+    tip_load(
+        b,
+        pt,
+        c0,
+        inv_h,
+        static,
+        tip_args,
+        tip_state,
+        surf,
+        cp,
+        tips,
+        pair_ptr,
+        pair_idx,
+        mesh,
+        tipF,
+        tipK,
+        sw[2:4],
+    )
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
     rz = pt[2] - pos[il, 2]
@@ -184,8 +291,9 @@ def _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, th
 
 
 @njit(**HOT)
-def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, tipF, tipK,
-              D, U, L, sw):
+def _jacobian(
+    b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, tipF, tipK, D, U, L, sw
+):
     """Newton matrix d(res)/d(q), q_k = (dc_k, dtheta_k) in world axes (block tridiagonal).
 
     Inertia blocks m c0^2/h^2 and R J R^T c0^2/h^2 (terms of order omega*h dropped); element
@@ -193,14 +301,14 @@ def _jacobian(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb
     tip stiffness ``tipK`` and the lever arm.  The Jacobian only steers Newton: the converged
     state is fixed by the residual alone.
     """
-    _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L,
-                    sw)
+    _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L, sw)
     _add_tip_block(D[n - 1], bp, rot, b0 + n - 1, tipF, tipK, sw)
 
 
 @njit(**HOT)
-def _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L,
-                    sw):
+def _jacobian_chain(
+    b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L, sw
+):
     """The inertia and element blocks of ``_jacobian`` (everything but the tip load)."""
     e = sw[0, 0:6]
     cP = sw[6, 6:9]
@@ -221,9 +329,11 @@ def _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pA
             for a in range(3):
                 D[k, a, a] = bp[i, 0] * s2
                 for b in range(3):
-                    D[k, 3 + a, 3 + b] = s2 * (R[a, 0] * bp[i, 1] * R[b, 0]
-                                               + R[a, 1] * bp[i, 2] * R[b, 1]
-                                               + R[a, 2] * bp[i, 3] * R[b, 2])
+                    D[k, 3 + a, 3 + b] = s2 * (
+                        R[a, 0] * bp[i, 1] * R[b, 0]
+                        + R[a, 1] * bp[i, 2] * R[b, 1]
+                        + R[a, 2] * bp[i, 3] * R[b, 2]
+                    )
     for k in range(n):
         i = b0 + k
         hB = bp[i, 4]
@@ -235,8 +345,9 @@ def _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pA
         hA = bp[j, 4]
         RAk = RAb if isroot else rot[j]
         cAk = pAb if isroot else pos[j]
-        _element_gen(isroot, cAk, RAk, hA, pAb, pos[i], rot[i], hB, K[i], ln, ehist[k], gs[k],
-                     hs[k], base, e)
+        _element_gen(
+            isroot, cAk, RAk, hA, pAb, pos[i], rot[i], hB, K[i], ln, ehist[k], gs[k], hs[k], base, e
+        )
         nside = 1 if isroot else 2
         for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
             src = i if side == 0 else j
@@ -250,15 +361,50 @@ def _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pA
                         for b in range(3):
                             RP[a, b] = rot[src, a, b]
                 else:
-                    _rotate_left(epsr if col == 3 else 0.0, epsr if col == 4 else 0.0,
-                                 epsr if col == 5 else 0.0, rot[src], RP)
+                    _rotate_left(
+                        epsr if col == 3 else 0.0,
+                        epsr if col == 4 else 0.0,
+                        epsr if col == 5 else 0.0,
+                        rot[src],
+                        RP,
+                    )
                     eps = epsr
                 if side == 0:
-                    _element_gen(isroot, cAk, RAk, hA, pAb, cP, RP, hB, K[i], ln, ehist[k],
-                                 gs[k], hs[k], pert, e)
+                    _element_gen(
+                        isroot,
+                        cAk,
+                        RAk,
+                        hA,
+                        pAb,
+                        cP,
+                        RP,
+                        hB,
+                        K[i],
+                        ln,
+                        ehist[k],
+                        gs[k],
+                        hs[k],
+                        pert,
+                        e,
+                    )
                 else:
-                    _element_gen(False, cP, RP, hA, pAb, pos[i], rot[i], hB, K[i], ln,
-                                 ehist[k], gs[k], hs[k], pert, e)
+                    _element_gen(
+                        False,
+                        cP,
+                        RP,
+                        hA,
+                        pAb,
+                        pos[i],
+                        rot[i],
+                        hB,
+                        K[i],
+                        ln,
+                        ehist[k],
+                        gs[k],
+                        hs[k],
+                        pert,
+                        e,
+                    )
                 for a in range(6):
                     dA = (pert[a] - base[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - base[6 + a]) / eps  # d(force on B)
@@ -314,8 +460,33 @@ def _tip_refactor(n, D, piv, S, bp, rot, il, tipF, tipK, sw):
 
 
 @njit(**HOT)
-def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, pAs, RAs, pAp,
-             RAp, cm, vm, Lm, thp, Rn, ehist, sw):
+def _prepare(
+    b0,
+    n,
+    bp,
+    K,
+    pos,
+    rot,
+    vel,
+    omg,
+    ppos,
+    prot,
+    pvel,
+    pomg,
+    c1,
+    c2,
+    pAs,
+    RAs,
+    pAp,
+    RAp,
+    cm,
+    vm,
+    Lm,
+    thp,
+    Rn,
+    ehist,
+    sw,
+):
     """Constants of one (sub)step: cm = c1 c_n + c2 c_{n-1}, vm, Lm (angular momenta),
     thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains)."""
     e = sw[0, 0:6]
@@ -359,11 +530,41 @@ def _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1, c2, p
             if k == 0:
                 pa = pAs if which == 0 else pAp
                 Ra = RAs if which == 0 else RAp
-                _element_gen(True, pa, Ra, 0.0, pa, P[i], Q[i], bp[i, 4], K[i], bp[i, 5], zero6,
-                             1.0, 0.0, out12, e)
+                _element_gen(
+                    True,
+                    pa,
+                    Ra,
+                    0.0,
+                    pa,
+                    P[i],
+                    Q[i],
+                    bp[i, 4],
+                    K[i],
+                    bp[i, 5],
+                    zero6,
+                    1.0,
+                    0.0,
+                    out12,
+                    e,
+                )
             else:
-                _element_gen(False, P[i - 1], Q[i - 1], bp[i - 1, 4], pAs, P[i], Q[i], bp[i, 4],
-                             K[i], bp[i, 5], zero6, 1.0, 0.0, out12, e)
+                _element_gen(
+                    False,
+                    P[i - 1],
+                    Q[i - 1],
+                    bp[i - 1, 4],
+                    pAs,
+                    P[i],
+                    Q[i],
+                    bp[i, 4],
+                    K[i],
+                    bp[i, 5],
+                    zero6,
+                    1.0,
+                    0.0,
+                    out12,
+                    e,
+                )
             for a in range(6):
                 ehist[k, a] += coef * e[a]
 
@@ -389,8 +590,28 @@ def _load_chain(b0, n, pos, rot, t_pos, t_rot):
 
 
 @njit(**HOT)
-def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, order, pAs, RAs, pAp,
-                 RAp, pAq, RAq, pAe, RAe, sw):
+def _extrapolate(
+    b0,
+    n,
+    pos,
+    rot,
+    s_pos,
+    s_rot,
+    ppos,
+    prot,
+    pppos,
+    pprot,
+    order,
+    pAs,
+    RAs,
+    pAp,
+    RAp,
+    pAq,
+    RAq,
+    pAe,
+    RAe,
+    sw,
+):
     """pos/rot <- the state at t_n moved on by polynomial extrapolation in the base frame.
 
     With x = RA^T (c - pA) and Q = RA^T R at t_n, t_{n-1}, t_{n-2} (base poses (pAs, RAs),
@@ -409,29 +630,48 @@ def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, order,
     for k in range(n):
         i = b0 + k
         for a in range(3):
-            xn = RAs[0, a] * (s_pos[k, 0] - pAs[0]) + RAs[1, a] * (s_pos[k, 1] - pAs[1]) \
+            xn = (
+                RAs[0, a] * (s_pos[k, 0] - pAs[0])
+                + RAs[1, a] * (s_pos[k, 1] - pAs[1])
                 + RAs[2, a] * (s_pos[k, 2] - pAs[2])
-            xm = RAp[0, a] * (ppos[i, 0] - pAp[0]) + RAp[1, a] * (ppos[i, 1] - pAp[1]) \
+            )
+            xm = (
+                RAp[0, a] * (ppos[i, 0] - pAp[0])
+                + RAp[1, a] * (ppos[i, 1] - pAp[1])
                 + RAp[2, a] * (ppos[i, 2] - pAp[2])
+            )
             if order >= 3:
-                xq = RAq[0, a] * (pppos[i, 0] - pAq[0]) + RAq[1, a] * (pppos[i, 1] - pAq[1]) \
+                xq = (
+                    RAq[0, a] * (pppos[i, 0] - pAq[0])
+                    + RAq[1, a] * (pppos[i, 1] - pAq[1])
                     + RAq[2, a] * (pppos[i, 2] - pAq[2])
+                )
                 xp[a] = 3.0 * xn - 3.0 * xm + xq
             else:
                 xp[a] = 2.0 * xn - xm
             for bb in range(3):
-                Qn[a, bb] = RAs[0, a] * s_rot[k, 0, bb] + RAs[1, a] * s_rot[k, 1, bb] \
+                Qn[a, bb] = (
+                    RAs[0, a] * s_rot[k, 0, bb]
+                    + RAs[1, a] * s_rot[k, 1, bb]
                     + RAs[2, a] * s_rot[k, 2, bb]
-                Qp[a, bb] = RAp[0, a] * prot[i, 0, bb] + RAp[1, a] * prot[i, 1, bb] \
+                )
+                Qp[a, bb] = (
+                    RAp[0, a] * prot[i, 0, bb]
+                    + RAp[1, a] * prot[i, 1, bb]
                     + RAp[2, a] * prot[i, 2, bb]
+                )
                 if order >= 3:
-                    Qq[a, bb] = RAq[0, a] * pprot[i, 0, bb] + RAq[1, a] * pprot[i, 1, bb] \
+                    Qq[a, bb] = (
+                        RAq[0, a] * pprot[i, 0, bb]
+                        + RAq[1, a] * pprot[i, 1, bb]
                         + RAq[2, a] * pprot[i, 2, bb]
+                    )
         if order >= 3:
             _local_rot_into(Qp, Qn, phi1)  # log(Q_{n-1} Q_n^T)
             _local_rot_into(Qq, Qn, phi2)  # log(Q_{n-2} Q_n^T)
-            _rotate_left(phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1],
-                         phi2[2] - 3.0 * phi1[2], Qn, Qr)
+            _rotate_left(
+                phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1], phi2[2] - 3.0 * phi1[2], Qn, Qr
+            )
         else:
             for a in range(3):  # Qq = Qn Qp^T, the last step's rotation
                 for bb in range(3):
@@ -442,15 +682,17 @@ def _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, order,
         for a in range(3):
             pos[i, a] = pAe[a] + RAe[a, 0] * xp[0] + RAe[a, 1] * xp[1] + RAe[a, 2] * xp[2]
             for bb in range(3):
-                rot[i, a, bb] = RAe[a, 0] * Qr[0, bb] + RAe[a, 1] * Qr[1, bb] \
-                    + RAe[a, 2] * Qr[2, bb]
+                rot[i, a, bb] = (
+                    RAe[a, 0] * Qr[0, bb] + RAe[a, 1] * Qr[1, bb] + RAe[a, 2] * Qr[2, bb]
+                )
         reorthonormalize(rot[i])
 
 
 @njit(**HOT)
 def _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw):
     """pos/rot <- the start configuration (s_pos, s_rot) carried rigidly by the base's motion over
-    the step, T = base_end o base_start^-1: a driven, nearly quasi-static chain starts Newton close."""
+    the step, T = base_end o base_start^-1: a driven, nearly quasi-static chain starts Newton
+    close."""
     Tr = sw[8:11, 0:3]
     for a in range(3):
         for bb in range(3):
@@ -458,11 +700,18 @@ def _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw):
     for k in range(n):
         i = b0 + k
         for a in range(3):
-            pos[i, a] = pAe[a] + Tr[a, 0] * (s_pos[k, 0] - pAs[0]) \
-                + Tr[a, 1] * (s_pos[k, 1] - pAs[1]) + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
+            pos[i, a] = (
+                pAe[a]
+                + Tr[a, 0] * (s_pos[k, 0] - pAs[0])
+                + Tr[a, 1] * (s_pos[k, 1] - pAs[1])
+                + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
+            )
             for bb in range(3):
-                rot[i, a, bb] = Tr[a, 0] * s_rot[k, 0, bb] + Tr[a, 1] * s_rot[k, 1, bb] \
+                rot[i, a, bb] = (
+                    Tr[a, 0] * s_rot[k, 0, bb]
+                    + Tr[a, 1] * s_rot[k, 1, bb]
                     + Tr[a, 2] * s_rot[k, 2, bb]
+                )
 
 
 @njit(**HOT)
@@ -529,8 +778,11 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
         v1 = dpB[1] - dpA[1] + x2 * t0 - x0 * t2
         v2 = dpB[2] - dpA[2] + x0 * t1 - x1 * t0
         for a in range(3):
-            dd[a] = (RAo[0, a] * (x0 + alpha * v0) + RAo[1, a] * (x1 + alpha * v1)
-                     + RAo[2, a] * (x2 + alpha * v2))  # = l e_x + d_old + alpha dd (A frame)
+            dd[a] = (
+                RAo[0, a] * (x0 + alpha * v0)
+                + RAo[1, a] * (x1 + alpha * v1)
+                + RAo[2, a] * (x2 + alpha * v2)
+            )  # = l e_x + d_old + alpha dd (A frame)
         for a in range(3):
             pBn = pAn[a] + RAn[a, 0] * dd[0] + RAn[a, 1] * dd[1] + RAn[a, 2] * dd[2]
             pos[i, a] = pBn - hB * rot[i, a, 0]
@@ -538,9 +790,43 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
 
 
 @njit(**HOT)
-def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, pprot, prm, c0,
-            c1, c2, h, pAs, RAs, pAe, RAe, pAp, RAp, pAq, RAq, tip_args, tip_state, ctx, rootw, jac,
-            ws, extrap):
+def _newton(
+    b,
+    b0,
+    n,
+    bp,
+    K,
+    pos,
+    rot,
+    vel,
+    omg,
+    ppos,
+    prot,
+    pvel,
+    pomg,
+    pppos,
+    pprot,
+    prm,
+    c0,
+    c1,
+    c2,
+    h,
+    pAs,
+    RAs,
+    pAe,
+    RAe,
+    pAp,
+    RAp,
+    pAq,
+    RAq,
+    tip_args,
+    tip_state,
+    ctx,
+    rootw,
+    jac,
+    ws,
+    extrap,
+):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
@@ -556,13 +842,13 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
     """
     static = prm[P_STATIC] != 0.0
     inv_h = 1.0 / h
-    gvec = prm[P_G:P_G + 3]
+    gvec = prm[P_G : P_G + 3]
     jD, jG, jL, jpiv, jkey, jage, jS = jac
     S = jS[b]
-    D = jD[b0:b0 + n]
-    G = jG[b0:b0 + n]
-    L = jL[b0:b0 + n]
-    piv = jpiv[b0:b0 + n]
+    D = jD[b0 : b0 + n]
+    G = jG[b0 : b0 + n]
+    L = jL[b0 : b0 + n]
+    piv = jpiv[b0 : b0 + n]
     w3, w6, wU, sw, small, bk3, bkR, bktip = ws
     U = wU[:n]
     Rn = w3[0, :n]
@@ -591,8 +877,33 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
     else:
         c1u = c1
         c2u = c2
-    _prepare(b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, c1u, c2u, pAs, RAs, pAp,
-             RAp, cm, vm, Lm, thp, Rn, ehist, sw)
+    _prepare(
+        b0,
+        n,
+        bp,
+        K,
+        pos,
+        rot,
+        vel,
+        omg,
+        ppos,
+        prot,
+        pvel,
+        pomg,
+        c1u,
+        c2u,
+        pAs,
+        RAs,
+        pAp,
+        RAp,
+        cm,
+        vm,
+        Lm,
+        thp,
+        Rn,
+        ehist,
+        sw,
+    )
     for k in range(n):
         i = b0 + k
         beta = 0.0 if static else bp[i, 6]
@@ -624,22 +935,127 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
     if extrap == 3 and not in_contact(tip_state):
         extrap = 2
     _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw)
-    nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
-                    ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK, sw)
+    nrm = _residual(
+        b,
+        b0,
+        n,
+        bp,
+        K,
+        pos,
+        rot,
+        gvec,
+        static,
+        c0,
+        inv_h,
+        cm,
+        vm,
+        Lm,
+        thp,
+        Rn,
+        ehist,
+        gs,
+        hs,
+        pAe,
+        RAe,
+        tip_args,
+        tip_state,
+        ctx,
+        res,
+        rootw,
+        tipF,
+        tipK,
+        sw,
+    )
     if extrap >= 2 and nrm > rtol:
         _save_chain(b0, n, pos, rot, t_pos, t_rot)
-        _extrapolate(b0, n, pos, rot, s_pos, s_rot, ppos, prot, pppos, pprot, extrap, pAs, RAs,
-                     pAp, RAp, pAq, RAq, pAe, RAe, sw)
-        nx = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp, Rn,
-                       ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw, tipF, tipK,
-                       sw)
+        _extrapolate(
+            b0,
+            n,
+            pos,
+            rot,
+            s_pos,
+            s_rot,
+            ppos,
+            prot,
+            pppos,
+            pprot,
+            extrap,
+            pAs,
+            RAs,
+            pAp,
+            RAp,
+            pAq,
+            RAq,
+            pAe,
+            RAe,
+            sw,
+        )
+        nx = _residual(
+            b,
+            b0,
+            n,
+            bp,
+            K,
+            pos,
+            rot,
+            gvec,
+            static,
+            c0,
+            inv_h,
+            cm,
+            vm,
+            Lm,
+            thp,
+            Rn,
+            ehist,
+            gs,
+            hs,
+            pAe,
+            RAe,
+            tip_args,
+            tip_state,
+            ctx,
+            res,
+            rootw,
+            tipF,
+            tipK,
+            sw,
+        )
         if nx < nrm:
             nrm = nx
         else:
             _load_chain(b0, n, pos, rot, t_pos, t_rot)
-            nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
-                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
-                            tipF, tipK, sw)
+            nrm = _residual(
+                b,
+                b0,
+                n,
+                bp,
+                K,
+                pos,
+                rot,
+                gvec,
+                static,
+                c0,
+                inv_h,
+                cm,
+                vm,
+                Lm,
+                thp,
+                Rn,
+                ehist,
+                gs,
+                hs,
+                pAe,
+                RAe,
+                tip_args,
+                tip_state,
+                ctx,
+                res,
+                rootw,
+                tipF,
+                tipK,
+                sw,
+            )
     it = 0
     ok = nrm <= rtol
     key = -1.0 if static else c0 * inv_h
@@ -649,8 +1065,9 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
         it += 1
         fresh = need
         if need:
-            _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe,
-                            D, U, L, sw)
+            _jacobian_chain(
+                b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, D, U, L, sw
+            )
             need = False
             jage[b] = 0
             good = block_factor_head(n, D, U, L, G, piv)
@@ -710,21 +1127,49 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
         small[8] = dpz
         for a in range(3):
             small[9 + a] = pos[il, a] + hl * rot[il, a, 0]
-        apen = penetration_step_limit(b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2],
-                                      ctx[3], ctx[4], ctx[5], sw[4])
+        apen = penetration_step_limit(
+            b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2], ctx[3], ctx[4], ctx[5], sw[4]
+        )
         if apen < alpha:
             alpha = max(apen, 1e-3)
         if not static:
-            aslip = slip_step_limit(small[9:12], small[6:9], tip_state, c0, inv_h,
-                                    ctx[1][C_VD])
+            aslip = slip_step_limit(small[9:12], small[6:9], tip_state, c0, inv_h, ctx[1][C_VD])
             if aslip < alpha:
                 alpha = max(aslip, 1e-4)
         accepted = False
         for _ls in range(8):
             _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe, sw)
-            new = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm,
-                            thp, Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res,
-                            rootw, tipF, tipK, sw)
+            new = _residual(
+                b,
+                b0,
+                n,
+                bp,
+                K,
+                pos,
+                rot,
+                gvec,
+                static,
+                c0,
+                inv_h,
+                cm,
+                vm,
+                Lm,
+                thp,
+                Rn,
+                ehist,
+                gs,
+                hs,
+                pAe,
+                RAe,
+                tip_args,
+                tip_state,
+                ctx,
+                res,
+                rootw,
+                tipF,
+                tipK,
+                sw,
+            )
             if not np.isfinite(new):
                 alpha *= 0.25
                 continue
@@ -743,9 +1188,37 @@ def _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, 
             if fresh:
                 break
             need = True
-            nrm = _residual(b, b0, n, bp, K, pos, rot, gvec, static, c0, inv_h, cm, vm, Lm, thp,
-                            Rn, ehist, gs, hs, pAe, RAe, tip_args, tip_state, ctx, res, rootw,
-                            tipF, tipK, sw)
+            nrm = _residual(
+                b,
+                b0,
+                n,
+                bp,
+                K,
+                pos,
+                rot,
+                gvec,
+                static,
+                c0,
+                inv_h,
+                cm,
+                vm,
+                Lm,
+                thp,
+                Rn,
+                ehist,
+                gs,
+                hs,
+                pAe,
+                RAe,
+                tip_args,
+                tip_state,
+                ctx,
+                res,
+                rootw,
+                tipF,
+                tipK,
+                sw,
+            )
             continue
         if fresh and new > 0.5 * nrm and new <= STAGNATION * rtol:
             # stagnation: a fresh Newton step no longer reduces a residual already within
@@ -881,9 +1354,36 @@ def all_finite(x):
 
 
 @njit(cache=True)
-def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos, pprot,
-                  hist_ok, tcp_p, tcp_R, root_p, root_R, prm, tip_args, tip_state, ctx, jac, ws,
-                  rootw, iters, nsub, status):
+def step_bristles(
+    bstart,
+    bp,
+    K,
+    pos,
+    rot,
+    vel,
+    omg,
+    ppos,
+    prot,
+    pvel,
+    pomg,
+    pppos,
+    pprot,
+    hist_ok,
+    tcp_p,
+    tcp_R,
+    root_p,
+    root_R,
+    prm,
+    tip_args,
+    tip_state,
+    ctx,
+    jac,
+    ws,
+    rootw,
+    iters,
+    nsub,
+    status,
+):
     """Advance every bristle by one step h = prm[P_H] (in place).
 
     tcp_p (4, 3), tcp_R (4, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3).
@@ -921,16 +1421,16 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
         bk3 = ws[5]
         bkR = ws[6]
         bktip = ws[7]
-        bk3[0, :n] = pos[b0:b0 + n]
-        bk3[1, :n] = vel[b0:b0 + n]
-        bk3[2, :n] = omg[b0:b0 + n]
-        bk3[3, :n] = ppos[b0:b0 + n]
-        bk3[4, :n] = pvel[b0:b0 + n]
-        bk3[5, :n] = pomg[b0:b0 + n]
-        bk3[6, :n] = pppos[b0:b0 + n]
-        bkR[0, :n] = rot[b0:b0 + n]
-        bkR[1, :n] = prot[b0:b0 + n]
-        bkR[2, :n] = pprot[b0:b0 + n]
+        bk3[0, :n] = pos[b0 : b0 + n]
+        bk3[1, :n] = vel[b0 : b0 + n]
+        bk3[2, :n] = omg[b0 : b0 + n]
+        bk3[3, :n] = ppos[b0 : b0 + n]
+        bk3[4, :n] = pvel[b0 : b0 + n]
+        bk3[5, :n] = pomg[b0 : b0 + n]
+        bk3[6, :n] = pppos[b0 : b0 + n]
+        bkR[0, :n] = rot[b0 : b0 + n]
+        bkR[1, :n] = prot[b0 : b0 + n]
+        bkR[2, :n] = pprot[b0 : b0 + n]
         bktip[:] = tip_state[b]
         s = 0.0
         level = 0
@@ -956,9 +1456,43 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
             extrap = 0
             if whole and prm[P_STATIC] == 0.0 and hist_ok[b] > 0:
                 extrap = 3 if hist_ok[b] >= 2 else 2
-            ok, it = _newton(b, b0, n, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, pppos,
-                             pprot, prm, c0, c1, c2, h * ds, pAs, RAs, pAe, RAe, pAp, RAp, pAq,
-                             RAq, tip_args[b], tip_state[b], ctx, rootw[b], jac, ws, extrap)
+            ok, it = _newton(
+                b,
+                b0,
+                n,
+                bp,
+                K,
+                pos,
+                rot,
+                vel,
+                omg,
+                ppos,
+                prot,
+                pvel,
+                pomg,
+                pppos,
+                pprot,
+                prm,
+                c0,
+                c1,
+                c2,
+                h * ds,
+                pAs,
+                RAs,
+                pAe,
+                RAe,
+                pAp,
+                RAp,
+                pAq,
+                RAq,
+                tip_args[b],
+                tip_state[b],
+                ctx,
+                rootw[b],
+                jac,
+                ws,
+                extrap,
+            )
             tot += it
             if ok:
                 s += ds
@@ -970,16 +1504,16 @@ def step_bristles(bstart, bp, K, pos, rot, vel, omg, ppos, prot, pvel, pomg, ppp
                 level += 1
                 if level > maxlev:
                     status[b] = NEWTON_FAILED
-                    pos[b0:b0 + n] = bk3[0, :n]
-                    vel[b0:b0 + n] = bk3[1, :n]
-                    omg[b0:b0 + n] = bk3[2, :n]
-                    ppos[b0:b0 + n] = bk3[3, :n]
-                    pvel[b0:b0 + n] = bk3[4, :n]
-                    pomg[b0:b0 + n] = bk3[5, :n]
-                    pppos[b0:b0 + n] = bk3[6, :n]
-                    rot[b0:b0 + n] = bkR[0, :n]
-                    prot[b0:b0 + n] = bkR[1, :n]
-                    pprot[b0:b0 + n] = bkR[2, :n]
+                    pos[b0 : b0 + n] = bk3[0, :n]
+                    vel[b0 : b0 + n] = bk3[1, :n]
+                    omg[b0 : b0 + n] = bk3[2, :n]
+                    ppos[b0 : b0 + n] = bk3[3, :n]
+                    pvel[b0 : b0 + n] = bk3[4, :n]
+                    pomg[b0 : b0 + n] = bk3[5, :n]
+                    pppos[b0 : b0 + n] = bk3[6, :n]
+                    rot[b0 : b0 + n] = bkR[0, :n]
+                    prot[b0 : b0 + n] = bkR[1, :n]
+                    pprot[b0 : b0 + n] = bkR[2, :n]
                     tip_state[b] = bktip
                     break
         iters[b] = tot

@@ -24,20 +24,40 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     zero6 = np.zeros((n, 6))
     tipF = np.zeros(3)
     tipK = np.zeros((3, 3))
-    itg._jacobian(b0, n, m.bp, m.K, st.pos, st.rot, True, 1.0, 1.0, zero6, np.ones(n),
-                  np.zeros(n), pA, RA, tipF, tipK, D, U, L, np.zeros((itg.N_SW, 12)))
+    itg._jacobian(
+        b0,
+        n,
+        m.bp,
+        m.K,
+        st.pos,
+        st.rot,
+        True,
+        1.0,
+        1.0,
+        zero6,
+        np.ones(n),
+        np.zeros(n),
+        pA,
+        RA,
+        tipF,
+        tipK,
+        D,
+        U,
+        L,
+        np.zeros((itg.N_SW, 12)),
+    )
     K = np.zeros((6 * n, 6 * n))
     M = np.zeros((6 * n, 6 * n))
     for k in range(n):
         i = b0 + k
-        K[6 * k:6 * k + 6, 6 * k:6 * k + 6] = D[k]
+        K[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = D[k]
         if k + 1 < n:
-            K[6 * k:6 * k + 6, 6 * k + 6:6 * k + 12] = U[k]
+            K[6 * k : 6 * k + 6, 6 * k + 6 : 6 * k + 12] = U[k]
         if k > 0:
-            K[6 * k:6 * k + 6, 6 * k - 6:6 * k] = L[k]
+            K[6 * k : 6 * k + 6, 6 * k - 6 : 6 * k] = L[k]
         R = st.rot[i]
-        M[6 * k:6 * k + 3, 6 * k:6 * k + 3] = m.bp[i, 0] * np.eye(3)
-        M[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = R @ np.diag(m.bp[i, 1:4]) @ R.T
+        M[6 * k : 6 * k + 3, 6 * k : 6 * k + 3] = m.bp[i, 0] * np.eye(3)
+        M[6 * k + 3 : 6 * k + 6, 6 * k + 3 : 6 * k + 6] = R @ np.diag(m.bp[i, 1:4]) @ R.T
     return K, M
 
 

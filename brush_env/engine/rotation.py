@@ -76,20 +76,48 @@ def rotation_vectors(R: np.ndarray) -> np.ndarray:
         Rm = R[m]
         if case == 0:
             s = np.sqrt(1.0 + tr[m]) * 2.0
-            q[m] = np.stack([0.25 * s, (Rm[:, 2, 1] - Rm[:, 1, 2]) / s,
-                             (Rm[:, 0, 2] - Rm[:, 2, 0]) / s, (Rm[:, 1, 0] - Rm[:, 0, 1]) / s], 1)
+            q[m] = np.stack(
+                [
+                    0.25 * s,
+                    (Rm[:, 2, 1] - Rm[:, 1, 2]) / s,
+                    (Rm[:, 0, 2] - Rm[:, 2, 0]) / s,
+                    (Rm[:, 1, 0] - Rm[:, 0, 1]) / s,
+                ],
+                1,
+            )
         elif case == 1:
             s = np.sqrt(1.0 + Rm[:, 0, 0] - Rm[:, 1, 1] - Rm[:, 2, 2]) * 2.0
-            q[m] = np.stack([(Rm[:, 2, 1] - Rm[:, 1, 2]) / s, 0.25 * s,
-                             (Rm[:, 0, 1] + Rm[:, 1, 0]) / s, (Rm[:, 0, 2] + Rm[:, 2, 0]) / s], 1)
+            q[m] = np.stack(
+                [
+                    (Rm[:, 2, 1] - Rm[:, 1, 2]) / s,
+                    0.25 * s,
+                    (Rm[:, 0, 1] + Rm[:, 1, 0]) / s,
+                    (Rm[:, 0, 2] + Rm[:, 2, 0]) / s,
+                ],
+                1,
+            )
         elif case == 2:
             s = np.sqrt(1.0 + Rm[:, 1, 1] - Rm[:, 0, 0] - Rm[:, 2, 2]) * 2.0
-            q[m] = np.stack([(Rm[:, 0, 2] - Rm[:, 2, 0]) / s, (Rm[:, 0, 1] + Rm[:, 1, 0]) / s,
-                             0.25 * s, (Rm[:, 1, 2] + Rm[:, 2, 1]) / s], 1)
+            q[m] = np.stack(
+                [
+                    (Rm[:, 0, 2] - Rm[:, 2, 0]) / s,
+                    (Rm[:, 0, 1] + Rm[:, 1, 0]) / s,
+                    0.25 * s,
+                    (Rm[:, 1, 2] + Rm[:, 2, 1]) / s,
+                ],
+                1,
+            )
         else:
             s = np.sqrt(1.0 + Rm[:, 2, 2] - Rm[:, 0, 0] - Rm[:, 1, 1]) * 2.0
-            q[m] = np.stack([(Rm[:, 1, 0] - Rm[:, 0, 1]) / s, (Rm[:, 0, 2] + Rm[:, 2, 0]) / s,
-                             (Rm[:, 1, 2] + Rm[:, 2, 1]) / s, 0.25 * s], 1)
+            q[m] = np.stack(
+                [
+                    (Rm[:, 1, 0] - Rm[:, 0, 1]) / s,
+                    (Rm[:, 0, 2] + Rm[:, 2, 0]) / s,
+                    (Rm[:, 1, 2] + Rm[:, 2, 1]) / s,
+                    0.25 * s,
+                ],
+                1,
+            )
     # first quaternion: prefer a non-negative vector part along its largest component
     if q.shape[0]:
         j = int(np.argmax(np.abs(q[0, 1:]))) + 1
@@ -122,7 +150,9 @@ def pose_ok(p, R, tol):
                 d -= 1.0
             if abs(d) > tol:
                 return False
-    det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-           - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-           + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
+    det = (
+        R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+        - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+        + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
+    )
     return det >= 0.0

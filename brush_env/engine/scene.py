@@ -15,11 +15,11 @@ Contact laws default to the paper's Tables 2 and 3 (see ``contact.py``).
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
@@ -76,8 +76,12 @@ class MeshPlate:
         X, Y = np.meshgrid(g, g, indexing="ij")
         V = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)]) + np.asarray(self.point)
         idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-        a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), \
-            idx[:-1, 1:].ravel()
+        a, b, c, d = (
+            idx[:-1, :-1].ravel(),
+            idx[1:, :-1].ravel(),
+            idx[1:, 1:].ravel(),
+            idx[:-1, 1:].ravel(),
+        )
         T = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])  # normals +z
         return V, T
 
@@ -90,21 +94,21 @@ class ContactParams:
     Units: k [N/mm^m1], c [N s/mm^(m2) / mm^(m3)], exponents [-], v [mm/s], delta_max [mm].
     Defaults are the tables' values.  In a scene file: the ``[contact]`` table, same keys."""
 
-    k: float = 100.0            # Table 2 k_con: normal stiffness [N/mm^m1]
-    m1: float = 1.3             # Table 2 m1: stiffness exponent [-]
-    c: float = 0.2              # Table 2 c_con: damping coefficient [N s/mm]
-    m2: float = 1.0             # Table 2 m2: damping (velocity) exponent [-]
-    m3: float = 2.0             # Table 2 m3: indentation exponent of the damping [-]
-    mu_s: float = 0.8           # Table 2 mu_s: static (stiction) friction coefficient [-]
-    mu_d: float = 0.76          # Table 2 mu_d: dynamic (sliding) friction coefficient [-]
-    v_s: float = 1.2            # Table 2 v_s: stiction transition speed [mm/s]
-    v_d: float = 1.5            # Table 2 v_d: sliding transition speed [mm/s]
-    delta_max: float = 0.1      # Table 2 Delta: largest stiction deformation [mm]
-    k_tt: float = 100.0         # Table 3 k_con: tip-tip normal stiffness [N/mm^m1]
-    m1_tt: float = 1.3          # Table 3 m1 [-]
-    c_tt: float = 0.2           # Table 3 c_con: tip-tip damping [N s/mm]
-    m2_tt: float = 1.0          # Table 3 m2 [-]
-    m3_tt: float = 2.0          # Table 3 m3 [-]
+    k: float = 100.0  # Table 2 k_con: normal stiffness [N/mm^m1]
+    m1: float = 1.3  # Table 2 m1: stiffness exponent [-]
+    c: float = 0.2  # Table 2 c_con: damping coefficient [N s/mm]
+    m2: float = 1.0  # Table 2 m2: damping (velocity) exponent [-]
+    m3: float = 2.0  # Table 2 m3: indentation exponent of the damping [-]
+    mu_s: float = 0.8  # Table 2 mu_s: static (stiction) friction coefficient [-]
+    mu_d: float = 0.76  # Table 2 mu_d: dynamic (sliding) friction coefficient [-]
+    v_s: float = 1.2  # Table 2 v_s: stiction transition speed [mm/s]
+    v_d: float = 1.5  # Table 2 v_d: sliding transition speed [mm/s]
+    delta_max: float = 0.1  # Table 2 Delta: largest stiction deformation [mm]
+    k_tt: float = 100.0  # Table 3 k_con: tip-tip normal stiffness [N/mm^m1]
+    m1_tt: float = 1.3  # Table 3 m1 [-]
+    c_tt: float = 0.2  # Table 3 c_con: tip-tip damping [N s/mm]
+    m2_tt: float = 1.0  # Table 3 m2 [-]
+    m3_tt: float = 2.0  # Table 3 m3 [-]
 
     def __post_init__(self):
         for f in fields(self):
@@ -119,12 +123,22 @@ _STIFF = Limit("N/mm^m1", gt=0, le=1e7)
 _EXP = Limit("dimensionless exponent", ge=0.5, le=4)
 _DAMP = Limit("N s/mm", ge=0, le=1e4)
 CONTACT_LIMITS = dict(
-    k=_STIFF, m1=Limit("dimensionless exponent", ge=1, le=4), c=_DAMP, m2=_EXP,
-    m3=Limit("dimensionless exponent", ge=0, le=4), mu_s=Limit("dimensionless", ge=0, le=5),
-    mu_d=Limit("dimensionless", ge=0, le=5), v_s=Limit("mm/s", gt=0, le=1e3),
-    v_d=Limit("mm/s", gt=0, le=1e3), delta_max=Limit("mm", gt=0, le=10), k_tt=_STIFF,
-    m1_tt=Limit("dimensionless exponent", ge=1, le=4), c_tt=_DAMP, m2_tt=_EXP,
-    m3_tt=Limit("dimensionless exponent", ge=0, le=4))
+    k=_STIFF,
+    m1=Limit("dimensionless exponent", ge=1, le=4),
+    c=_DAMP,
+    m2=_EXP,
+    m3=Limit("dimensionless exponent", ge=0, le=4),
+    mu_s=Limit("dimensionless", ge=0, le=5),
+    mu_d=Limit("dimensionless", ge=0, le=5),
+    v_s=Limit("mm/s", gt=0, le=1e3),
+    v_d=Limit("mm/s", gt=0, le=1e3),
+    delta_max=Limit("mm", gt=0, le=10),
+    k_tt=_STIFF,
+    m1_tt=Limit("dimensionless exponent", ge=1, le=4),
+    c_tt=_DAMP,
+    m2_tt=_EXP,
+    m3_tt=Limit("dimensionless exponent", ge=0, le=4),
+)
 
 
 @dataclass(frozen=True)
@@ -141,10 +155,13 @@ class Scene:
 
 
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
-    """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the file's."""
-    p = Path(path_or_name) if path_or_name and ("/" in str(path_or_name) or
-                                                 str(path_or_name).endswith(".toml")) \
+    """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the
+    file's."""
+    p = (
+        Path(path_or_name)
+        if path_or_name and ("/" in str(path_or_name) or str(path_or_name).endswith(".toml"))
         else configs_dir() / "scenes" / f"{path_or_name or 'flat_plate'}.toml"
+    )
     if not p.exists():
         raise ConfigError(f"scene {str(path_or_name)!r}: no such file {p}")
     data = tomllib.loads(p.read_text())
@@ -163,15 +180,34 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
     for j, s in enumerate(data.get("surface", [])):
         kind = s.get("kind", "plane")
         if kind == "plane":
-            surfaces.append(Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1)))))
+            surfaces.append(
+                Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1))))
+            )
         elif kind == "mesh_plate":
-            surfaces.append(MeshPlate(tuple(s.get("point_mm", (0, 0, 0))),
-                                      float(s.get("size_mm", 80.0)), int(s.get("divisions", 16))))
+            surfaces.append(
+                MeshPlate(
+                    tuple(s.get("point_mm", (0, 0, 0))),
+                    float(s.get("size_mm", 80.0)),
+                    int(s.get("divisions", 16)),
+                )
+            )
         elif kind == "cylinder":
-            surfaces.append(Cylinder(tuple(s.get("point_mm", (0, 0, -5))),
-                                     tuple(s.get("axis", (1, 0, 0))), float(s.get("radius_mm", 5.0))))
+            surfaces.append(
+                Cylinder(
+                    tuple(s.get("point_mm", (0, 0, -5))),
+                    tuple(s.get("axis", (1, 0, 0))),
+                    float(s.get("radius_mm", 5.0)),
+                )
+            )
         else:
-            raise ConfigError(f"{p}: surface[{j}].kind = {kind!r}: must be one of "
-                              "['plane', 'mesh_plate', 'cylinder']")
-    return Scene(brush, tuple(surfaces), bool(data.get("tip_tip", True)), data.get("name", p.stem),
-                 contact=contact)
+            raise ConfigError(
+                f"{p}: surface[{j}].kind = {kind!r}: must be one of "
+                "['plane', 'mesh_plate', 'cylinder']"
+            )
+    return Scene(
+        brush,
+        tuple(surfaces),
+        bool(data.get("tip_tip", True)),
+        data.get("name", p.stem),
+        contact=contact,
+    )

@@ -1,4 +1,5 @@
-"""The engine's face: ``Simulator(brush, settings)`` driven by the TCP pose, reporting the TCP wrench.
+"""The engine's face: ``Simulator(scene, settings)`` driven by the TCP pose, reporting the TCP
+wrench.
 
 A designer's script::
 
@@ -16,12 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import contact as ct
 from . import integrator as itg
 from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
-from . import contact as ct
-from .contact import N_TIP_ARGS, N_TIP_STATE
 from .checks import ConfigError, Limit, check_choice, check_int, check_real
 from .config import BrushConfig
+from .contact import N_TIP_ARGS, N_TIP_STATE
 from .rotation import pose_ok
 from .scene import Scene
 
@@ -36,8 +37,9 @@ class SimulationDivergence(RuntimeError):
         self.time = time
         self.bristles = list(int(b) for b in bristles)
         self.reason = reason
-        super().__init__(f"simulation diverged at t = {time:.6g} s in bristle(s) "
-                         f"{self.bristles[:10]}: {reason}")
+        super().__init__(
+            f"simulation diverged at t = {time:.6g} s in bristle(s) {self.bristles[:10]}: {reason}"
+        )
 
 
 @dataclass(frozen=True)
@@ -66,11 +68,13 @@ class SimSettings:
         check_real("settings.newton_rtol", self.newton_rtol, Limit("relative", gt=0, le=1e-2))
         check_int("settings.newton_max_iter", self.newton_max_iter, Limit("", ge=1, le=1000))
         check_int("settings.max_substep_levels", self.max_substep_levels, Limit("", ge=0, le=30))
-        check_int("settings.jacobian_max_age", self.jacobian_max_age,
-                  Limit("steps", ge=0, le=10000))
+        check_int(
+            "settings.jacobian_max_age", self.jacobian_max_age, Limit("steps", ge=0, le=10000)
+        )
         if len(self.gravity) != 3 or not np.all(np.isfinite(self.gravity)):
-            raise ConfigError(f"settings.gravity = {self.gravity!r}: must be 3 finite numbers "
-                              "(mm/s^2)")
+            raise ConfigError(
+                f"settings.gravity = {self.gravity!r}: must be 3 finite numbers (mm/s^2)"
+            )
 
 
 @dataclass
@@ -116,8 +120,7 @@ def build_model(brush: BrushConfig) -> Model:
         Kel = timoshenko_stiffness(mat.E, mat.G, A, Iy, Iz, J, kappa, l)
         m, Jb = segment_inertia(mat.density, A, Iy, Iz, l)
         Imin = min(Iy, Iz)
-        beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A,
-                                                             br.length)
+        beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A, br.length)
         fscale = mat.E * Imin / br.length**2
         sl = slice(bstart[j], bstart[j + 1])
         K[sl] = Kel
@@ -133,9 +136,16 @@ def build_model(brush: BrushConfig) -> Model:
         c, s_ = np.cos(brush.lean), np.sin(brush.lean)
         Ry = np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # x -> (c, 0, +s)
         root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
-    return Model(bstart, bp, K, root_p, root_R, seg,
-                 np.array([b.tip_radius for b in brush.bristles]),
-                 np.array([b.length for b in brush.bristles]))
+    return Model(
+        bstart,
+        bp,
+        K,
+        root_p,
+        root_R,
+        seg,
+        np.array([b.tip_radius for b in brush.bristles]),
+        np.array([b.length for b in brush.bristles]),
+    )
 
 
 @dataclass
@@ -168,7 +178,7 @@ class State:
     pppos: np.ndarray = None
     pprot: np.ndarray = None
 
-    def copy(self, with_jacobian: bool = True) -> "State":
+    def copy(self, with_jacobian: bool = True) -> State:
         """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
         state so that a restored state continues bit for bit like the original."""
         d = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
@@ -225,11 +235,15 @@ class Simulator:
         self.surfaces = _surface_rows(scene.surfaces)
         meshes = [srf for srf in scene.surfaces if hasattr(srf, "triangles")]
         if len(meshes) > 1:
-            raise ConfigError(f"scene {scene.name!r}: at most one triangle-mesh surface, got "
-                              f"{len(meshes)}")
+            raise ConfigError(
+                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
+            )
         self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
-        self.pair_ptr, self.pair_idx = tip_pairs(self.model, scene) if scene.tip_tip else \
-            (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        self.pair_ptr, self.pair_idx = (
+            tip_pairs(self.model, scene)
+            if scene.tip_tip
+            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        )
         self._ws = itg.make_workspace(int(np.diff(self.model.bstart).max()), N_TIP_STATE)
         self._tips = np.zeros((nb, 7))
         self._tips[:, 6] = self.model.tip_radius
@@ -251,7 +265,7 @@ class Simulator:
         prm[itg.P_RTOL] = s.newton_rtol
         prm[itg.P_MAXIT] = s.newton_max_iter
         prm[itg.P_MAXLEV] = s.max_substep_levels
-        prm[itg.P_G:itg.P_G + 3] = s.gravity
+        prm[itg.P_G : itg.P_G + 3] = s.gravity
         prm[itg.P_JAGE] = s.jacobian_max_age
         return prm
 
@@ -271,10 +285,25 @@ class Simulator:
                 pos[i] = root_w + (k + 0.5) * m.seg_len[i] * Rw[:, 0]
                 rot[i] = Rw
         z = np.zeros((N, 3))
-        self.state = State(pos, rot, z.copy(), z.copy(), pos.copy(), rot.copy(), z.copy(),
-                           z.copy(), np.zeros(nb, np.int64), np.stack([tcp_p] * 4),
-                           np.stack([tcp_R] * 4), np.zeros((nb, N_TIP_STATE)), time, 0,
-                           itg.make_jacobian_store(N, nb), pos.copy(), rot.copy())
+        self.state = State(
+            pos,
+            rot,
+            z.copy(),
+            z.copy(),
+            pos.copy(),
+            rot.copy(),
+            z.copy(),
+            z.copy(),
+            np.zeros(nb, np.int64),
+            np.stack([tcp_p] * 4),
+            np.stack([tcp_R] * 4),
+            np.zeros((nb, N_TIP_STATE)),
+            time,
+            0,
+            itg.make_jacobian_store(N, nb),
+            pos.copy(),
+            rot.copy(),
+        )
         self._rootw[:] = 0.0
         itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
         return self._result(0, 0)
@@ -285,15 +314,18 @@ class Simulator:
             return
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ValueError(f"tcp_p = {p!r}: must be 3 finite numbers (mm)")
-        raise ValueError(f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, "
-                         "tolerance 1e-6)")
+        raise ValueError(
+            f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, tolerance 1e-6)"
+        )
 
     def set_tip_forces(self, forces) -> None:
         """Dead external loads on the tips [N, world], shape (nb, 3)."""
         f = np.asarray(forces, float)
         if f.shape != (self.model.n_bristles, 3) or not np.all(np.isfinite(f)):
-            raise ValueError(f"tip forces must be finite with shape ({self.model.n_bristles}, 3)"
-                             f", got shape {f.shape}")
+            raise ValueError(
+                f"tip forces must be finite with shape ({self.model.n_bristles}, 3)"
+                f", got shape {f.shape}"
+            )
         self.tip_args[:, 0:3] = f
 
     def get_state(self) -> State:
@@ -345,11 +377,36 @@ class Simulator:
         st.tcp_p[2] = tcp_p
         st.tcp_R[2] = tcp_R
         m = self.model
-        itg.step_bristles(m.bstart, m.bp, m.K, st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot,
-                          st.pvel, st.pomg, st.pppos, st.pprot, st.hist_ok, st.tcp_p, st.tcp_R,
-                          m.root_p, m.root_R,
-                          prm, self.tip_args, st.tip_state, self._ctx(), st.jac, self._ws,
-                          self._rootw, self._iters, self._nsub, self._status)
+        itg.step_bristles(
+            m.bstart,
+            m.bp,
+            m.K,
+            st.pos,
+            st.rot,
+            st.vel,
+            st.omg,
+            st.ppos,
+            st.prot,
+            st.pvel,
+            st.pomg,
+            st.pppos,
+            st.pprot,
+            st.hist_ok,
+            st.tcp_p,
+            st.tcp_R,
+            m.root_p,
+            m.root_R,
+            prm,
+            self.tip_args,
+            st.tip_state,
+            self._ctx(),
+            st.jac,
+            self._ws,
+            self._rootw,
+            self._iters,
+            self._nsub,
+            self._status,
+        )
         bad = np.flatnonzero(self._status)
         if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self._rootw)):
             bad = np.arange(m.n_bristles)
@@ -358,8 +415,12 @@ class Simulator:
             # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
             # them all stale, so that what follows depends on the restored state alone
             self.state.jac[4][:] = 0.0
-            raise SimulationDivergence(t_new, bad, "Newton did not converge on the smallest "
-                                       f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})")
+            raise SimulationDivergence(
+                t_new,
+                bad,
+                "Newton did not converge on the smallest "
+                f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})",
+            )
         st.tcp_p[3] = st.tcp_p[0]
         st.tcp_R[3] = st.tcp_R[0]
         st.tcp_p[0] = st.tcp_p[1]
@@ -384,8 +445,24 @@ class Simulator:
         return snap
 
     def _ctx(self):
-        return (self.surfaces, self.contact_params, self._tips, self.pair_ptr, self.pair_idx,
-                self.mesh)
+        return (
+            self.surfaces,
+            self.contact_params,
+            self._tips,
+            self.pair_ptr,
+            self.pair_idx,
+            self.mesh,
+        )
+
+    def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
+        """TCP height z [mm] at which the lowest tip sphere of the unloaded brush just touches the
+        horizontal plate z = ``plate_z`` [mm], with the TCP orientation ``tcp_R`` (default the
+        brush pointing down, diag(1, -1, -1)).  Reset there (or higher) so that the first step
+        does not start with the tips inside the plate."""
+        R = np.diag([1.0, -1.0, -1.0]) if tcp_R is None else np.asarray(tcp_R, float)
+        m = self.model
+        tips_tcp = m.root_p + m.length[:, None] * m.root_R[:, :, 0]
+        return float(plate_z - np.min((tips_tcp @ R.T)[:, 2] - m.tip_radius))
 
     @property
     def n_tip_pairs(self) -> int:
@@ -416,17 +493,43 @@ class Simulator:
         ts = st.tip_state
         fn = ts[:, ct.S_FN].copy()
         tips = self._tips[:, 0:6].copy()  # step_bristles / tip_states keep them current
-        return StepResult(st.time, F, M, R_tcp.T @ F, R_tcp.T @ M, tips[:, 0:3], tips[:, 3:6],
-                          iters, nsub, fn, ts[:, ct.S_FT:ct.S_FT + 3].copy(),
-                          fn > 0.0, (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
-                          np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0),
-                          ts[:, ct.S_CP:ct.S_CP + 3].copy(),
-                          extra={"tip_tip_force": ts[:, ct.S_FTT].copy()})
+        return StepResult(
+            st.time,
+            F,
+            M,
+            R_tcp.T @ F,
+            R_tcp.T @ M,
+            tips[:, 0:3],
+            tips[:, 3:6],
+            iters,
+            nsub,
+            fn,
+            ts[:, ct.S_FT : ct.S_FT + 3].copy(),
+            fn > 0.0,
+            (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
+            np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0),
+            ts[:, ct.S_CP : ct.S_CP + 3].copy(),
+            extra={"tip_tip_force": ts[:, ct.S_FTT].copy()},
+        )
 
 
 #: the array fields of State (copied by Simulator._snapshot)
-_STATE_ARRAYS = ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "pppos", "pprot",
-                 "hist_ok", "tcp_p", "tcp_R", "tip_state")
+_STATE_ARRAYS = (
+    "pos",
+    "rot",
+    "vel",
+    "omg",
+    "ppos",
+    "prot",
+    "pvel",
+    "pomg",
+    "pppos",
+    "pprot",
+    "hist_ok",
+    "tcp_p",
+    "tcp_R",
+    "tip_state",
+)
 
 
 def _surface_rows(surfaces) -> np.ndarray:
@@ -446,8 +549,9 @@ def tip_pairs(model: Model, scene, travel_fraction: float | None = None):
     and dragged leans over but does not fold back, so its tip stays within ~0.6 L of the root
     line; documented choice, checked against the full pair set in tests).
     """
-    frac = getattr(scene, "tip_travel_fraction", 0.6) if travel_fraction is None else \
-        travel_fraction
+    frac = (
+        getattr(scene, "tip_travel_fraction", 0.6) if travel_fraction is None else travel_fraction
+    )
     nb = model.n_bristles
     roots = model.root_p
     reach = frac * model.length + model.tip_radius

@@ -41,14 +41,19 @@ class TcpVelocityAction:
         try:
             a = np.asarray(action, dtype=float)
         except (TypeError, ValueError):
-            raise ValueError(f"action = {action!r} is not numeric: expected an array of shape "
-                             f"({self.dim},) with values in [-1, 1]") from None
+            raise ValueError(
+                f"action = {action!r} is not numeric: expected an array of shape "
+                f"({self.dim},) with values in [-1, 1]"
+            ) from None
         if a.shape != (self.dim,):
-            raise ValueError(f"action has shape {a.shape}: expected ({self.dim},) for "
-                             f"action_mode = {self.mode!r}, values in [-1, 1]")
+            raise ValueError(
+                f"action has shape {a.shape}: expected ({self.dim},) for "
+                f"action_mode = {self.mode!r}, values in [-1, 1]"
+            )
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action = {a.tolist()!r} is not finite: every entry must be a "
-                             "number in [-1, 1]")
+            raise ValueError(
+                f"action = {a.tolist()!r} is not finite: every entry must be a number in [-1, 1]"
+            )
         return np.clip(a, -1.0, 1.0)
 
     def twist(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -31,13 +31,25 @@ import numpy as np
 __all__ = ["bench_env", "add_arguments", "run"]
 
 ENV_ID = "brush_env/FlatPlate-v0"
-DEFAULTS = {"steps": 300, "n_envs": [1, 2], "brush": "default", "bodies": 3,
-            "engine_dt": 0.004, "frame_skip": 10, "config": "flat_plate"}
+DEFAULTS = {
+    "steps": 300,
+    "n_envs": [1, 2],
+    "brush": "default",
+    "bodies": 3,
+    "engine_dt": 0.004,
+    "frame_skip": 10,
+    "config": "flat_plate",
+}
 
 
 def _env_kwargs(a: dict) -> dict:
-    return {"config": a["config"], "brush": a["brush"], "bodies_per_bristle": a["bodies"],
-            "engine_dt": a["engine_dt"], "frame_skip": a["frame_skip"]}
+    return {
+        "config": a["config"],
+        "brush": a["brush"],
+        "bodies_per_bristle": a["bodies"],
+        "engine_dt": a["engine_dt"],
+        "frame_skip": a["frame_skip"],
+    }
 
 
 class _Reference:
@@ -49,8 +61,7 @@ class _Reference:
 
         u = env.unwrapped
         self.layout, self.horizon = u.layout, u.horizon
-        self.make = lambda: CircleReference(u.layout, make_action_type(u.config), u.dt,
-                                            u.horizon)
+        self.make = lambda: CircleReference(u.layout, make_action_type(u.config), u.dt, u.horizon)
         self.ctrl = []
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -116,13 +127,24 @@ def _vector(a: dict, n: int) -> dict:
 
 
 def _row(mode, n, steps, wall, cold, terminations, u, a) -> dict:
-    return {"mode": mode, "n_envs": n, "steps": steps, "wall_s": wall,
-            "steps_per_s": steps / wall, "steps_per_s_per_env": steps / wall / n,
-            "real_time_factor": steps * u.dt / wall,
-            "engine_steps_per_s": steps * u.config.frame_skip / wall, "cold_start_s": cold,
-            "terminations": terminations, "brush": a["brush"], "n_bristles": u.n_bristles,
-            "bodies_per_bristle": a["bodies"], "engine_dt": u.config.engine_dt,
-            "frame_skip": u.config.frame_skip, "control_hz": 1.0 / u.dt}
+    return {
+        "mode": mode,
+        "n_envs": n,
+        "steps": steps,
+        "wall_s": wall,
+        "steps_per_s": steps / wall,
+        "steps_per_s_per_env": steps / wall / n,
+        "real_time_factor": steps * u.dt / wall,
+        "engine_steps_per_s": steps * u.config.frame_skip / wall,
+        "cold_start_s": cold,
+        "terminations": terminations,
+        "brush": a["brush"],
+        "n_bristles": u.n_bristles,
+        "bodies_per_bristle": a["bodies"],
+        "engine_dt": u.config.engine_dt,
+        "frame_skip": u.config.frame_skip,
+        "control_hz": 1.0 / u.dt,
+    }
 
 
 def bench_env(args: dict) -> list[dict]:
@@ -131,8 +153,9 @@ def bench_env(args: dict) -> list[dict]:
     a = {**DEFAULTS, **{k: v for k, v in args.items() if v is not None}}
     unknown = set(a) - set(DEFAULTS) - {"json", "command", "bench", "func", "which"}
     if unknown:
-        raise ValueError(f"bench env: unknown argument(s) {sorted(unknown)} (known: "
-                         f"{sorted(DEFAULTS)})")
+        raise ValueError(
+            f"bench env: unknown argument(s) {sorted(unknown)} (known: {sorted(DEFAULTS)})"
+        )
     if int(a["steps"]) < 1:
         raise ValueError(f"steps = {a['steps']!r} is out of range: must be >= 1")
     rows = []
@@ -144,13 +167,28 @@ def bench_env(args: dict) -> list[dict]:
 
 
 _OPTIONS = (
-    ("--steps", dict(type=int, default=DEFAULTS["steps"],
-                     help="env steps per measurement and env (a vector runs n x steps)")),
-    ("--n-envs", dict(type=int, nargs="+", default=DEFAULTS["n_envs"],
-                      help="vector sizes to measure; 1 = one in-process env")),
+    (
+        "--steps",
+        dict(
+            type=int,
+            default=DEFAULTS["steps"],
+            help="env steps per measurement and env (a vector runs n x steps)",
+        ),
+    ),
+    (
+        "--n-envs",
+        dict(
+            type=int,
+            nargs="+",
+            default=DEFAULTS["n_envs"],
+            help="vector sizes to measure; 1 = one in-process env",
+        ),
+    ),
     ("--brush", dict(default=DEFAULTS["brush"])),
-    ("--bodies", dict(type=int, default=DEFAULTS["bodies"],
-                      help="bodies per bristle (0: the brush file's)")),
+    (
+        "--bodies",
+        dict(type=int, default=DEFAULTS["bodies"], help="bodies per bristle (0: the brush file's)"),
+    ),
     ("--engine-dt", dict(type=float, default=DEFAULTS["engine_dt"])),
     ("--frame-skip", dict(type=int, default=DEFAULTS["frame_skip"])),
     ("--config", dict(default=DEFAULTS["config"], help="env config name or TOML path")),
@@ -174,23 +212,30 @@ def run(args: argparse.Namespace) -> int:
         for r in rows:
             print(json.dumps(r))
         return 0
-    print("| mode | envs | steps/s | steps/s/env | real-time x | engine steps/s | cold start s "
-          "| terminations |")
+    print(
+        "| mode | envs | steps/s | steps/s/env | real-time x | engine steps/s | cold start s "
+        "| terminations |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['mode']} | {r['n_envs']} | {r['steps_per_s']:.1f} | "
-              f"{r['steps_per_s_per_env']:.1f} | {r['real_time_factor']:.2f} | "
-              f"{r['engine_steps_per_s']:.0f} | {r['cold_start_s']:.2f} | {r['terminations']} |")
+        print(
+            f"| {r['mode']} | {r['n_envs']} | {r['steps_per_s']:.1f} | "
+            f"{r['steps_per_s_per_env']:.1f} | {r['real_time_factor']:.2f} | "
+            f"{r['engine_steps_per_s']:.0f} | {r['cold_start_s']:.2f} | {r['terminations']} |"
+        )
     r = rows[0]
-    print(f"brush {r['brush']} ({r['n_bristles']} bristles x {r['bodies_per_bristle']} bodies), "
-          f"engine dt {r['engine_dt']} s x frame_skip {r['frame_skip']} = "
-          f"{r['control_hz']:.4g} Hz control")
+    print(
+        f"brush {r['brush']} ({r['n_bristles']} bristles x {r['bodies_per_bristle']} bodies), "
+        f"engine dt {r['engine_dt']} s x frame_skip {r['frame_skip']} = "
+        f"{r['control_hz']:.4g} Hz control"
+    )
     return 0
 
 
 def main(argv=None) -> int:  # standalone: python -m brush_env.envs.bench_env
-    p = argparse.ArgumentParser(prog="python -m brush_env.envs.bench_env",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m brush_env.envs.bench_env", description=__doc__.split("\n")[0]
+    )
     add_arguments(p)
     return run(p.parse_args(argv))
 

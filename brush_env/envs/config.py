@@ -18,10 +18,11 @@ import difflib
 import math
 import numbers
 import os
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
+
+import tomllib
 
 from brush_env.engine import ConfigError, configs_dir
 
@@ -30,11 +31,20 @@ __all__ = ["EnvConfig", "FIELDS", "SECTIONS", "load_env_config", "arguments_tabl
 SECTIONS = ("engine", "action", "observation", "patch", "reward", "episode", "reset", "render")
 
 
-def _f(default, section, unit, doc, *, lo=None, hi=None, lo_open=False, hi_open=False,
-       choices=None):
+def _f(
+    default, section, unit, doc, *, lo=None, hi=None, lo_open=False, hi_open=False, choices=None
+):
     """A config field: default, TOML section, unit, meaning and allowed range or choices."""
-    meta = dict(section=section, unit=unit, doc=doc, lo=lo, hi=hi, lo_open=lo_open,
-                hi_open=hi_open, choices=choices)
+    meta = dict(
+        section=section,
+        unit=unit,
+        doc=doc,
+        lo=lo,
+        hi=hi,
+        lo_open=lo_open,
+        hi_open=hi_open,
+        choices=choices,
+    )
     return field(default=default, metadata=meta)
 
 
@@ -48,107 +58,226 @@ class EnvConfig:
 
     # --- engine -------------------------------------------------------------------------------
     brush: str = _f("default", "engine", "-", "brush: a name in configs/brushes or a TOML path")
-    scene: str = _f("flat_plate", "engine", "-",
-                    "scene: a name in configs/scenes or a TOML path (one plane, normal +z)")
-    bodies_per_bristle: int = _f(3, "engine", "count",
-                                 "rigid bodies per bristle (0 keeps the brush file's value)",
-                                 lo=0, hi=24)
-    engine_dt: float = _f(0.004, "engine", "s", "engine time step", lo=0.0, hi=0.02,
-                          lo_open=True)
-    frame_skip: int = _f(10, "engine", "count", "engine steps per action (control step)",
-                         lo=1, hi=1000)
+    scene: str = _f(
+        "flat_plate",
+        "engine",
+        "-",
+        "scene: a name in configs/scenes or a TOML path (one plane, normal +z)",
+    )
+    bodies_per_bristle: int = _f(
+        3,
+        "engine",
+        "count",
+        "rigid bodies per bristle (0 keeps the brush file's value)",
+        lo=0,
+        hi=24,
+    )
+    engine_dt: float = _f(0.004, "engine", "s", "engine time step", lo=0.0, hi=0.02, lo_open=True)
+    frame_skip: int = _f(
+        10, "engine", "count", "engine steps per action (control step)", lo=1, hi=1000
+    )
     integrator: str = _f("bdf2", "engine", "-", "implicit scheme", choices=("bdf2", "euler"))
     gravity: bool = _f(True, "engine", "-", "gravity on the bristles (-z, 9810 mm/s^2)")
-    tip_tip: str = _f("scene", "engine", "-",
-                      "tip-tip contact (Table 3): scene = the scene file's setting, on, off",
-                      choices=("scene", "on", "off"))
+    tip_tip: str = _f(
+        "scene",
+        "engine",
+        "-",
+        "tip-tip contact (Table 3): scene = the scene file's setting, on, off",
+        choices=("scene", "on", "off"),
+    )
     # --- action -------------------------------------------------------------------------------
-    action_mode: str = _f("6d", "action", "-",
-                          "6d: linear + angular TCP velocity; 3d: linear only",
-                          choices=("6d", "3d"))
-    max_linear_speed: tuple = _f((50.0, 50.0, 20.0), "action", "mm/s",
-                                 "TCP speed at action +-1 along base x, y, z", lo=0.0, hi=500.0,
-                                 lo_open=True)
-    max_angular_speed: tuple = _f((0.5, 0.5, 1.0), "action", "rad/s",
-                                  "TCP angular speed at action +-1 about base x, y, z", lo=0.0,
-                                  hi=10.0, lo_open=True)
+    action_mode: str = _f(
+        "6d",
+        "action",
+        "-",
+        "6d: linear + angular TCP velocity; 3d: linear only",
+        choices=("6d", "3d"),
+    )
+    max_linear_speed: tuple = _f(
+        (50.0, 50.0, 20.0),
+        "action",
+        "mm/s",
+        "TCP speed at action +-1 along base x, y, z",
+        lo=0.0,
+        hi=500.0,
+        lo_open=True,
+    )
+    max_angular_speed: tuple = _f(
+        (0.5, 0.5, 1.0),
+        "action",
+        "rad/s",
+        "TCP angular speed at action +-1 about base x, y, z",
+        lo=0.0,
+        hi=10.0,
+        lo_open=True,
+    )
     # --- observation --------------------------------------------------------------------------
-    observation_mode: str = _f("box", "observation", "-",
-                               "box: one flat float32 vector; dict: one Box per block",
-                               choices=("box", "dict"))
-    coarse_map_size: int = _f(8, "observation", "cells",
-                              "side of the coarse coverage map in the observation", lo=1, hi=64)
-    tip_velocity_scale: float = _f(100.0, "observation", "mm/s",
-                                   "tip velocity that maps to 1 in the observation", lo=0.0,
-                                   hi=1e4, lo_open=True)
-    force_scale: float = _f(10.0, "observation", "N", "TCP force that maps to 1", lo=0.0,
-                            hi=1e3, lo_open=True)
-    moment_scale: float = _f(200.0, "observation", "N*mm", "TCP moment that maps to 1", lo=0.0,
-                             hi=1e5, lo_open=True)
+    observation_mode: str = _f(
+        "box",
+        "observation",
+        "-",
+        "box: one flat float32 vector; dict: one Box per block",
+        choices=("box", "dict"),
+    )
+    coarse_map_size: int = _f(
+        8, "observation", "cells", "side of the coarse coverage map in the observation", lo=1, hi=64
+    )
+    tip_velocity_scale: float = _f(
+        100.0,
+        "observation",
+        "mm/s",
+        "tip velocity that maps to 1 in the observation",
+        lo=0.0,
+        hi=1e4,
+        lo_open=True,
+    )
+    force_scale: float = _f(
+        10.0, "observation", "N", "TCP force that maps to 1", lo=0.0, hi=1e3, lo_open=True
+    )
+    moment_scale: float = _f(
+        200.0, "observation", "N*mm", "TCP moment that maps to 1", lo=0.0, hi=1e5, lo_open=True
+    )
     # --- patch (coverage) ---------------------------------------------------------------------
-    patch_size: float = _f(64.0, "patch", "mm",
-                           "side of the square patch to clean, centred on the plate origin "
-                           "(default: the 20 mm circle plus the brush footprint)", lo=1.0,
-                           hi=500.0)
+    patch_size: float = _f(
+        64.0,
+        "patch",
+        "mm",
+        "side of the square patch to clean, centred on the plate origin "
+        "(default: the 20 mm circle plus the brush footprint)",
+        lo=1.0,
+        hi=500.0,
+    )
     cell_size: float = _f(0.5, "patch", "mm", "side of one coverage cell", lo=0.05, hi=10.0)
-    clean_radius: float = _f(0.5, "patch", "mm",
-                             "cells whose centre lies within this distance of an effective "
-                             "tip contact point are cleaned (0: the cell under the point)",
-                             lo=0.0, hi=5.0)
+    clean_radius: float = _f(
+        0.5,
+        "patch",
+        "mm",
+        "cells whose centre lies within this distance of an effective "
+        "tip contact point are cleaned (0: the cell under the point)",
+        lo=0.0,
+        hi=5.0,
+    )
     # --- reward -------------------------------------------------------------------------------
-    coverage_weight: float = _f(100.0, "reward", "1/patch",
-                                "reward for cleaning the whole patch", lo=0.0, hi=1e6)
-    tip_force_window: tuple = _f((0.01, 0.2), "reward", "N",
-                                 "per-tip normal force [min, max] that cleans", lo=0.0, hi=100.0)
-    total_force_limit: float = _f(4.0, "reward", "N",
-                                  "safe total normal force (Van der Weijden 1998)", lo=0.0,
-                                  hi=1e3, lo_open=True)
-    total_force_weight: float = _f(25.0, "reward", "1/(N*s)",
-                                   "penalty rate per N of total force above the safe limit",
-                                   lo=0.0, hi=1e6)
-    tip_force_limit: float = _f(0.2, "reward", "N", "safe normal force on one tip", lo=0.0,
-                                hi=1e3, lo_open=True)
-    tip_force_weight: float = _f(125.0, "reward", "1/(N*s)",
-                                 "penalty rate per N of tip force above the tip limit, summed "
-                                 "over tips", lo=0.0, hi=1e6)
-    termination_penalty: float = _f(10.0, "reward", "-",
-                                    "one-off penalty when an episode is terminated", lo=0.0,
-                                    hi=1e6)
+    coverage_weight: float = _f(
+        100.0, "reward", "1/patch", "reward for cleaning the whole patch", lo=0.0, hi=1e6
+    )
+    tip_force_window: tuple = _f(
+        (0.01, 0.2), "reward", "N", "per-tip normal force [min, max] that cleans", lo=0.0, hi=100.0
+    )
+    total_force_limit: float = _f(
+        4.0,
+        "reward",
+        "N",
+        "safe total normal force (Van der Weijden 1998)",
+        lo=0.0,
+        hi=1e3,
+        lo_open=True,
+    )
+    total_force_weight: float = _f(
+        25.0,
+        "reward",
+        "1/(N*s)",
+        "penalty rate per N of total force above the safe limit",
+        lo=0.0,
+        hi=1e6,
+    )
+    tip_force_limit: float = _f(
+        0.2, "reward", "N", "safe normal force on one tip", lo=0.0, hi=1e3, lo_open=True
+    )
+    tip_force_weight: float = _f(
+        125.0,
+        "reward",
+        "1/(N*s)",
+        "penalty rate per N of tip force above the tip limit, summed over tips",
+        lo=0.0,
+        hi=1e6,
+    )
+    termination_penalty: float = _f(
+        10.0, "reward", "-", "one-off penalty when an episode is terminated", lo=0.0, hi=1e6
+    )
     # --- episode ------------------------------------------------------------------------------
-    max_episode_steps: int = _f(300, "episode", "steps",
-                                "time limit (gym.make's max_episode_steps takes precedence)",
-                                lo=1, hi=10_000_000)
-    hard_force_limit: float = _f(15.0, "episode", "N",
-                                 "total normal force that terminates the episode", lo=0.0,
-                                 hi=1e4, lo_open=True)
-    workspace_xy: float = _f(45.0, "episode", "mm",
-                             "half-width of the workspace square about the nominal patch centre",
-                             lo=1.0, hi=1000.0)
-    workspace_height: tuple = _f((-5.0, 15.0), "episode", "mm",
-                                 "[min, max] TCP height above z_t (tips touching the nominal "
-                                 "plate)",
-                                 lo=-50.0, hi=200.0)
-    max_tilt_deg: float = _f(30.0, "episode", "deg",
-                             "largest angle between the bristle axis and -z", lo=0.0, hi=90.0,
-                             lo_open=True)
+    max_episode_steps: int = _f(
+        300,
+        "episode",
+        "steps",
+        "time limit (gym.make's max_episode_steps takes precedence)",
+        lo=1,
+        hi=10_000_000,
+    )
+    hard_force_limit: float = _f(
+        15.0,
+        "episode",
+        "N",
+        "total normal force that terminates the episode",
+        lo=0.0,
+        hi=1e4,
+        lo_open=True,
+    )
+    workspace_xy: float = _f(
+        45.0,
+        "episode",
+        "mm",
+        "half-width of the workspace square about the nominal patch centre",
+        lo=1.0,
+        hi=1000.0,
+    )
+    workspace_height: tuple = _f(
+        (-5.0, 15.0),
+        "episode",
+        "mm",
+        "[min, max] TCP height above z_t (tips touching the nominal plate)",
+        lo=-50.0,
+        hi=200.0,
+    )
+    max_tilt_deg: float = _f(
+        30.0,
+        "episode",
+        "deg",
+        "largest angle between the bristle axis and -z",
+        lo=0.0,
+        hi=90.0,
+        lo_open=True,
+    )
     # --- reset --------------------------------------------------------------------------------
-    start_center: tuple = _f((0.0, 0.0), "reset", "mm",
-                             "centre of the start positions (x, y) about the nominal patch centre",
-                             lo=-1000.0, hi=1000.0)
-    start_xy_range: float = _f(5.0, "reset", "mm", "start x, y uniform in centre +- this",
-                               lo=0.0, hi=1000.0)
-    start_height: tuple = _f((1.0, 2.0), "reset", "mm",
-                             "start height above z_t (tips touching the nominal plate), "
-                             "uniform in [min, max]", lo=-50.0, hi=200.0)
-    start_yaw_range_deg: float = _f(15.0, "reset", "deg",
-                                    "start yaw about z uniform in +- this", lo=0.0, hi=180.0)
-    plate_offset_range: tuple = _f((1.0, 1.0, 0.5), "reset", "mm",
-                                   "plate (and patch) offset from nominal, uniform in +- this "
-                                   "per axis x, y, z; not observed", lo=0.0, hi=100.0)
+    start_center: tuple = _f(
+        (0.0, 0.0),
+        "reset",
+        "mm",
+        "centre of the start positions (x, y) about the nominal patch centre",
+        lo=-1000.0,
+        hi=1000.0,
+    )
+    start_xy_range: float = _f(
+        5.0, "reset", "mm", "start x, y uniform in centre +- this", lo=0.0, hi=1000.0
+    )
+    start_height: tuple = _f(
+        (1.0, 2.0),
+        "reset",
+        "mm",
+        "start height above z_t (tips touching the nominal plate), uniform in [min, max]",
+        lo=-50.0,
+        hi=200.0,
+    )
+    start_yaw_range_deg: float = _f(
+        15.0, "reset", "deg", "start yaw about z uniform in +- this", lo=0.0, hi=180.0
+    )
+    plate_offset_range: tuple = _f(
+        (1.0, 1.0, 0.5),
+        "reset",
+        "mm",
+        "plate (and patch) offset from nominal, uniform in +- this per axis x, y, z; not observed",
+        lo=0.0,
+        hi=100.0,
+    )
     # --- render -------------------------------------------------------------------------------
-    render_height: int = _f(256, "render", "px",
-                            "frame height; the frame is 2 x height wide (map | side view)",
-                            lo=64, hi=2048)
+    render_height: int = _f(
+        256,
+        "render",
+        "px",
+        "frame height; the frame is 2 x height wide (map | side view)",
+        lo=64,
+        hi=2048,
+    )
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -159,38 +288,50 @@ class EnvConfig:
         for name in ("tip_force_window", "workspace_height", "start_height"):
             lo, hi = getattr(self, name)
             if lo > hi:
-                raise ConfigError(f"{name} = {list(getattr(self, name))!r} is invalid: must be "
-                                  "[min, max] with min <= max")
+                raise ConfigError(
+                    f"{name} = {list(getattr(self, name))!r} is invalid: must be "
+                    "[min, max] with min <= max"
+                )
         wl, wh = self.workspace_height
         if wl >= wh:
             raise ConfigError(f"workspace_height = {[wl, wh]!r} is invalid: min must be < max")
         n = self.patch_size / self.cell_size
         if n > 2000:
-            raise ConfigError(f"cell_size = {self.cell_size!r} is too small for patch_size = "
-                              f"{self.patch_size!r}: must give at most 2000 cells per side "
-                              f"(cell_size >= {self.patch_size / 2000:g} mm)")
+            raise ConfigError(
+                f"cell_size = {self.cell_size!r} is too small for patch_size = "
+                f"{self.patch_size!r}: must give at most 2000 cells per side "
+                f"(cell_size >= {self.patch_size / 2000:g} mm)"
+            )
         if self.coarse_map_size > max(1, int(round(n))):
-            raise ConfigError(f"coarse_map_size = {self.coarse_map_size!r} is out of range: must "
-                              f"be <= the patch's cells per side ({int(round(n))})")
+            raise ConfigError(
+                f"coarse_map_size = {self.coarse_map_size!r} is out of range: must "
+                f"be <= the patch's cells per side ({int(round(n))})"
+            )
         reach = max(abs(c) for c in self.start_center) + self.start_xy_range
         if reach >= self.workspace_xy:
-            raise ConfigError(f"start_center/start_xy_range reach {reach:g} mm from the patch "
-                              f"centre: must stay inside workspace_xy = {self.workspace_xy:g} mm")
+            raise ConfigError(
+                f"start_center/start_xy_range reach {reach:g} mm from the patch "
+                f"centre: must stay inside workspace_xy = {self.workspace_xy:g} mm"
+            )
         sl, sh = self.start_height
         if sl < wl or sh >= wh:
-            raise ConfigError(f"start_height = {[sl, sh]!r} is out of range: must lie inside "
-                              f"workspace_height = {[wl, wh]!r} (mm)")
+            raise ConfigError(
+                f"start_height = {[sl, sh]!r} is out of range: must lie inside "
+                f"workspace_height = {[wl, wh]!r} (mm)"
+            )
         if self.plate_offset_range[2] > sl:
-            raise ConfigError(f"plate_offset_range[2] = {self.plate_offset_range[2]!r} is out of "
-                              f"range: must be <= start_height[0] = {sl!r} (mm) so that every "
-                              "episode starts out of contact")
+            raise ConfigError(
+                f"plate_offset_range[2] = {self.plate_offset_range[2]!r} is out of "
+                f"range: must be <= start_height[0] = {sl!r} (mm) so that every "
+                "episode starts out of contact"
+            )
 
     @property
     def control_dt(self) -> float:
         """Duration of one action [s] = engine_dt * frame_skip."""
         return self.engine_dt * self.frame_skip
 
-    def replace(self, **overrides) -> "EnvConfig":
+    def replace(self, **overrides) -> EnvConfig:
         """A validated copy with ``overrides`` (unknown names raise ConfigError)."""
         _check_names(overrides, "override")
         return replace(self, **overrides)
@@ -233,10 +374,13 @@ def _check(f, value):
         if hasattr(value, "tolist"):
             value = value.tolist()
         if not isinstance(value, (list, tuple)) or len(value) != n:
-            raise ConfigError(f"{name} = {value!r} has the wrong type: expected a list of {n} "
-                              f"numbers{unit}, each in {allowed}")
-        return tuple(_number(f"{name}[{i}]", v, m, float, allowed, unit)
-                     for i, v in enumerate(value))
+            raise ConfigError(
+                f"{name} = {value!r} has the wrong type: expected a list of {n} "
+                f"numbers{unit}, each in {allowed}"
+            )
+        return tuple(
+            _number(f"{name}[{i}]", v, m, float, allowed, unit) for i, v in enumerate(value)
+        )
     kind = int if isinstance(default, int) else float
     return _number(name, value, m, kind, allowed, unit)
 
@@ -247,8 +391,9 @@ def _number(name, value, m, kind, allowed, unit):
         ok_type = ok_type and float(value) == int(value)
     if not ok_type:
         what = "an integer" if kind is int else "a number"
-        raise ConfigError(f"{name} = {value!r} has the wrong type: expected {what}{unit} in "
-                          f"{allowed}")
+        raise ConfigError(
+            f"{name} = {value!r} has the wrong type: expected {what}{unit} in {allowed}"
+        )
     x = kind(value)
     lo, hi = m["lo"], m["hi"]
     bad = not math.isfinite(x)
@@ -268,8 +413,10 @@ def _check_names(names, what: str, section: str | None = None) -> None:
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise ConfigError(f"unknown env {what} {k!r}{hint} (known: {', '.join(FIELDS)})")
         if section is not None and FIELDS[k].metadata["section"] != section:
-            raise ConfigError(f"env setting {k!r} is in section [{section}]: it belongs in "
-                              f"[{FIELDS[k].metadata['section']}]")
+            raise ConfigError(
+                f"env setting {k!r} is in section [{section}]: it belongs in "
+                f"[{FIELDS[k].metadata['section']}]"
+            )
 
 
 def env_config_path(path_or_name: str | os.PathLike | None) -> Path:
@@ -287,8 +434,9 @@ def env_config_path(path_or_name: str | os.PathLike | None) -> Path:
     return p
 
 
-def load_env_config(path_or_name: str | os.PathLike | None = "flat_plate",
-                    **overrides: Any) -> EnvConfig:
+def load_env_config(
+    path_or_name: str | os.PathLike | None = "flat_plate", **overrides: Any
+) -> EnvConfig:
     """Read an env TOML file (sections as in ``SECTIONS``) and apply flat keyword overrides."""
     path = env_config_path(path_or_name)
     try:
@@ -298,8 +446,10 @@ def load_env_config(path_or_name: str | os.PathLike | None = "flat_plate",
     flat: dict[str, Any] = {}
     for sec, table in data.items():
         if sec not in SECTIONS or not isinstance(table, dict):
-            raise ConfigError(f"{path}: unknown section or top-level key {sec!r} (allowed "
-                              f"sections: {', '.join(SECTIONS)})")
+            raise ConfigError(
+                f"{path}: unknown section or top-level key {sec!r} (allowed "
+                f"sections: {', '.join(SECTIONS)})"
+            )
         try:
             _check_names(table, "setting", section=sec)
         except ConfigError as e:
@@ -316,11 +466,15 @@ def load_env_config(path_or_name: str | os.PathLike | None = "flat_plate",
 
 def arguments_table() -> str:
     """The Arguments table (Markdown) of every setting: name, section, default, unit, range."""
-    rows = ["| Parameter | Section | Default | Unit | Allowed | Meaning |",
-            "|---|---|---|---|---|---|"]
+    rows = [
+        "| Parameter | Section | Default | Unit | Allowed | Meaning |",
+        "|---|---|---|---|---|---|",
+    ]
     for f in FIELDS.values():
         m = f.metadata
         d = list(f.default) if isinstance(f.default, tuple) else f.default
-        rows.append(f"| `{f.name}` | {m['section']} | `{d!r}` | {m['unit']} | {_range_text(m)} "
-                    f"| {m['doc']} |")
+        rows.append(
+            f"| `{f.name}` | {m['section']} | `{d!r}` | {m['unit']} | {_range_text(m)} "
+            f"| {m['doc']} |"
+        )
     return "\n".join(rows)

@@ -23,8 +23,7 @@ __all__ = ["CoverageMap"]
 class CoverageMap:
     """Boolean cleaned-cell grid with segment stamping (see the module docstring)."""
 
-    def __init__(self, patch_size: float, cell_size: float, clean_radius: float,
-                 coarse_size: int):
+    def __init__(self, patch_size: float, cell_size: float, clean_radius: float, coarse_size: int):
         self.patch_size = float(patch_size)
         self.n = max(1, int(round(patch_size / cell_size)))
         self.cell = self.patch_size / self.n  # the patch is split exactly
@@ -53,16 +52,22 @@ class CoverageMap:
         returns the number of newly cleaned cells."""
         if len(end) == 0:
             return 0
-        new = _stamp_segments(self.cleaned, np.ascontiguousarray(start, dtype=np.float64),
-                              np.ascontiguousarray(end, dtype=np.float64), self.patch_size,
-                              self.cell, self.clean_radius)
+        new = _stamp_segments(
+            self.cleaned,
+            np.ascontiguousarray(start, dtype=np.float64),
+            np.ascontiguousarray(end, dtype=np.float64),
+            self.patch_size,
+            self.cell,
+            self.clean_radius,
+        )
         self.count += new
         return new
 
     def coarse(self) -> np.ndarray:
         """(coarse_size, coarse_size) fraction cleaned per block (rows along +y)."""
-        c = np.add.reduceat(np.add.reduceat(self.cleaned, self._edges[:-1], axis=0),
-                            self._edges[:-1], axis=1)
+        c = np.add.reduceat(
+            np.add.reduceat(self.cleaned, self._edges[:-1], axis=0), self._edges[:-1], axis=1
+        )
         return c / self._block_area
 
 

@@ -148,15 +148,21 @@ Version History
 from __future__ import annotations
 
 import dataclasses
-
 import math
 import os
 
 import gymnasium as gym
 import numpy as np
 
-from brush_env.engine import (ConfigError, Plane, SimSettings, SimulationDivergence, Simulator,
-                              load_brush, load_scene)
+from brush_env.engine import (
+    ConfigError,
+    Plane,
+    SimSettings,
+    SimulationDivergence,
+    Simulator,
+    load_brush,
+    load_scene,
+)
 from brush_env.engine.rotation import expmap
 from brush_env.motion import R0
 
@@ -192,15 +198,21 @@ class BrushEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array", "human"]}
 
-    def __init__(self, config: str | os.PathLike | EnvConfig | None = "flat_plate",
-                 render_mode: str | None = None, **overrides):
+    def __init__(
+        self,
+        config: str | os.PathLike | EnvConfig | None = "flat_plate",
+        render_mode: str | None = None,
+        **overrides,
+    ):
         if isinstance(config, EnvConfig):
             cfg = config.replace(**overrides) if overrides else config
         else:
             cfg = load_env_config(config, **overrides)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode = {render_mode!r} is not allowed: must be None or one "
-                             f"of {self.metadata['render_modes']}")
+            raise ValueError(
+                f"render_mode = {render_mode!r} is not allowed: must be None or one "
+                f"of {self.metadata['render_modes']}"
+            )
         self.config = cfg
         self.render_mode = render_mode
         brush = load_brush(cfg.brush)
@@ -209,15 +221,22 @@ class BrushEnv(gym.Env):
         scene = load_scene(cfg.scene, brush=brush)
         if cfg.tip_tip != "scene":
             scene = dataclasses.replace(scene, tip_tip=cfg.tip_tip == "on")
-        planes = [s for s in scene.surfaces if isinstance(s, Plane)
-                  and np.allclose(np.asarray(s.normal) / np.linalg.norm(s.normal), [0, 0, 1])]
+        planes = [
+            s
+            for s in scene.surfaces
+            if isinstance(s, Plane)
+            and np.allclose(np.asarray(s.normal) / np.linalg.norm(s.normal), [0, 0, 1])
+        ]
         if not planes:
-            raise ConfigError(f"scene = {cfg.scene!r} has no plane with normal +z: BrushEnv needs "
-                              "a flat plate (e.g. configs/scenes/flat_plate.toml)")
+            raise ConfigError(
+                f"scene = {cfg.scene!r} has no plane with normal +z: BrushEnv needs "
+                "a flat plate (e.g. configs/scenes/flat_plate.toml)"
+            )
         self.plate_z = float(planes[0].point[2])
         gravity = SimSettings().gravity if cfg.gravity else (0.0, 0.0, 0.0)
-        self.sim = Simulator(scene, SimSettings(dt=cfg.engine_dt, integrator=cfg.integrator,
-                                                gravity=gravity))
+        self.sim = Simulator(
+            scene, SimSettings(dt=cfg.engine_dt, integrator=cfg.integrator, gravity=gravity)
+        )
         model = self.sim.model
         self.n_bristles = model.n_bristles
         self.L = float(brush.max_length)
@@ -229,15 +248,17 @@ class BrushEnv(gym.Env):
         self.layout = ObservationLayout(cfg, self.n_bristles, self.L, self.touch_height)
         self.observation_type = make_observation_type(cfg, self.layout)
         self.observation_space = self.observation_type.space()
-        self.coverage = CoverageMap(cfg.patch_size, cfg.cell_size, cfg.clean_radius,
-                                    cfg.coarse_map_size)
+        self.coverage = CoverageMap(
+            cfg.patch_size, cfg.cell_size, cfg.clean_radius, cfg.coarse_map_size
+        )
         # render_fps depends on the configured dt, hence per instance (Gymnasium MuJoCo style)
         self.metadata = {**BrushEnv.metadata, "render_fps": 1.0 / self.dt}
         # chains for the side view: body indices per bristle, padded with the bristle's last body
         nbod = np.diff(model.bstart)
         k = int(nbod.max())
-        self._chain_idx = np.minimum(model.bstart[:-1, None] + np.arange(k)[None, :],
-                                     model.bstart[1:, None] - 1)
+        self._chain_idx = np.minimum(
+            model.bstart[:-1, None] + np.arange(k)[None, :], model.bstart[1:, None] - 1
+        )
         self._renderer = None
         self._horizon = cfg.max_episode_steps
         self._started = False
@@ -267,8 +288,7 @@ class BrushEnv(gym.Env):
         super().reset(seed=seed)
         cfg, rng = self.config, self.np_random
         # draws in a fixed order (reproducibility): start x, y, height, yaw, plate offset
-        xy = np.asarray(cfg.start_center) + rng.uniform(-cfg.start_xy_range, cfg.start_xy_range,
-                                                        2)
+        xy = np.asarray(cfg.start_center) + rng.uniform(-cfg.start_xy_range, cfg.start_xy_range, 2)
         h = rng.uniform(*cfg.start_height)
         yaw = math.radians(rng.uniform(-cfg.start_yaw_range_deg, cfg.start_yaw_range_deg))
         off = rng.uniform(-1.0, 1.0, 3) * np.asarray(cfg.plate_offset_range)
@@ -376,33 +396,54 @@ class BrushEnv(gym.Env):
                 termination = "force_limit"
                 break
         self._total_force = float(self._last.tip_normal_force.sum())
-        new_cells = self.coverage.stamp(np.concatenate(starts), np.concatenate(ends)) \
-            if starts else 0
+        new_cells = (
+            self.coverage.stamp(np.concatenate(starts), np.concatenate(ends)) if starts else 0
+        )
         if termination is None and not self._in_workspace():
             termination = "workspace"
-        return dict(new_cells=new_cells, total_int=total_int, tip_int=tip_int,
-                    time_above=above_t, peak_total=peak_total, peak_tip=peak_tip,
-                    termination=termination, divergence=divergence)
+        return dict(
+            new_cells=new_cells,
+            total_int=total_int,
+            tip_int=tip_int,
+            time_above=above_t,
+            peak_total=peak_total,
+            peak_tip=peak_tip,
+            termination=termination,
+            divergence=divergence,
+        )
 
     def _in_workspace(self) -> bool:
         cfg = self.config
         p = self._to_obs(self._p)
         h = p[2] - self.touch_height
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -self._R[2, 2]))))
-        return (abs(p[0]) <= cfg.workspace_xy and abs(p[1]) <= cfg.workspace_xy
-                and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]
-                and tilt <= cfg.max_tilt_deg)
+        return (
+            abs(p[0]) <= cfg.workspace_xy
+            and abs(p[1]) <= cfg.workspace_xy
+            and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]
+            and tilt <= cfg.max_tilt_deg
+        )
 
     # ------------------------------------------------------------------ obs / reward / info
     def _get_obs(self):
         out = self._last
         values = self.layout.values(
-            p=self._p, R=self._R, v=self._v, w=self._w, tip_pos=out.tip_pos, tip_vel=out.tip_vel,
-            rest_tips=self._rest_tips, tip_force=out.tip_normal_force,
-            tip_contact=out.tip_in_contact, tcp_force_tcp=out.tcp_force_tcp,
-            tcp_moment_tcp=out.tcp_moment_tcp, p_obs=self._to_obs(self._p),
-            coverage_fraction=self.coverage.fraction, coverage_map=self.coverage.coarse(),
-            time_remaining=max(0.0, 1.0 - self._steps / self.horizon))
+            p=self._p,
+            R=self._R,
+            v=self._v,
+            w=self._w,
+            tip_pos=out.tip_pos,
+            tip_vel=out.tip_vel,
+            rest_tips=self._rest_tips,
+            tip_force=out.tip_normal_force,
+            tip_contact=out.tip_in_contact,
+            tcp_force_tcp=out.tcp_force_tcp,
+            tcp_moment_tcp=out.tcp_moment_tcp,
+            p_obs=self._to_obs(self._p),
+            coverage_fraction=self.coverage.fraction,
+            coverage_map=self.coverage.coarse(),
+            time_remaining=max(0.0, 1.0 - self._steps / self.horizon),
+        )
         return self.observation_type.observe(values)
 
     def _get_rew(self, sim: dict) -> dict[str, float]:
@@ -416,8 +457,12 @@ class BrushEnv(gym.Env):
         }
 
     def _reset_info(self) -> dict:
-        return {"coverage": 0.0, "tcp_position": self._to_obs(self._p),
-                "plate_offset": self.plate_offset.copy(), "time": 0.0}
+        return {
+            "coverage": 0.0,
+            "tcp_position": self._to_obs(self._p),
+            "plate_offset": self.plate_offset.copy(),
+            "time": 0.0,
+        }
 
     def _get_info(self, sim: dict, terms: dict) -> dict:
         out = self._last
@@ -440,8 +485,10 @@ class BrushEnv(gym.Env):
     # ------------------------------------------------------------------ rendering
     def render(self):
         if self.render_mode is None:
-            gym.logger.warn("render() called with render_mode=None: pass render_mode='rgb_array' "
-                            "or 'human' to gym.make")
+            gym.logger.warn(
+                "render() called with render_mode=None: pass render_mode='rgb_array' "
+                "or 'human' to gym.make"
+            )
             return None
         frame = self._frame()
         if self.render_mode == "rgb_array":
@@ -454,20 +501,36 @@ class BrushEnv(gym.Env):
         if self._renderer is None:
             m = self.sim.model
             reach = float(np.abs(m.root_p[:, :2]).max()) + self.L
-            self._renderer = Renderer(cfg.render_height, cfg.patch_size, self.coverage.n,
-                                      2.0 * reach + 2.0, cfg.tip_force_window,
-                                      cfg.tip_force_limit, cfg.total_force_limit,
-                                      cfg.hard_force_limit)
+            self._renderer = Renderer(
+                cfg.render_height,
+                cfg.patch_size,
+                self.coverage.n,
+                2.0 * reach + 2.0,
+                cfg.tip_force_window,
+                cfg.tip_force_limit,
+                cfg.total_force_limit,
+                cfg.hard_force_limit,
+            )
         if not self._started:
             raise RuntimeError("call reset() before render()")
         out, st, m = self._last, self.sim.state, self.sim.model
         roots = self._p + m.root_p @ self._R.T
-        chains = np.concatenate([roots[:, None], st.pos[self._chain_idx], out.tip_pos[:, None]],
-                                axis=1)
-        return self._renderer.frame(RenderInput(
-            cleaned=self.coverage.cleaned, coverage=self.coverage.fraction, tcp_p=self._p,
-            tip_pos=out.tip_pos, tip_force=out.tip_normal_force, tip_contact=out.tip_in_contact,
-            chains=chains, root_pos=roots, total_force=self._total_force))
+        chains = np.concatenate(
+            [roots[:, None], st.pos[self._chain_idx], out.tip_pos[:, None]], axis=1
+        )
+        return self._renderer.frame(
+            RenderInput(
+                cleaned=self.coverage.cleaned,
+                coverage=self.coverage.fraction,
+                tcp_p=self._p,
+                tip_pos=out.tip_pos,
+                tip_force=out.tip_normal_force,
+                tip_contact=out.tip_in_contact,
+                chains=chains,
+                root_pos=roots,
+                total_force=self._total_force,
+            )
+        )
 
     def close(self):
         if self._renderer is not None:

@@ -25,4 +25,3 @@ class HorizonFromTimeLimit(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 env.unwrapped.set_horizon(int(inner._max_episode_steps))
                 break
             inner = inner.env
-

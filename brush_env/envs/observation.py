@@ -20,8 +20,13 @@ from gymnasium import spaces
 
 from .config import EnvConfig
 
-__all__ = ["Block", "ObservationLayout", "BoxObservation", "DictObservation",
-           "make_observation_type"]
+__all__ = [
+    "Block",
+    "ObservationLayout",
+    "BoxObservation",
+    "DictObservation",
+    "make_observation_type",
+]
 
 
 @dataclass(frozen=True)
@@ -50,8 +55,9 @@ class ObservationLayout:
     ``elapsed_steps`` undo the scaling of the blocks a scripted policy needs.
     """
 
-    def __init__(self, cfg: EnvConfig, n_bristles: int, max_length: float,
-                 touch_height: float | None = None):
+    def __init__(
+        self, cfg: EnvConfig, n_bristles: int, max_length: float, touch_height: float | None = None
+    ):
         nb, m = int(n_bristles), cfg.coarse_map_size
         self.cfg = cfg
         self.n_bristles = nb
@@ -64,32 +70,85 @@ class ObservationLayout:
         self.w_max = np.asarray(cfg.max_angular_speed, float)
         L = self.max_length
         self.blocks = (
-            Block("tip_deflection", (nb, 3), -2.0, 2.0, "mm / L",
-                  f"tip minus its rest position, TCP frame, / L = {L:g} mm"),
-            Block("tip_velocity", (nb, 3), -10.0, 10.0, "mm/s / v_tip",
-                  "tip velocity relative to the rigidly moving head, TCP frame, "
-                  f"/ tip_velocity_scale = {cfg.tip_velocity_scale:g} mm/s"),
-            Block("tip_normal_force", (nb,), 0.0, 10.0, "N / f_tip",
-                  f"plate normal force on each tip / tip_force_limit = {cfg.tip_force_limit:g} N"),
+            Block(
+                "tip_deflection",
+                (nb, 3),
+                -2.0,
+                2.0,
+                "mm / L",
+                f"tip minus its rest position, TCP frame, / L = {L:g} mm",
+            ),
+            Block(
+                "tip_velocity",
+                (nb, 3),
+                -10.0,
+                10.0,
+                "mm/s / v_tip",
+                "tip velocity relative to the rigidly moving head, TCP frame, "
+                f"/ tip_velocity_scale = {cfg.tip_velocity_scale:g} mm/s",
+            ),
+            Block(
+                "tip_normal_force",
+                (nb,),
+                0.0,
+                10.0,
+                "N / f_tip",
+                f"plate normal force on each tip / tip_force_limit = {cfg.tip_force_limit:g} N",
+            ),
             Block("tip_contact", (nb,), 0.0, 1.0, "flag", "1 if the tip touches the plate"),
-            Block("tcp_force", (3,), -5.0, 5.0, "N / F_s",
-                  f"force the TCP applies to the brush, TCP frame, / force_scale = "
-                  f"{cfg.force_scale:g} N"),
-            Block("tcp_moment", (3,), -5.0, 5.0, "N mm / M_s",
-                  f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm"),
-            Block("tcp_position", (3,), -1.5, 1.5, "mm / ws",
-                  "TCP x, y about the nominal patch centre and height z - z_t above touching, "
-                  f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm"),
-            Block("tcp_orientation", (6,), -1.0, 1.0, "-",
-                  "first two columns of the TCP rotation matrix (TCP x and y axes in the base "
-                  "frame)"),
-            Block("tcp_twist", (6,), -1.0, 1.0, "-",
-                  "commanded TCP velocity (v, w), base frame, / (max_linear_speed, "
-                  "max_angular_speed): the last action"),
+            Block(
+                "tcp_force",
+                (3,),
+                -5.0,
+                5.0,
+                "N / F_s",
+                f"force the TCP applies to the brush, TCP frame, / force_scale = "
+                f"{cfg.force_scale:g} N",
+            ),
+            Block(
+                "tcp_moment",
+                (3,),
+                -5.0,
+                5.0,
+                "N mm / M_s",
+                f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm",
+            ),
+            Block(
+                "tcp_position",
+                (3,),
+                -1.5,
+                1.5,
+                "mm / ws",
+                "TCP x, y about the nominal patch centre and height z - z_t above touching, "
+                f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm",
+            ),
+            Block(
+                "tcp_orientation",
+                (6,),
+                -1.0,
+                1.0,
+                "-",
+                "first two columns of the TCP rotation matrix (TCP x and y axes in the base frame)",
+            ),
+            Block(
+                "tcp_twist",
+                (6,),
+                -1.0,
+                1.0,
+                "-",
+                "commanded TCP velocity (v, w), base frame, / (max_linear_speed, "
+                "max_angular_speed): the last action",
+            ),
             Block("coverage_fraction", (1,), 0.0, 1.0, "-", "fraction of patch cells cleaned"),
-            Block("coverage_map", (m, m), 0.0, 1.0, "-",
-                  f"fraction cleaned per block of the {m} x {m} grid over the patch; row i runs "
-                  "along +y, column j along +x"),
+            Block(
+                "coverage_map",
+                (m, m),
+                0.0,
+                1.0,
+                "-",
+                f"fraction cleaned per block of the {m} x {m} grid over the patch; row i runs "
+                "along +y, column j along +x",
+            ),
             Block("time_remaining", (1,), 0.0, 1.0, "-", "1 - elapsed steps / max_episode_steps"),
         )
         self.index = {b.name: b for b in self.blocks}
@@ -103,9 +162,25 @@ class ObservationLayout:
         self.high = np.concatenate([np.full(b.size, b.high, np.float32) for b in self.blocks])
 
     # ------------------------------------------------------------------ physical -> scaled
-    def values(self, *, p, R, v, w, tip_pos, tip_vel, rest_tips, tip_force, tip_contact,
-               tcp_force_tcp, tcp_moment_tcp, p_obs, coverage_fraction, coverage_map,
-               time_remaining) -> dict[str, np.ndarray]:
+    def values(
+        self,
+        *,
+        p,
+        R,
+        v,
+        w,
+        tip_pos,
+        tip_vel,
+        rest_tips,
+        tip_force,
+        tip_contact,
+        tcp_force_tcp,
+        tcp_moment_tcp,
+        p_obs,
+        coverage_fraction,
+        coverage_map,
+        time_remaining,
+    ) -> dict[str, np.ndarray]:
         """Scaled, clipped float32 blocks from physical values (mm, s, N; base frame unless
         stated).  ``p, R``: TCP pose (engine frame); ``v, w``: commanded twist; ``rest_tips``:
         (nb, 3) tip rest positions in the TCP frame; ``p_obs``: TCP position about the nominal
@@ -164,12 +239,16 @@ class ObservationLayout:
 
     def table(self) -> str:
         """Markdown table of the layout (index range, name, shape, bounds, unit, scaling)."""
-        rows = ["| Index | Block | Shape | Bounds | Unit | Meaning and scaling |",
-                "|---|---|---|---|---|---|"]
+        rows = [
+            "| Index | Block | Shape | Bounds | Unit | Meaning and scaling |",
+            "|---|---|---|---|---|---|",
+        ]
         for b in self.blocks:
             s = self.slices[b.name]
-            rows.append(f"| {s.start}-{s.stop - 1} | `{b.name}` | {b.shape} | "
-                        f"[{b.low:g}, {b.high:g}] | {b.unit} | {b.scaling} |")
+            rows.append(
+                f"| {s.start}-{s.stop - 1} | `{b.name}` | {b.shape} | "
+                f"[{b.low:g}, {b.high:g}] | {b.unit} | {b.scaling} |"
+            )
         return "\n".join(rows)
 
 
@@ -194,8 +273,12 @@ class DictObservation:
         self.layout = layout
 
     def space(self) -> spaces.Dict:
-        return spaces.Dict({b.name: spaces.Box(b.low, b.high, shape=b.shape, dtype=np.float32)
-                            for b in self.layout.blocks})
+        return spaces.Dict(
+            {
+                b.name: spaces.Box(b.low, b.high, shape=b.shape, dtype=np.float32)
+                for b in self.layout.blocks
+            }
+        )
 
     def observe(self, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {b.name: values[b.name] for b in self.layout.blocks}

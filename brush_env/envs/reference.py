@@ -47,24 +47,44 @@ class CircleReference:
     speeds in mm/s, times in s, gains in 1/s.
     """
 
-    def __init__(self, layout: ObservationLayout, action_type: TcpVelocityAction, dt: float,
-                 horizon: int, *, radius: float = 20.0, speed: float = 30.0,
-                 accel: float = 100.0, press_depth: float = 3.0, hover: float = 1.0,
-                 approach_time: float = 1.5, press_time: float = 1.0,
-                 center=(0.0, 0.0), start_angle: float = math.pi, clockwise: bool = False,
-                 kp: float = 5.0, kr: float = 5.0):
-        for name, val in (("radius", radius), ("speed", speed), ("accel", accel),
-                          ("approach_time", approach_time), ("press_time", press_time),
-                          ("dt", dt)):
+    def __init__(
+        self,
+        layout: ObservationLayout,
+        action_type: TcpVelocityAction,
+        dt: float,
+        horizon: int,
+        *,
+        radius: float = 20.0,
+        speed: float = 30.0,
+        accel: float = 100.0,
+        press_depth: float = 3.0,
+        hover: float = 1.0,
+        approach_time: float = 1.5,
+        press_time: float = 1.0,
+        center=(0.0, 0.0),
+        start_angle: float = math.pi,
+        clockwise: bool = False,
+        kp: float = 5.0,
+        kr: float = 5.0,
+    ):
+        for name, val in (
+            ("radius", radius),
+            ("speed", speed),
+            ("accel", accel),
+            ("approach_time", approach_time),
+            ("press_time", press_time),
+            ("dt", dt),
+        ):
             if not (math.isfinite(val) and val > 0):
                 raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
-        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp),
-                          ("kr", kr)):
+        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp), ("kr", kr)):
             if not (math.isfinite(val) and val >= 0):
                 raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
         if speed > 0.8 * float(min(action_type.v_max[:2])):
-            raise ValueError(f"speed = {speed!r} mm/s is out of range: must be <= 80 % of the "
-                             f"env's max_linear_speed in x, y ({list(action_type.v_max[:2])})")
+            raise ValueError(
+                f"speed = {speed!r} mm/s is out of range: must be <= 80 % of the "
+                f"env's max_linear_speed in x, y ({list(action_type.v_max[:2])})"
+            )
         self.layout, self.action_type = layout, action_type
         self.dt, self.horizon = float(dt), int(horizon)
         self.radius, self.speed, self.accel = radius, speed, accel
@@ -85,23 +105,35 @@ class CircleReference:
         """Build the trajectory from the start pose (base frame) and sample it on the step grid."""
         R_goal = R_START if self.rotates else R0
         ang = self.start_angle
-        P0 = np.array([self.center[0] + self.radius * math.cos(ang),
-                       self.center[1] + self.radius * math.sin(ang),
-                       self.z_touch + self.hover])
+        P0 = np.array(
+            [
+                self.center[0] + self.radius * math.cos(ang),
+                self.center[1] + self.radius * math.sin(ang),
+                self.z_touch + self.hover,
+            ]
+        )
         d = np.abs(P0 - p0)
         rot = np.abs(logmap(R_goal @ R0.T))
-        t_app = max(self.approach_time,
-                    float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
-                    float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates
-                    else 0.0)
+        t_app = max(
+            self.approach_time,
+            float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
+            float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates else 0.0,
+        )
         approach = Approach((p0, R0), (P0, R_goal), t_app)
         press = Press((P0, R_goal), self.hover + self.press_depth, self.press_time)
         z_c = self.z_touch - self.press_depth
         t_left = max(self.horizon * self.dt - t_app - self.press_time, 1.0)
         turns = max(0.25, t_left * self.speed / (2.0 * math.pi * self.radius) + 0.25)
-        self.circle = Circle((self.center[0], self.center[1], z_c), self.radius, self.speed,
-                             self.accel, turns=turns, start_angle=ang, R=R_goal,
-                             clockwise=self.clockwise)
+        self.circle = Circle(
+            (self.center[0], self.center[1], z_c),
+            self.radius,
+            self.speed,
+            self.accel,
+            turns=turns,
+            start_angle=ang,
+            R=R_goal,
+            clockwise=self.clockwise,
+        )
         self.trajectory = Sequence([approach, press, self.circle])
         self.circle_start = t_app + self.press_time
         times = np.arange(self.horizon + 2) * self.dt
@@ -120,6 +152,9 @@ class CircleReference:
         P0, P1 = self._P[k0], self._P[k0 + 1]
         R0, R1 = self._R[k0], self._R[k0 + 1]
         v = (P1 - P0) / self.dt + self.kp * (P0 - p)
-        w = logmap(R1 @ R0.T) / self.dt + self.kr * logmap(R0 @ R.T) if self.rotates \
+        w = (
+            logmap(R1 @ R0.T) / self.dt + self.kr * logmap(R0 @ R.T)
+            if self.rotates
             else np.zeros(3)
+        )
         return self.action_type.normalise(v, w)

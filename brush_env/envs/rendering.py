@@ -31,8 +31,17 @@ PLATE = np.array([190, 200, 210], np.uint8)
 class RenderInput:
     """What one frame needs (engine frame: plate z = 0, patch centred on the origin; mm, N)."""
 
-    __slots__ = ("cleaned", "coverage", "tcp_p", "tip_pos", "tip_force", "tip_contact",
-                 "chains", "root_pos", "total_force")
+    __slots__ = (
+        "cleaned",
+        "coverage",
+        "tcp_p",
+        "tip_pos",
+        "tip_force",
+        "tip_contact",
+        "chains",
+        "root_pos",
+        "total_force",
+    )
 
     def __init__(self, **kw):
         for k in self.__slots__:
@@ -42,8 +51,17 @@ class RenderInput:
 class Renderer:
     """Draws frames; ``show`` puts them in a matplotlib window (``human`` mode)."""
 
-    def __init__(self, height: int, patch_size: float, n_cells: int, view_size: float,
-                 tip_window: tuple, tip_limit: float, safe_force: float, hard_force: float):
+    def __init__(
+        self,
+        height: int,
+        patch_size: float,
+        n_cells: int,
+        view_size: float,
+        tip_window: tuple,
+        tip_limit: float,
+        safe_force: float,
+        hard_force: float,
+    ):
         self.H = int(height)
         self.W = 2 * self.H
         self.patch_size = float(patch_size)
@@ -58,7 +76,7 @@ class Renderer:
         self._map_cols = np.floor(centres).astype(int)
         self._frame = np.empty((H, self.W, 3), np.uint8)
         r = max(1, H // 128)
-        dy, dx = np.mgrid[-r - 1:r + 2, -r - 1:r + 2]
+        dy, dx = np.mgrid[-r - 1 : r + 2, -r - 1 : r + 2]
         keep = dy * dy + dx * dx <= (r + 0.5) ** 2
         self._disc = np.stack([dy[keep], dx[keep]], axis=1)
         self._fig = None
@@ -115,8 +133,8 @@ class Renderer:
         self._put(left, c[0] + span, np.full_like(span, c[1]), BLACK)
         self._put(left, np.full_like(span, c[0]), c[1] + span, BLACK)
         bar = max(2, H // 64)
-        left[H - bar:, :] = WHITE
-        left[H - bar:, :int(round(np.clip(s.coverage, 0, 1) * H))] = TEAL
+        left[H - bar :, :] = WHITE
+        left[H - bar :, : int(round(np.clip(s.coverage, 0, 1) * H))] = TEAL
         # ---- right: side view (x right, z up), TCP centred horizontally
         right[:] = WHITE
         px = H / self.view
@@ -128,7 +146,7 @@ class Renderer:
             return np.stack([row, col], axis=-1)
 
         plate_row = int(round(H - z0 * px))
-        right[max(plate_row, 0):, :] = PLATE
+        right[max(plate_row, 0) :, :] = PLATE
         chains = to_side(s.chains)  # (nb, k, 2)
         a = chains[:, :-1].reshape(-1, 2)
         b = chains[:, 1:].reshape(-1, 2)
@@ -138,12 +156,12 @@ class Renderer:
         roots = to_side(s.root_pos)
         order = np.argsort(roots[:, 1])
         self._lines(right, roots[order[:1]], roots[order[-1:]], BLACK, thick=max(2, H // 100))
-        right[H - bar:, :] = WHITE
+        right[H - bar :, :] = WHITE
         frac = np.clip(s.total_force / self.hard_force, 0.0, 1.0)
         color = DOT_OK if s.total_force <= self.safe_force else DOT_HIGH
-        right[H - bar:, :int(round(frac * H))] = color
+        right[H - bar :, : int(round(frac * H))] = color
         tick = int(round(self.safe_force / self.hard_force * (H - 1)))
-        right[H - 3 * bar:, min(tick, H - 1)] = BLACK
+        right[H - 3 * bar :, min(tick, H - 1)] = BLACK
         img[:, H - 1] = BLACK  # divider
         return img.copy()
 
@@ -154,7 +172,14 @@ class Renderer:
         import matplotlib.pyplot as plt
 
         interactive = matplotlib.get_backend().lower() not in (
-            "agg", "pdf", "ps", "svg", "pgf", "cairo", "template")
+            "agg",
+            "pdf",
+            "ps",
+            "svg",
+            "pgf",
+            "cairo",
+            "template",
+        )
         if self._fig is None:
             if interactive:
                 plt.ion()

@@ -8,8 +8,17 @@ Sits above the engine and the motion package; matplotlib and tqdm are used here,
 engine.  See docs/reference_experiment.md.
 """
 
-from .analysis import (PAPER_JAMMING_ANGLES, TWO_PI, analyse_run, detect_peaks, jamming_analysis,
-                       per_turn_stats, pi_label, pitch_asymmetry, repeatability)
+from .analysis import (
+    PAPER_JAMMING_ANGLES,
+    TWO_PI,
+    analyse_run,
+    detect_peaks,
+    jamming_analysis,
+    per_turn_stats,
+    pi_label,
+    pitch_asymmetry,
+    repeatability,
+)
 from .cli import add_arguments, run
 from .outputs import CSV_COLUMNS, FORCE_CONVENTION, SUMMARY_KEYS
 from .plan import DEFAULTS, build_trajectory
@@ -17,8 +26,23 @@ from .plots import plot_deformed_shapes, plot_forces_vs_angle
 from .run import run_reference
 
 __all__ = [
-    "CSV_COLUMNS", "DEFAULTS", "FORCE_CONVENTION", "PAPER_JAMMING_ANGLES", "SUMMARY_KEYS",
-    "TWO_PI", "add_arguments", "analyse_run", "build_trajectory", "detect_peaks",
-    "jamming_analysis", "per_turn_stats", "pi_label", "pitch_asymmetry", "plot_deformed_shapes",
-    "plot_forces_vs_angle", "repeatability", "run", "run_reference",
+    "CSV_COLUMNS",
+    "DEFAULTS",
+    "FORCE_CONVENTION",
+    "PAPER_JAMMING_ANGLES",
+    "SUMMARY_KEYS",
+    "TWO_PI",
+    "add_arguments",
+    "analyse_run",
+    "build_trajectory",
+    "detect_peaks",
+    "jamming_analysis",
+    "per_turn_stats",
+    "pi_label",
+    "pitch_asymmetry",
+    "plot_deformed_shapes",
+    "plot_forces_vs_angle",
+    "repeatability",
+    "run",
+    "run_reference",
 ]

@@ -102,16 +102,15 @@ def detect_peaks(
     rng = float(ys.max() - ys.min())
     if not rng > 0.0:
         return []
-    thr = max(min_prominence * rng, min_abs_prominence,
-              1e-12 * max(1.0, float(np.max(np.abs(ys)))))
+    thr = max(min_prominence * rng, min_abs_prominence, 1e-12 * max(1.0, float(np.max(np.abs(ys)))))
     cands = []
     for i in range(half, n - half):
-        win = ys[i - half:i + half + 1]
+        win = ys[i - half : i + half + 1]
         # not the window's max, or not the first point of a plateau
         if ys[i] < win.max() or (i > 0 and ys[i - 1] == ys[i]):
             continue
-        left = ys[max(0, i - full):i + 1].min()
-        right = ys[i:min(n, i + full + 1)].min()
+        left = ys[max(0, i - full) : i + 1].min()
+        right = ys[i : min(n, i + full + 1)].min()
         prom = ys[i] - max(left, right)
         if prom >= thr:
             cands.append((prom, i))
@@ -127,15 +126,26 @@ def detect_peaks(
         k = int(np.argmin(np.abs(th - t0)))
         near = (th >= t0 - hw * grid_step) & (th <= t0 + hw * grid_step)
         raw = float(yy[near].max()) if np.any(near) else float(yy[k])
-        peaks.append(dict(theta=float(t0), theta_mod_2pi=float(t0 % TWO_PI),
-                          turn=int(math.floor(t0 / TWO_PI)) + 1, value=float(ys[i]),
-                          raw_value=raw, prominence=float(prom), index=int(idx_all[k])))
+        peaks.append(
+            dict(
+                theta=float(t0),
+                theta_mod_2pi=float(t0 % TWO_PI),
+                turn=int(math.floor(t0 / TWO_PI)) + 1,
+                value=float(ys[i]),
+                raw_value=raw,
+                prominence=float(prom),
+                index=int(idx_all[k]),
+            )
+        )
     if n_per_turn is not None:
         by_turn: dict[int, list] = {}
         for p in peaks:
             by_turn.setdefault(p["turn"], []).append(p)
-        peaks = [p for lst in by_turn.values()
-                 for p in sorted(lst, key=lambda q: -q["prominence"])[:n_per_turn]]
+        peaks = [
+            p
+            for lst in by_turn.values()
+            for p in sorted(lst, key=lambda q: -q["prominence"])[:n_per_turn]
+        ]
     return sorted(peaks, key=lambda p: p["theta"])
 
 
@@ -154,8 +164,17 @@ def _circ_mean_std(angles) -> tuple[float, float]:
     return mean, std
 
 
-def jamming_analysis(theta, F, *, theta_range, min_separation=math.pi / 2, smooth=0.05,
-                     min_prominence=0.1, min_abs_prominence=1e-3, n_per_turn=2) -> dict:
+def jamming_analysis(
+    theta,
+    F,
+    *,
+    theta_range,
+    min_separation=math.pi / 2,
+    smooth=0.05,
+    min_prominence=0.1,
+    min_abs_prominence=1e-3,
+    n_per_turn=2,
+) -> dict:
     """Jamming peaks of the horizontal force |F_h| = sqrt(Fx² + Fy²) against θ.
 
     Detects up to ``n_per_turn`` peaks per turn in ``theta_range`` (``detect_peaks``; a peak must
@@ -169,10 +188,16 @@ def jamming_analysis(theta, F, *, theta_range, min_separation=math.pi / 2, smoot
     theta = np.asarray(theta, dtype=float)
     F = np.asarray(F, dtype=float)
     fh = np.hypot(F[:, 0], F[:, 1])
-    peaks = detect_peaks(theta, fh, min_separation=min_separation, smooth=smooth,
-                         min_prominence=min_prominence, min_abs_prominence=min_abs_prominence,
-                         theta_range=theta_range,
-                         n_per_turn=n_per_turn)
+    peaks = detect_peaks(
+        theta,
+        fh,
+        min_separation=min_separation,
+        smooth=smooth,
+        min_prominence=min_prominence,
+        min_abs_prominence=min_abs_prominence,
+        theta_range=theta_range,
+        n_per_turn=n_per_turn,
+    )
     paper_mod = [a % TWO_PI for a in PAPER_JAMMING_ANGLES]
     out_peaks = []
     for p in peaks:
@@ -180,14 +205,25 @@ def jamming_analysis(theta, F, *, theta_range, min_separation=math.pi / 2, smoot
         d = [_circ_dist(p["theta_mod_2pi"], a) for a in paper_mod]
         j = int(np.argmin(d))
         off = (p["theta_mod_2pi"] - paper_mod[j] + math.pi) % TWO_PI - math.pi
-        out_peaks.append(dict(
-            turn=p["turn"], theta_rad=p["theta"], theta_over_pi=p["theta"] / math.pi,
-            theta_mod_2pi_rad=p["theta_mod_2pi"],
-            theta_mod_2pi_deg=math.degrees(p["theta_mod_2pi"]),
-            theta_label=pi_label(p["theta"], 8), Fh_N=p["raw_value"], Fh_smoothed_N=p["value"],
-            prominence_N=p["prominence"], Fx_N=float(F[i, 0]), Fy_N=float(F[i, 1]),
-            Fz_N=float(F[i, 2]), nearest_paper_angle=("9π/4", "13π/4")[j],
-            offset_from_paper_rad=float(off), offset_from_paper_deg=math.degrees(off)))
+        out_peaks.append(
+            dict(
+                turn=p["turn"],
+                theta_rad=p["theta"],
+                theta_over_pi=p["theta"] / math.pi,
+                theta_mod_2pi_rad=p["theta_mod_2pi"],
+                theta_mod_2pi_deg=math.degrees(p["theta_mod_2pi"]),
+                theta_label=pi_label(p["theta"], 8),
+                Fh_N=p["raw_value"],
+                Fh_smoothed_N=p["value"],
+                prominence_N=p["prominence"],
+                Fx_N=float(F[i, 0]),
+                Fy_N=float(F[i, 1]),
+                Fz_N=float(F[i, 2]),
+                nearest_paper_angle=("9π/4", "13π/4")[j],
+                offset_from_paper_rad=float(off),
+                offset_from_paper_deg=math.degrees(off),
+            )
+        )
     events = {}
     for j, name in enumerate(("9π/4", "13π/4")):
         ps = [p for p in out_peaks if p["nearest_paper_angle"] == name]
@@ -195,19 +231,32 @@ def jamming_analysis(theta, F, *, theta_range, min_separation=math.pi / 2, smoot
             mean, std = _circ_mean_std([p["theta_mod_2pi_rad"] for p in ps])
             off = (mean - paper_mod[j] + math.pi) % TWO_PI - math.pi
             events[name] = dict(
-                paper_angle_mod_2pi_rad=paper_mod[j], count=len(ps), turns=[p["turn"] for p in ps],
-                mean_angle_mod_2pi_rad=mean, mean_angle_mod_2pi_deg=math.degrees(mean),
-                angle_std_deg=math.degrees(std), mean_offset_from_paper_deg=math.degrees(off),
+                paper_angle_mod_2pi_rad=paper_mod[j],
+                count=len(ps),
+                turns=[p["turn"] for p in ps],
+                mean_angle_mod_2pi_rad=mean,
+                mean_angle_mod_2pi_deg=math.degrees(mean),
+                angle_std_deg=math.degrees(std),
+                mean_offset_from_paper_deg=math.degrees(off),
                 mean_Fh_N=float(np.mean([p["Fh_N"] for p in ps])),
                 mean_Fx_N=float(np.mean([p["Fx_N"] for p in ps])),
-                mean_Fy_N=float(np.mean([p["Fy_N"] for p in ps])))
+                mean_Fy_N=float(np.mean([p["Fy_N"] for p in ps])),
+            )
         else:
             events[name] = dict(paper_angle_mod_2pi_rad=paper_mod[j], count=0)
-    return dict(signal="Fh = sqrt(Fx^2 + Fy^2)", theta_range_rad=list(theta_range),
-                method=dict(min_separation_rad=min_separation, smooth_rad=smooth,
-                            min_prominence_fraction=min_prominence,
-                            min_abs_prominence_N=min_abs_prominence, n_per_turn=n_per_turn),
-                peaks=out_peaks, events=events)
+    return dict(
+        signal="Fh = sqrt(Fx^2 + Fy^2)",
+        theta_range_rad=list(theta_range),
+        method=dict(
+            min_separation_rad=min_separation,
+            smooth_rad=smooth,
+            min_prominence_fraction=min_prominence,
+            min_abs_prominence_N=min_abs_prominence,
+            n_per_turn=n_per_turn,
+        ),
+        peaks=out_peaks,
+        events=events,
+    )
 
 
 # =============================================================================================
@@ -276,9 +325,14 @@ def repeatability(theta, F, turn_rows, *, jamming=None, grid_step=0.01) -> dict:
     rows = [r for r in turn_rows if r["complete"] and r["turn"] >= 2]
     out = dict(turns=[r["turn"] for r in rows])
     if len(rows) < 2:
-        out.update(trace_rms_spread_N=None, trace_rms_N=None, peak_cv=None, mean_std_N=None,
-                   jamming_angle_std_deg=None,
-                   note="needs at least two complete turns >= 2 (θ in [2π, 6π])")
+        out.update(
+            trace_rms_spread_N=None,
+            trace_rms_N=None,
+            peak_cv=None,
+            mean_std_N=None,
+            jamming_angle_std_deg=None,
+            note="needs at least two complete turns >= 2 (θ in [2π, 6π])",
+        )
         return out
     fh = np.hypot(F[:, 0], F[:, 1])
     comps = {"Fx": F[:, 0], "Fy": F[:, 1], "Fz": F[:, 2], "Fh": fh}
@@ -304,7 +358,8 @@ def repeatability(theta, F, turn_rows, *, jamming=None, grid_step=0.01) -> dict:
     out.update(trace_rms_spread_N=spread, trace_rms_N=rms, peak_cv=peak_cv, mean_std_N=mean_std)
     if jamming is not None:
         out["jamming_angle_std_deg"] = {
-            k: v.get("angle_std_deg") for k, v in jamming["events"].items()}
+            k: v.get("angle_std_deg") for k, v in jamming["events"].items()
+        }
     return out
 
 
@@ -334,12 +389,18 @@ def pitch_asymmetry(theta, F_base, F_pitch, window, *, pitch=None) -> dict:
         th = theta[mask]
         dfy = np.gradient(fy, th) if fy.size > 2 and np.all(np.diff(th) > 0) else np.zeros(1)
         ax, ay = float(np.max(np.abs(fx))), float(np.max(np.abs(fy)))
-        return dict(Fy_max_N=float(fy.max()), Fy_max_theta_rad=float(th[np.argmax(fy)]),
-                    Fy_min_N=float(fy.min()), Fy_min_theta_rad=float(th[np.argmin(fy)]),
-                    absFx_peak_N=ax, absFy_peak_N=ay, Fz_max_N=float(fz.max()),
-                    Fz_min_N=float(fz.min()),
-                    Fx_over_Fy_peak_ratio=(ax / ay) if ay > 1e-12 else None,
-                    max_abs_dFy_dtheta_N_per_rad=float(np.max(np.abs(dfy))))
+        return dict(
+            Fy_max_N=float(fy.max()),
+            Fy_max_theta_rad=float(th[np.argmax(fy)]),
+            Fy_min_N=float(fy.min()),
+            Fy_min_theta_rad=float(th[np.argmin(fy)]),
+            absFx_peak_N=ax,
+            absFy_peak_N=ay,
+            Fz_max_N=float(fz.max()),
+            Fz_min_N=float(fz.min()),
+            Fx_over_Fy_peak_ratio=(ax / ay) if ay > 1e-12 else None,
+            max_abs_dFy_dtheta_N_per_rad=float(np.max(np.abs(dfy))),
+        )
 
     b, p = stats(Fb, m), stats(Fp, m)
 
@@ -349,12 +410,21 @@ def pitch_asymmetry(theta, F_base, F_pitch, window, *, pitch=None) -> dict:
             if k.endswith("theta_rad") or kb[k] is None or kp[k] is None:
                 continue
             d = kp[k] - kb[k]
-            out[k] = dict(baseline=kb[k], pitch=kp[k], change=d,
-                          change_percent=(100.0 * d / abs(kb[k])) if abs(kb[k]) > 1e-12 else None)
+            out[k] = dict(
+                baseline=kb[k],
+                pitch=kp[k],
+                change=d,
+                change_percent=(100.0 * d / abs(kb[k])) if abs(kb[k]) > 1e-12 else None,
+            )
         return out
 
-    res = dict(window_rad=[lo, hi], window_label=[pi_label(lo), pi_label(hi)],
-               baseline=b, pitch=p, change=change(b, p))
+    res = dict(
+        window_rad=[lo, hi],
+        window_label=[pi_label(lo), pi_label(hi)],
+        baseline=b,
+        pitch=p,
+        change=change(b, p),
+    )
     m2 = (theta >= lo + TWO_PI) & (theta <= hi + TWO_PI)
     if np.any(m2):
         b2, p2 = stats(Fb, m2), stats(Fp, m2)
@@ -362,18 +432,25 @@ def pitch_asymmetry(theta, F_base, F_pitch, window, *, pitch=None) -> dict:
         for name, (x1, x2) in {"baseline": (b, b2), "pitch": (p, p2)}.items():
             tt[name] = dict(
                 absFy_peak_ratio_window_to_next_turn=(x1["absFy_peak_N"] / x2["absFy_peak_N"])
-                if x2["absFy_peak_N"] > 1e-12 else None,
+                if x2["absFy_peak_N"] > 1e-12
+                else None,
                 Fy_max_ratio_window_to_next_turn=(x1["Fy_max_N"] / x2["Fy_max_N"])
-                if abs(x2["Fy_max_N"]) > 1e-12 else None,
+                if abs(x2["Fy_max_N"]) > 1e-12
+                else None,
                 Fx_over_Fy_ratio_window=x1["Fx_over_Fy_peak_ratio"],
-                Fx_over_Fy_ratio_next_turn=x2["Fx_over_Fy_peak_ratio"])
+                Fx_over_Fy_ratio_next_turn=x2["Fx_over_Fy_peak_ratio"],
+            )
         res["turn_to_turn"] = tt
     diff = Fp - Fb
     after = theta > hi
     res["rms_difference_N"] = {
         "window": {c: float(np.sqrt(np.mean(diff[m, i] ** 2))) for i, c in enumerate("xyz")},
-        "after_window": ({c: float(np.sqrt(np.mean(diff[after, i] ** 2)))
-                          for i, c in enumerate("xyz")} if np.any(after) else None)}
+        "after_window": (
+            {c: float(np.sqrt(np.mean(diff[after, i] ** 2))) for i, c in enumerate("xyz")}
+            if np.any(after)
+            else None
+        ),
+    }
     if pitch is not None:
         pitch = np.asarray(pitch, dtype=float)[:n]
         k = int(np.argmax(np.abs(pitch)))
@@ -390,18 +467,34 @@ def analyse_run(theta, F, Fn_total, n_contact, max_pen, *, theta_lo=0.5 * math.p
     Fn_total, n_contact, max_pen = (np.asarray(x, float) for x in (Fn_total, n_contact, max_pen))
     rng = (theta_lo, float(theta[-1]))
     if not rng[1] > rng[0]:
-        return dict(theta_range_rad=list(rng), note="the run ends before θ = π/2", per_turn=[],
-                    jamming=None, repeatability=None, max_penetration_mm=None,
-                    max_penetration_whole_run_mm=float(max_pen.max()))
+        return dict(
+            theta_range_rad=list(rng),
+            note="the run ends before θ = π/2",
+            per_turn=[],
+            jamming=None,
+            repeatability=None,
+            max_penetration_mm=None,
+            max_penetration_whole_run_mm=float(max_pen.max()),
+        )
     jam = jamming_analysis(theta, F, theta_range=rng)
-    rows = per_turn_stats(theta, F, theta_range=rng, extra={
-        "Fn_total_N": Fn_total, "n_contact": n_contact, "max_penetration_mm": max_pen})
+    rows = per_turn_stats(
+        theta,
+        F,
+        theta_range=rng,
+        extra={"Fn_total_N": Fn_total, "n_contact": n_contact, "max_penetration_mm": max_pen},
+    )
     m = theta >= theta_lo
     return dict(
-        theta_range_rad=list(rng), excluded="θ < π/2 (first quarter P0 -> P1, §4)",
-        per_turn=rows, jamming=jam, repeatability=repeatability(theta, F, rows, jamming=jam),
+        theta_range_rad=list(rng),
+        excluded="θ < π/2 (first quarter P0 -> P1, §4)",
+        per_turn=rows,
+        jamming=jam,
+        repeatability=repeatability(theta, F, rows, jamming=jam),
         max_penetration_mm=float(max_pen[m].max()),
         max_penetration_whole_run_mm=float(max_pen.max()),
-        max_Fh_N=float(np.hypot(F[m, 0], F[m, 1]).max()), max_abs_Fz_N=float(np.abs(F[m, 2]).max()),
-        mean_Fz_N=float(F[m, 2].mean()), mean_Fn_total_N=float(Fn_total[m].mean()),
-        mean_n_contact=float(n_contact[m].mean()))
+        max_Fh_N=float(np.hypot(F[m, 0], F[m, 1]).max()),
+        max_abs_Fz_N=float(np.abs(F[m, 2]).max()),
+        mean_Fz_N=float(F[m, 2].mean()),
+        mean_Fn_total_N=float(Fn_total[m].mean()),
+        mean_n_contact=float(n_contact[m].mean()),
+    )

@@ -12,57 +12,103 @@ from .run import run_reference
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``brush-env reference`` (units in each help text)."""
     d = DEFAULTS
-    parser.description = ("Run the paper's circular reference experiment (3 mm press, four turns "
-                          "of a 20 mm circle) and write timeseries.csv, tips.npz, "
-                          "forces_vs_angle.png, deformed_shapes.png and summary.json (with --pitch-error also "
-                          "timeseries_pitch.csv, tips_pitch.npz and forces_vs_angle_pitch.png).")
-    parser.add_argument("--brush", default=None,
-                        help="brush config file or name in configs/brushes (default: the scene's)")
-    parser.add_argument("--scene", default=None,
-                        help="scene config file or name in configs/scenes (default: flat_plate)")
+    parser.description = (
+        "Run the paper's circular reference experiment (3 mm press, four turns "
+        "of a 20 mm circle) and write timeseries.csv, tips.npz, "
+        "forces_vs_angle.png, deformed_shapes.png and summary.json (with "
+        "--pitch-error also "
+        "timeseries_pitch.csv, tips_pitch.npz and forces_vs_angle_pitch.png)."
+    )
+    parser.add_argument(
+        "--brush",
+        default=None,
+        help="brush config file or name in configs/brushes (default: the scene's)",
+    )
+    parser.add_argument(
+        "--scene",
+        default=None,
+        help="scene config file or name in configs/scenes (default: flat_plate)",
+    )
     parser.add_argument("--out", default="runs/reference", help="output directory")
-    parser.add_argument("--pitch-error", type=float, default=0.0, metavar="DEG",
-                        help="also run with the eq-12 pitch perturbation of this amplitude [deg] "
-                             "and produce the Figure-10 comparison (paper: 1)")
-    parser.add_argument("--turns", type=float, default=d["turns"],
-                        help="number of turns (paper: 4; fractions allowed for quick checks)")
+    parser.add_argument(
+        "--pitch-error",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="also run with the eq-12 pitch perturbation of this amplitude [deg] "
+        "and produce the Figure-10 comparison (paper: 1)",
+    )
+    parser.add_argument(
+        "--turns",
+        type=float,
+        default=d["turns"],
+        help="number of turns (paper: 4; fractions allowed for quick checks)",
+    )
     parser.add_argument("--dt", type=float, default=d["dt"], help="time step [s]")
-    parser.add_argument("--bodies", type=int, default=None,
-                        help="override the bodies per bristle of the brush config")
-    parser.add_argument("--integrator", choices=("bdf2", "euler"), default=d["integrator"],
-                        help="implicit scheme: bdf2 (2nd order, default) or euler (1st order)")
+    parser.add_argument(
+        "--bodies",
+        type=int,
+        default=None,
+        help="override the bodies per bristle of the brush config",
+    )
+    parser.add_argument(
+        "--integrator",
+        choices=("bdf2", "euler"),
+        default=d["integrator"],
+        help="implicit scheme: bdf2 (2nd order, default) or euler (1st order)",
+    )
     parser.add_argument("--speed", type=float, default=d["speed"], help="tool speed [mm/s]")
-    parser.add_argument("--accel", type=float, default=d["accel"],
-                        help="tool acceleration [mm/s^2]")
-    parser.add_argument("--path", choices=("movel", "circle"), default=d["path"],
-                        help="circle built from four MoveL points with blends (paper Algorithm 1) "
-                             "or the exact circle")
+    parser.add_argument(
+        "--accel", type=float, default=d["accel"], help="tool acceleration [mm/s^2]"
+    )
+    parser.add_argument(
+        "--path",
+        choices=("movel", "circle"),
+        default=d["path"],
+        help="circle built from four MoveL points with blends (paper Algorithm 1) "
+        "or the exact circle",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args) -> int:
     """Run the experiment, print its status, real-time factor and jamming angles."""
     summary = run_reference(
-        brush=args.brush, scene=args.scene, out_dir=args.out, turns=args.turns,
-        pitch_error_deg=args.pitch_error, dt=args.dt, bodies=args.bodies,
-        integrator=args.integrator, speed=args.speed, accel=args.accel,
-        progress=not args.no_progress, path=args.path)
+        brush=args.brush,
+        scene=args.scene,
+        out_dir=args.out,
+        turns=args.turns,
+        pitch_error_deg=args.pitch_error,
+        dt=args.dt,
+        bodies=args.bodies,
+        integrator=args.integrator,
+        speed=args.speed,
+        accel=args.accel,
+        progress=not args.no_progress,
+        path=args.path,
+    )
     perf = summary["performance"]
-    print(f"status: {summary['status']}; wall {perf['wall_time_s']:.1f} s "
-          f"(simulation {perf['sim_wall_time_s']:.1f} s, real-time factor "
-          f"{perf['real_time_factor'] or 0:.2f}); outputs in {args.out}")
+    print(
+        f"status: {summary['status']}; wall {perf['wall_time_s']:.1f} s "
+        f"(simulation {perf['sim_wall_time_s']:.1f} s, real-time factor "
+        f"{perf['real_time_factor'] or 0:.2f}); outputs in {args.out}"
+    )
     jam = summary["analysis"]["baseline"].get("jamming")
     if jam:
         for name, ev in jam["events"].items():
             if ev.get("count"):
-                print(f"  jamming near {name}: {ev['count']} peak(s), mean angle "
-                      f"{ev['mean_angle_mod_2pi_deg']:.1f}° mod 360° (paper "
-                      f"{math.degrees(ev['paper_angle_mod_2pi_rad']):.0f}°), mean |F_h| "
-                      f"{ev['mean_Fh_N']:.3f} N")
+                print(
+                    f"  jamming near {name}: {ev['count']} peak(s), mean angle "
+                    f"{ev['mean_angle_mod_2pi_deg']:.1f}° mod 360° (paper "
+                    f"{math.degrees(ev['paper_angle_mod_2pi_rad']):.0f}°), mean |F_h| "
+                    f"{ev['mean_Fh_N']:.3f} N"
+                )
     if "pitch_asymmetry" in summary["analysis"]:
         ch = summary["analysis"]["pitch_asymmetry"].get("change", {})
         if "Fy_max_N" in ch:
             c = ch["Fy_max_N"]
-            print(f"  pitch error: Fy peak in the perturbed interval {c['baseline']:.3f} -> "
-                  f"{c['pitch']:.3f} N")
+            print(
+                f"  pitch error: Fy peak in the perturbed interval {c['baseline']:.3f} -> "
+                f"{c['pitch']:.3f} N"
+            )
     return 0 if summary["status"] == "ok" else 1

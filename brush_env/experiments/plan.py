@@ -35,34 +35,41 @@ DEFAULTS = dict(
 )
 
 
-def _touch_height(sim: Simulator, R: np.ndarray, plate_z: float) -> float:
-    """TCP height at which the lowest tip sphere touches the plate z = plate_z (unloaded)."""
-    m = sim.model
-    tips_tcp = np.array([m.root_p[j] + m.length[j] * (m.root_R[j][:, 0])
-                         for j in range(m.n_bristles)])
-    tips_w = tips_tcp @ R.T
-    return float(plate_z - np.min(tips_w[:, 2] - m.tip_radius))
-
-
 def _plate_height(scene) -> float:
     planes = [s for s in scene.surfaces if isinstance(s, Plane)]
     if not scene.surfaces:
         return 0.0
     if not planes:
         kinds = [type(s).__name__ for s in scene.surfaces]
-        raise ValueError(f"scene {scene.name!r}: the reference experiment needs a flat plate (a "
-                         f"'plane' surface with normal +z), got {kinds}")
+        raise ValueError(
+            f"scene {scene.name!r}: the reference experiment needs a flat plate (a "
+            f"'plane' surface with normal +z), got {kinds}"
+        )
     pl = planes[0]
     n = np.asarray(pl.normal, dtype=float)
     n = n / np.linalg.norm(n)
     if abs(n[2] - 1.0) > 1e-9:
-        raise ValueError(f"scene {scene.name!r}: the plate normal must be +z (world), "
-                         f"got {pl.normal}")
+        raise ValueError(
+            f"scene {scene.name!r}: the plate normal must be +z (world), got {pl.normal}"
+        )
     return float(pl.point[2])
 
 
-def build_trajectory(*, start_xy, touch_z, radius, speed, accel, turns, press_depth, press_time,
-                     hold_time, path, pitch_error_deg=0.0, pitch_window=DEFAULTS["pitch_window"]):
+def build_trajectory(
+    *,
+    start_xy,
+    touch_z,
+    radius,
+    speed,
+    accel,
+    turns,
+    press_depth,
+    press_time,
+    hold_time,
+    path,
+    pitch_error_deg=0.0,
+    pitch_window=DEFAULTS["pitch_window"],
+):
     """The reference motion: Press (along the bristle axis) -> Hold -> circle, optionally pitched.
 
     Returns ``(trajectory, phase_starts, circle)`` with ``phase_starts = (0, t_hold, t_circle)``.
@@ -79,8 +86,14 @@ def build_trajectory(*, start_xy, touch_z, radius, speed, accel, turns, press_de
         segs.append(Hold((p_pressed, R0), hold_time))
     center = p_pressed + np.array([radius, 0.0, 0.0])
     if path == "movel":
-        circ = paper_circle_movel(center, radius, speed, accel, turns=int(math.ceil(turns - 1e-9)),
-                                  orientation=np.array(R0))
+        circ = paper_circle_movel(
+            center,
+            radius,
+            speed,
+            accel,
+            turns=int(math.ceil(turns - 1e-9)),
+            orientation=np.array(R0),
+        )
     elif path == "circle":
         circ = Circle(center, radius, speed, accel, turns=turns, start_angle=math.pi, R=R0)
     else:
@@ -91,19 +104,41 @@ def build_trajectory(*, start_xy, touch_z, radius, speed, accel, turns, press_de
     phase_starts = tuple(float(t) for t in seq.start_times[:-1])
     traj = seq
     if pitch_error_deg:
-        traj = PitchPerturbation(seq, math.radians(pitch_error_deg), theta_start=pitch_window[0],
-                                 theta_end=pitch_window[1])
+        traj = PitchPerturbation(
+            seq,
+            math.radians(pitch_error_deg),
+            theta_start=pitch_window[0],
+            theta_end=pitch_window[1],
+        )
     return traj, phase_starts, circ
 
 
-def check_run_args(turns, dt, speed, accel, radius, press_time, tips_dt, shapes_dt, hold_time,
-                   press_depth, path, integrator) -> None:
+def check_run_args(
+    turns,
+    dt,
+    speed,
+    accel,
+    radius,
+    press_time,
+    tips_dt,
+    shapes_dt,
+    hold_time,
+    press_depth,
+    path,
+    integrator,
+) -> None:
     """Every number of a run, checked before anything is built or written (ConfigError names the
     argument, the value and the allowed range)."""
     check_real("turns", turns, Limit("turns", gt=0))
-    for name, v, unit in (("dt", dt, "s"), ("speed", speed, "mm/s"), ("accel", accel, "mm/s^2"),
-                          ("radius", radius, "mm"), ("press_time", press_time, "s"),
-                          ("tips_dt", tips_dt, "s"), ("shapes_dt", shapes_dt, "s")):
+    for name, v, unit in (
+        ("dt", dt, "s"),
+        ("speed", speed, "mm/s"),
+        ("accel", accel, "mm/s^2"),
+        ("radius", radius, "mm"),
+        ("press_time", press_time, "s"),
+        ("tips_dt", tips_dt, "s"),
+        ("shapes_dt", shapes_dt, "s"),
+    ):
         check_real(name, v, Limit(unit, gt=0))
     check_real("hold_time", hold_time, Limit("s", ge=0))
     check_real("press_depth", press_depth, Limit("mm", ge=0))
@@ -151,31 +186,56 @@ def resolve_scene(brush, scene, bodies):
     return scene_obj
 
 
-def make_plan(scene_obj, settings, *, turns, radius, speed, accel, press_depth, press_time,
-              hold_time, path, pitch_error_deg, pitch_window, tips_dt, shapes_dt) -> Plan:
+def make_plan(
+    scene_obj,
+    settings,
+    *,
+    turns,
+    radius,
+    speed,
+    accel,
+    press_depth,
+    press_time,
+    hold_time,
+    path,
+    pitch_error_deg,
+    pitch_window,
+    tips_dt,
+    shapes_dt,
+) -> Plan:
     """Simulator, touch height, the baseline (and pitched) motion sampled on the time grid; the
     run stops when θ reaches 2π·turns (§4: four turns)."""
     sim = Simulator(scene_obj, settings)
     dt = settings.dt
     plate_z = _plate_height(scene_obj)
-    touch_z = _touch_height(sim, np.array(R0), plate_z)
+    touch_z = sim.touch_height(np.array(R0), plate_z)
     start_xy = (0.0, 0.0)
-    common = dict(start_xy=start_xy, touch_z=touch_z, radius=radius, speed=speed, accel=accel,
-                  turns=turns, press_depth=press_depth, press_time=press_time,
-                  hold_time=hold_time, path=path)
+    common = dict(
+        start_xy=start_xy,
+        touch_z=touch_z,
+        radius=radius,
+        speed=speed,
+        accel=accel,
+        turns=turns,
+        press_depth=press_depth,
+        press_time=press_time,
+        hold_time=hold_time,
+        path=path,
+    )
     traj, phase_starts, _ = build_trajectory(**common)
     trajs = {"baseline": traj}
     if pitch_error_deg:
-        trajs["pitch"], _, _ = build_trajectory(**common, pitch_error_deg=pitch_error_deg,
-                                                pitch_window=pitch_window)
+        trajs["pitch"], _, _ = build_trajectory(
+            **common, pitch_error_deg=pitch_error_deg, pitch_window=pitch_window
+        )
     T = traj.duration
     n_full = int(math.ceil(T / dt - 1e-9))
     times = np.arange(n_full + 1) * dt
     theta_full = np.asarray(traj.angle(np.minimum(times, T)), dtype=float)
     reach = np.flatnonzero(theta_full >= TWO_PI * turns - 1e-9)
     n_steps = int(reach[0]) if reach.size else n_full
-    times = times[:n_steps + 1]
-    theta = theta_full[:n_steps + 1]
+    times = times[: n_steps + 1]
+    theta = theta_full[: n_steps + 1]
     phase = np.searchsorted(np.asarray(phase_starts), times, side="right") - 1
     phase = np.where(phase >= len(phase_starts) - 1, 2, phase)
     if hold_time <= 0:
@@ -184,8 +244,20 @@ def make_plan(scene_obj, settings, *, turns, radius, speed, accel, press_depth, 
     pitch = {"baseline": np.zeros(n_steps + 1)}
     if "pitch" in trajs:
         pitch["pitch"] = trajs["pitch"].pitch(times)
-    return Plan(scene=scene_obj, sim=sim, plate_z=plate_z, touch_z=touch_z, start_xy=start_xy,
-                phase_starts=phase_starts, times=times, theta=theta, phase=phase, poses=poses,
-                pitch=pitch, n_steps=n_steps, n_full=n_full,
-                tips_stride=max(1, int(round(tips_dt / dt))),
-                shapes_stride=max(1, int(round(shapes_dt / dt))))
+    return Plan(
+        scene=scene_obj,
+        sim=sim,
+        plate_z=plate_z,
+        touch_z=touch_z,
+        start_xy=start_xy,
+        phase_starts=phase_starts,
+        times=times,
+        theta=theta,
+        phase=phase,
+        poses=poses,
+        pitch=pitch,
+        n_steps=n_steps,
+        n_full=n_full,
+        tips_stride=max(1, int(round(tips_dt / dt))),
+        shapes_stride=max(1, int(round(shapes_dt / dt))),
+    )

@@ -10,6 +10,7 @@ import numpy as np
 
 from .analysis import PAPER_JAMMING_ANGLES, TWO_PI, pi_label
 
+
 def _pi_ticks(ax, lo, hi, denom=4):
     step = math.pi / denom
     k0, k1 = int(math.ceil(lo / step - 1e-9)), int(math.floor(hi / step + 1e-9))
@@ -24,15 +25,23 @@ def _plot_range(theta_end):
     if theta_end > TWO_PI + 0.25:
         k = int(math.ceil(theta_end / TWO_PI - 1e-9))
         full = abs(theta_end - k * TWO_PI) < 1e-6
-        return TWO_PI, theta_end, (f"turns 2-{k}" if full and k > 2 else
-                                   f"θ in [2π, {theta_end / math.pi:.2f}π]")
+        return (
+            TWO_PI,
+            theta_end,
+            (f"turns 2-{k}" if full and k > 2 else f"θ in [2π, {theta_end / math.pi:.2f}π]"),
+        )
     if theta_end > 0.5 * math.pi:
         return 0.5 * math.pi, theta_end, "θ ≥ π/2 (turn 1 after the excluded quarter)"
     return 0.0, max(theta_end, 1e-3), "whole run (θ < π/2: no analysis range)"
 
 
-def plot_forces_vs_angle(path, recs, theta, analysis, pitch_series, pitch_window, title=""):
-    """Figure 7 (with a pitch run, Figure 10): Fx, Fy, Fz and |F_h| against θ over turns 2-4."""
+def plot_forces_vs_angle(
+    path, recs, theta, analysis, pitch_series, pitch_window, title="", complete=False
+):
+    """Figure 7 (with a pitch run, Figure 10): Fx, Fy, Fz and |F_h| against θ over turns 2-4.
+
+    ``complete``: the run reached the end of the motion, whose last quarter turn (the final
+    MoveL segment) is shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -41,10 +50,13 @@ def plot_forces_vs_angle(path, recs, theta, analysis, pitch_series, pitch_window
     base = recs["baseline"]
     th_end = float(theta[base.n - 1])
     lo, hi, what = _plot_range(th_end)
-    fig, axes = plt.subplots(4, 1, figsize=(11, 10), sharex=True,
-                             gridspec_kw=dict(height_ratios=[3, 3, 3, 2]))
-    styles = {"baseline": dict(color="C0", lw=1.2, label="without pitch error"),
-              "pitch": dict(color="C3", lw=1.2, ls="--", label="with pitch error (eq 12)")}
+    fig, axes = plt.subplots(
+        4, 1, figsize=(11, 10), sharex=True, gridspec_kw=dict(height_ratios=[3, 3, 3, 2])
+    )
+    styles = {
+        "baseline": dict(color="C0", lw=1.2, label="without pitch error"),
+        "pitch": dict(color="C3", lw=1.2, ls="--", label="with pitch error (eq 12)"),
+    }
     names = ["Fx [N]", "Fy [N]", "Fz [N]", "|F_h| [N]"]
     for name, r in recs.items():
         n = r.n
@@ -65,6 +77,8 @@ def plot_forces_vs_angle(path, recs, theta, analysis, pitch_series, pitch_window
                     for ax, y in zip(axes, ys):
                         ax.axvline(p["theta_rad"], color=st["color"], lw=0.6, ls=":", alpha=0.8)
                         ax.plot(th[i], y[i], "v", color=st["color"], ms=6, mec="k", mew=0.5)
+    if complete:
+        _final_move(axes, theta[base.n - 1], lo, hi)
     # the paper's jamming angles 9π/4 + 2πk and 13π/4 + 2πk
     for a0 in PAPER_JAMMING_ANGLES:
         k = math.floor((lo - a0) / TWO_PI)
@@ -84,19 +98,84 @@ def plot_forces_vs_angle(path, recs, theta, analysis, pitch_series, pitch_window
     for ax, nm in zip(axes, names):
         ax.set_ylabel(nm)
         ax.grid(alpha=0.3)
-    axes[-1].set_xlabel("rotation angle θ [rad]  (0 at P0; ▼ detected jamming peaks of |F_h|; "
-                        "dash-dot: the paper's 9π/4 + 2πk, 13π/4 + 2πk)")
+    axes[-1].set_xlabel("rotation angle θ [rad] (0 at the start point P0)")
     _pi_ticks(axes[-1], lo, hi, 4)
     axes[0].set_xlim(lo, hi)
+    fig.legend(
+        handles=_legend_handles(plt, recs, styles, complete),
+        loc="lower center",
+        ncol=2,
+        fontsize=8,
+        frameon=False,
+    )
+    title = f"{title}\n{_offset_note(analysis.get('baseline'))}"
     if "pitch" in recs:
-        axes[0].legend(loc="upper right", fontsize=8)
-        fig.suptitle(f"Forces vs rotation angle, {what}: with and without the pitch error "
-                     f"(paper Figure 10)\n{title}", fontsize=10)
+        fig.suptitle(
+            f"Forces vs rotation angle, {what}: with and without the pitch error "
+            f"(paper Figure 10)\n{title}",
+            fontsize=10,
+        )
     else:
         fig.suptitle(f"Forces vs rotation angle, {what} (paper Figure 7)\n{title}", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _final_move(axes, theta_end, lo, hi) -> None:
+    """Shade the last quarter turn: the final MoveL segment runs straight into the last control
+    point (no blend) and stops there, so its forces are not those of the circle -- the same reason
+    the paper excludes the first quarter (P0 -> P1)."""
+    a = max(lo, float(theta_end) - 0.5 * math.pi)
+    if theta_end > TWO_PI and a < hi:
+        for ax in axes:
+            ax.axvspan(a, hi, color="0.85", alpha=0.5, zorder=0, lw=0)
+
+
+def _legend_handles(plt, recs, styles, complete) -> list:
+    """Legend entries: the runs, the detected peaks, the paper's angles, the final move."""
+    from matplotlib.patches import Patch
+
+    handles = [plt.Line2D([], [], **{k: v for k, v in styles[n].items()}) for n in recs]
+    if len(recs) == 1:
+        handles[0].set_label("F: force the robot applies to the brush (robot base frame, z up)")
+    handles += [
+        plt.Line2D(
+            [],
+            [],
+            ls=":",
+            marker="v",
+            color="C0",
+            mec="k",
+            mew=0.5,
+            label="detected jamming peak of |F_h| (our run)",
+        ),
+        plt.Line2D([], [], ls="-.", color="0.6", label="paper's jamming angles 9π/4, 13π/4 + 2πk"),
+    ]
+    if complete:
+        handles.append(
+            Patch(
+                color="0.85",
+                alpha=0.5,
+                label="final move into the last MoveL point (not the circle)",
+            )
+        )
+    return handles
+
+
+def _offset_note(analysis) -> str:
+    """One line: where our peaks sit against the paper's angles (mod 2π)."""
+    jam = (analysis or {}).get("jamming") or {}
+    parts = []
+    for name, ev in (jam.get("events") or {}).items():
+        if ev.get("count"):
+            paper = math.degrees(ev["paper_angle_mod_2pi_rad"])
+            ours = ev["mean_angle_mod_2pi_deg"]
+            d = (ours - paper + 180.0) % 360.0 - 180.0
+            parts.append(f"near {name}: ours {ours:.0f}° vs paper {paper:.0f}° ({d:+.0f}°)")
+    if not parts:
+        return "no jamming peak detected"
+    return "jamming peaks mod 2π, " + "; ".join(parts)
 
 
 def _shape_events(analysis, theta_lo, theta_hi):
@@ -108,8 +187,15 @@ def _shape_events(analysis, theta_lo, theta_hi):
         turns = sorted({p["turn"] for p in peaks})
         t = next((k for k in turns if k >= 2), turns[0])
         sel = [p for p in peaks if p["turn"] == t][:2]
-        return [(p["theta_rad"], f"jamming peak at θ = {p['theta_label']} "
-                                 f"({p['theta_mod_2pi_deg']:.0f}° mod 2π)") for p in sel]
+        # the turn's first peak answers the paper's 9π/4, the second (half a turn later) 13π/4
+        return [
+            (
+                p["theta_rad"],
+                f"paper's {paper} jamming: our peak at θ = {p['theta_label']} "
+                f"({p['theta_mod_2pi_deg']:.0f}° mod 2π)",
+            )
+            for p, paper in zip(sel, ("9π/4", "13π/4"))
+        ]
     out = []
     for a0 in PAPER_JAMMING_ANGLES:
         for a in (a0 - TWO_PI, a0, a0 + TWO_PI):
@@ -118,12 +204,22 @@ def _shape_events(analysis, theta_lo, theta_hi):
                 break
     if out:
         return out[:2]
-    return [(theta_lo + f * (theta_hi - theta_lo), "no jamming peak detected")
-            for f in (0.35, 0.85)]
+    return [
+        (theta_lo + f * (theta_hi - theta_lo), "no jamming peak detected") for f in (0.35, 0.85)
+    ]
 
 
-def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times,
-                         offsets=(-math.pi / 8, -math.pi / 24, 0.0, math.pi / 8)):
+def plot_deformed_shapes(
+    path,
+    rec,
+    theta,
+    pose,
+    sim,
+    brush_cfg,
+    analysis,
+    times,
+    offsets=(-math.pi / 8, -math.pi / 24, 0.0, math.pi / 8),
+):
     """Figure 9: bristle centre lines around each jamming point, side (x-z) and top (x-y) views.
 
     Coordinates are world (robot base) axes relative to the TCP position; the plate is z = 0 in the
@@ -147,12 +243,17 @@ def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times
     gnames = sorted(set(groups))
     gcol = {g: f"C{k}" for k, g in enumerate(gnames)}
     ncol = len(offsets)
-    fig, axes = plt.subplots(2 * len(events), ncol, figsize=(3.2 * ncol, 3.0 * 2 * len(events)),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        2 * len(events),
+        ncol,
+        figsize=(3.6 * ncol, 4.6 * len(events) + 0.8),
+        squeeze=False,
+        gridspec_kw=dict(height_ratios=[1.6, 2.4] * len(events)),
+    )
     L = brush_cfg.max_length
     span = np.ptp(m.root_p[:, 0]) / 2 + 0.7 * L
     spany = np.ptp(m.root_p[:, 1]) / 2 + 0.7 * L
-    for e, (th0, label) in enumerate(events):
+    for e, (th0, _label) in enumerate(events):
         for c, off in enumerate(offsets):
             want = th0 + off
             k = int(np.argmin(np.abs(th_s - want)))
@@ -164,7 +265,7 @@ def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times
             roots = p_tcp + m.root_p @ R_tcp.T
             ax_s, ax_t = axes[2 * e, c], axes[2 * e + 1, c]
             for j in range(m.n_bristles):
-                line = np.vstack([roots[j], body[m.bstart[j]:m.bstart[j + 1]], tips[j]])
+                line = np.vstack([roots[j], body[m.bstart[j] : m.bstart[j + 1]], tips[j]])
                 rel = line - [p_tcp[0], p_tcp[1], 0.0]
                 col = gcol[groups[j]]
                 ax_s.plot(rel[:, 0], rel[:, 2], "-", color=col, lw=1.0, alpha=0.8)
@@ -179,29 +280,44 @@ def plot_deformed_shapes(path, rec, theta, pose, sim, brush_cfg, analysis, times
             ax_t.set_xlim(-span, span)
             ax_t.set_ylim(-spany, spany)
             if i + 1 < len(P):
-                v = (P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)])
+                v = P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)]
                 nv = np.linalg.norm(v[:2])
                 if nv > 0:
                     d = v[:2] / nv * 0.5 * spany
-                    ax_t.annotate("", xy=(d[0], d[1]), xytext=(0, 0),
-                                  arrowprops=dict(arrowstyle="->", color="C3", lw=1.5))
+                    ax_t.annotate(
+                        "",
+                        xy=(d[0], d[1]),
+                        xytext=(0, 0),
+                        arrowprops=dict(arrowstyle="->", color="C3", lw=1.5),
+                    )
+            # no fixed aspect: panels fill their cells (the side view stretches z, readable)
             for ax in (ax_s, ax_t):
-                ax.set_aspect("equal")
                 ax.grid(alpha=0.3)
-                ax.tick_params(labelsize=7)
-            ax_s.set_title(f"θ = {th_s[k] / math.pi:.3f}π ({math.degrees(th_s[k] % TWO_PI):.0f}°)"
-                           f"{'  [peak]' if off == 0 else ''}", fontsize=8)
+                ax.tick_params(labelsize=8)
+            ax_s.set_title(
+                f"θ = {th_s[k] / math.pi:.3f}π ({math.degrees(th_s[k] % TWO_PI):.0f}°)"
+                f"{'  [peak]' if off == 0 else ''}",
+                fontsize=9,
+            )
             if c == 0:
-                ax_s.set_ylabel(f"side: z [mm]\n{label}", fontsize=7)
-                ax_t.set_ylabel("top: y - y_TCP [mm]", fontsize=7)
-            ax_s.set_xlabel("x - x_TCP [mm]", fontsize=7)
-            ax_t.set_xlabel("x - x_TCP [mm]", fontsize=7)
+                ax_s.set_ylabel("side: z [mm]", fontsize=8)
+                ax_t.set_ylabel("top: y - y_TCP [mm]", fontsize=8)
+            ax_t.set_xlabel("x - x_TCP [mm]", fontsize=8)
     handles = [plt.Line2D([], [], color=gcol[g], label=g) for g in gnames]
-    handles += [plt.Line2D([], [], ls="", marker="o", color="r", label="tip in contact"),
-                plt.Line2D([], [], color="C3", label="TCP velocity (top view)")]
-    fig.legend(handles=handles, loc="lower center", fontsize=8, ncol=len(handles))
-    fig.suptitle(f"Deformed bristles around the jamming points (paper Figure 9), brush "
-                 f"'{brush_cfg.name}'; world axes relative to the TCP, plate at z = 0", fontsize=10)
-    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    handles += [
+        plt.Line2D([], [], ls="", marker="o", color="r", label="tip in contact"),
+        plt.Line2D([], [], color="C3", label="TCP velocity (top view)"),
+    ]
+    fig.legend(handles=handles, loc="lower center", fontsize=9, ncol=len(handles), frameon=False)
+    fig.suptitle(
+        f"Deformed bristles around the two jamming points of a turn (paper Figure 9), brush "
+        f"'{brush_cfg.name}'\nworld (robot base) axes relative to the TCP; plate at z = 0; "
+        "columns: θ before, at and after the peak",
+        fontsize=11,
+    )
+    fig.tight_layout(rect=(0, 0.03, 1, 0.95), h_pad=3.0)
+    for e, (_, label) in enumerate(events):  # row labels placed after the layout is fixed
+        pos = axes[2 * e, 0].get_position()
+        fig.text(pos.x0, pos.y1 + 0.025, label, fontsize=10, fontweight="bold", ha="left")
     fig.savefig(path, dpi=100)
     plt.close(fig)

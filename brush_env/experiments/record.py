@@ -10,6 +10,7 @@ import numpy as np
 
 from ..engine import SimulationDivergence
 
+
 class _Recorder:
     """Preallocated per-step and sampled (tips, shapes) records of one run."""
 
@@ -17,22 +18,39 @@ class _Recorder:
         self.n = 0
         self.tips_stride, self.shapes_stride = tips_stride, shapes_stride
         self.step = dict(
-            time=np.zeros(n_rows), F=np.zeros((n_rows, 3)), M=np.zeros((n_rows, 3)),
-            Fn=np.zeros(n_rows), Ft=np.zeros(n_rows), Ft_abs=np.zeros(n_rows),
-            n_contact=np.zeros(n_rows, np.int32), max_pen=np.zeros(n_rows),
-            iters=np.zeros(n_rows, np.int32), subs=np.zeros(n_rows, np.int32))
+            time=np.zeros(n_rows),
+            F=np.zeros((n_rows, 3)),
+            M=np.zeros((n_rows, 3)),
+            Fn=np.zeros(n_rows),
+            Ft=np.zeros(n_rows),
+            Ft_abs=np.zeros(n_rows),
+            n_contact=np.zeros(n_rows, np.int32),
+            max_pen=np.zeros(n_rows),
+            iters=np.zeros(n_rows, np.int32),
+            subs=np.zeros(n_rows, np.int32),
+        )
         nt = (n_rows - 1) // tips_stride + 1
         ns = (n_rows - 1) // shapes_stride + 1
         f32 = np.float32
         self.tips = dict(
-            row=np.zeros(nt, np.int64), pos=np.zeros((nt, nb, 3), f32),
-            vel=np.zeros((nt, nb, 3), f32), fn=np.zeros((nt, nb), f32),
-            ft=np.zeros((nt, nb, 3), f32), fc=np.zeros((nt, nb, 3), f32),
-            contact=np.zeros((nt, nb), bool), sliding=np.zeros((nt, nb), bool),
-            pen=np.zeros((nt, nb), f32), tiptip=np.zeros((nt, nb), f32))
+            row=np.zeros(nt, np.int64),
+            pos=np.zeros((nt, nb, 3), f32),
+            vel=np.zeros((nt, nb, 3), f32),
+            fn=np.zeros((nt, nb), f32),
+            ft=np.zeros((nt, nb, 3), f32),
+            fc=np.zeros((nt, nb, 3), f32),
+            contact=np.zeros((nt, nb), bool),
+            sliding=np.zeros((nt, nb), bool),
+            pen=np.zeros((nt, nb), f32),
+            tiptip=np.zeros((nt, nb), f32),
+        )
         self.nt = 0
-        self.shapes = dict(row=np.zeros(ns, np.int64), body=np.zeros((ns, nbody, 3), f32),
-                           tip=np.zeros((ns, nb, 3), f32), contact=np.zeros((ns, nb), bool))
+        self.shapes = dict(
+            row=np.zeros(ns, np.int64),
+            body=np.zeros((ns, nbody, 3), f32),
+            tip=np.zeros((ns, nb, 3), f32),
+            contact=np.zeros((ns, nb), bool),
+        )
         self.ns = 0
 
     def copy(self):
@@ -98,8 +116,9 @@ def _simulate(sim, P, R, rec, theta, i0, i1, bar, label):
         if bar is not None and (i % 50 == 0 or i == i1 - 1):
             bar.update(i + 1 - last)
             last = i + 1
-            bar.set_postfix_str(f"{label} θ={theta[i] / math.pi:5.2f}π "
-                                f"Fz={out.tcp_force[2]:+.2f} N", refresh=False)
+            bar.set_postfix_str(
+                f"{label} θ={theta[i] / math.pi:5.2f}π Fz={out.tcp_force[2]:+.2f} N", refresh=False
+            )
 
 
 def _shared_prefix(poses, n_steps) -> int:
@@ -121,13 +140,17 @@ def simulate_runs(plan, progress: bool):
 
     sim, theta, n_steps = plan.sim, plan.theta, plan.n_steps
     P, R = plan.poses["baseline"]
-    rec = _Recorder(n_steps + 1, sim.model.n_bristles, sim.model.n_bodies, plan.tips_stride,
-                    plan.shapes_stride)
+    rec = _Recorder(
+        n_steps + 1, sim.model.n_bristles, sim.model.n_bodies, plan.tips_stride, plan.shapes_stride
+    )
     rec.add(sim.reset(P[0], R[0]), sim)
     branch = _shared_prefix(plan.poses, n_steps)
     total = n_steps + (n_steps + 1 - branch if "pitch" in plan.poses else 0)
-    bar = tqdm(total=total, unit="step", desc="reference", mininterval=0.5,
-               dynamic_ncols=True) if progress else None
+    bar = (
+        tqdm(total=total, unit="step", desc="reference", mininterval=0.5, dynamic_ncols=True)
+        if progress
+        else None
+    )
     status, recs, perf = {}, {}, {}
     snapshot = rec_snapshot = None
     t0 = time.perf_counter()
@@ -142,11 +165,15 @@ def simulate_runs(plan, progress: bool):
     except SimulationDivergence as exc:
         status["baseline"] = f"diverged: {exc}"
     recs["baseline"] = rec
-    perf["baseline"] = dict(wall_s=time.perf_counter() - t0, steps=rec.n - 1,
-                            simulated_s=float(rec.step["time"][rec.n - 1]))
+    perf["baseline"] = dict(
+        wall_s=time.perf_counter() - t0,
+        steps=rec.n - 1,
+        simulated_s=float(rec.step["time"][rec.n - 1]),
+    )
     if "pitch" in plan.poses:
         recs["pitch"], status["pitch"], perf["pitch"] = _pitch_run(
-            plan, rec, status["baseline"], branch, snapshot, rec_snapshot, bar)
+            plan, rec, status["baseline"], branch, snapshot, rec_snapshot, bar
+        )
     if bar is not None:
         bar.close()
     return recs, status, perf
@@ -159,8 +186,11 @@ def _pitch_run(plan, rec, baseline_status, branch, snapshot, rec_snapshot, bar):
     if branch > n_steps:  # the perturbation does not start within the run: same as baseline
         return rec.copy(), baseline_status, not_run
     if snapshot is None:  # the baseline diverged before the perturbation starts
-        return (rec.copy(), "not run: the baseline diverged before the perturbation starts",
-                not_run)
+        return (
+            rec.copy(),
+            "not run: the baseline diverged before the perturbation starts",
+            not_run,
+        )
     Pp, Rp = plan.poses["pitch"]
     t0 = time.perf_counter()
     sim.set_state(snapshot)
@@ -170,7 +200,10 @@ def _pitch_run(plan, rec, baseline_status, branch, snapshot, rec_snapshot, bar):
         status = "ok"
     except SimulationDivergence as exc:
         status = f"diverged: {exc}"
-    perf = dict(wall_s=time.perf_counter() - t0, steps=rec_p.n - branch,
-                shared_prefix_steps=branch - 1,
-                simulated_s=float(rec_p.step["time"][rec_p.n - 1] - plan.times[branch - 1]))
+    perf = dict(
+        wall_s=time.perf_counter() - t0,
+        steps=rec_p.n - branch,
+        shared_prefix_steps=branch - 1,
+        simulated_s=float(rec_p.step["time"][rec_p.n - 1] - plan.times[branch - 1]),
+    )
     return rec_p, status, perf

@@ -16,28 +16,48 @@ from pathlib import Path
 from ..engine import SimSettings
 from ..engine.warmup import ensure_compiled
 from .analysis import PAPER_JAMMING_ANGLES, analyse_run, pitch_asymmetry
-from .outputs import (performance_info, settings_info, trajectory_info, write_run_files,
-                      write_summary)
+from .outputs import (
+    performance_info,
+    settings_info,
+    trajectory_info,
+    write_run_files,
+    write_summary,
+)
 from .plan import DEFAULTS, check_run_args, make_plan, resolve_scene
 from .plots import plot_deformed_shapes, plot_forces_vs_angle
 from .record import simulate_runs
 
-PAPER = dict(reference="Cirelli et al., Machines 2023, §4-5, Figures 7, 9, 10",
-             jamming_angles_rad=list(PAPER_JAMMING_ANGLES), jamming_angles_label=["9π/4", "13π/4"],
-             jamming_angles_mod_2pi_deg=[45.0, 225.0])
+PAPER = dict(
+    reference="Cirelli et al., Machines 2023, §4-5, Figures 7, 9, 10",
+    jamming_angles_rad=list(PAPER_JAMMING_ANGLES),
+    jamming_angles_label=["9π/4", "13π/4"],
+    jamming_angles_mod_2pi_deg=[45.0, 225.0],
+)
 
 
-def run_reference(brush=None, scene=None, out_dir="runs/reference",
-                  turns: float = DEFAULTS["turns"], pitch_error_deg: float = 0.0,
-                  dt: float = DEFAULTS["dt"], bodies: int | None = None,
-                  integrator: str = DEFAULTS["integrator"], speed: float = DEFAULTS["speed"],
-                  accel: float = DEFAULTS["accel"], progress: bool = True, *,
-                  path: str = DEFAULTS["path"], radius: float = DEFAULTS["radius"],
-                  press_depth: float = DEFAULTS["press_depth"],
-                  press_time: float = DEFAULTS["press_time"],
-                  hold_time: float = DEFAULTS["hold_time"],
-                  pitch_window=DEFAULTS["pitch_window"], tips_dt: float = DEFAULTS["tips_dt"],
-                  shapes_dt: float = DEFAULTS["shapes_dt"], plots: bool = True) -> dict:
+def run_reference(
+    brush=None,
+    scene=None,
+    out_dir="runs/reference",
+    turns: float = DEFAULTS["turns"],
+    pitch_error_deg: float = 0.0,
+    dt: float = DEFAULTS["dt"],
+    bodies: int | None = None,
+    integrator: str = DEFAULTS["integrator"],
+    speed: float = DEFAULTS["speed"],
+    accel: float = DEFAULTS["accel"],
+    progress: bool = True,
+    *,
+    path: str = DEFAULTS["path"],
+    radius: float = DEFAULTS["radius"],
+    press_depth: float = DEFAULTS["press_depth"],
+    press_time: float = DEFAULTS["press_time"],
+    hold_time: float = DEFAULTS["hold_time"],
+    pitch_window=DEFAULTS["pitch_window"],
+    tips_dt: float = DEFAULTS["tips_dt"],
+    shapes_dt: float = DEFAULTS["shapes_dt"],
+    plots: bool = True,
+) -> dict:
     """Run the experiment and write its outputs to ``out_dir``; returns the summary dict.
 
     ``brush``: a ``BrushConfig``, a path or a name in configs/brushes (default: the scene's);
@@ -49,16 +69,40 @@ def run_reference(brush=None, scene=None, out_dir="runs/reference",
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
-    check_run_args(turns, dt, speed, accel, radius, press_time, tips_dt, shapes_dt, hold_time,
-                   press_depth, path, integrator)
+    check_run_args(
+        turns,
+        dt,
+        speed,
+        accel,
+        radius,
+        press_time,
+        tips_dt,
+        shapes_dt,
+        hold_time,
+        press_depth,
+        path,
+        integrator,
+    )
     settings = SimSettings(dt=float(dt), integrator=integrator)
     scene_obj = resolve_scene(brush, scene, bodies)  # every input is valid past this line
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
-    plan = make_plan(scene_obj, settings, turns=float(turns), radius=radius, speed=speed,
-                     accel=accel, press_depth=press_depth, press_time=press_time,
-                     hold_time=hold_time, path=path, pitch_error_deg=pitch_error_deg,
-                     pitch_window=pitch_window, tips_dt=tips_dt, shapes_dt=shapes_dt)
+    plan = make_plan(
+        scene_obj,
+        settings,
+        turns=float(turns),
+        radius=radius,
+        speed=speed,
+        accel=accel,
+        press_depth=press_depth,
+        press_time=press_time,
+        hold_time=hold_time,
+        path=path,
+        pitch_error_deg=pitch_error_deg,
+        pitch_window=pitch_window,
+        tips_dt=tips_dt,
+        shapes_dt=shapes_dt,
+    )
     t_setup = time.perf_counter() - t_setup
     recs, status, perf = simulate_runs(plan, progress)
     analysis = analyse(plan, recs, pitch_window)
@@ -69,27 +113,51 @@ def run_reference(brush=None, scene=None, out_dir="runs/reference",
     if plots:
         files.update(draw_figures(out_dir, plan, recs, analysis, args))
     t_plot = time.perf_counter() - t_plot
-    return write_summary(out_dir, dict(
-        status="ok" if all(v == "ok" for v in status.values()) else "diverged",
-        run_status=status, paper=PAPER, settings=settings_info(plan, settings, args),
-        trajectory=trajectory_info(plan, path=path, radius=radius, speed=speed, accel=accel),
-        performance=performance_info(perf, recs, wall_s=time.perf_counter() - t_wall0,
-                                     setup_s=t_setup, compile_s=compile_s, plot_s=t_plot),
-        analysis=analysis, files=files))
+    return write_summary(
+        out_dir,
+        dict(
+            status="ok" if all(v == "ok" for v in status.values()) else "diverged",
+            run_status=status,
+            paper=PAPER,
+            settings=settings_info(plan, settings, args),
+            trajectory=trajectory_info(plan, path=path, radius=radius, speed=speed, accel=accel),
+            performance=performance_info(
+                perf,
+                recs,
+                wall_s=time.perf_counter() - t_wall0,
+                setup_s=t_setup,
+                compile_s=compile_s,
+                plot_s=t_plot,
+            ),
+            analysis=analysis,
+            files=files,
+        ),
+    )
 
 
 def analyse(plan, recs, pitch_window) -> dict:
     """Jamming peaks, per-turn statistics and repeatability of every run (§5.1); with a pitch
     run, the asymmetry it introduces in the perturbed window (§5.2)."""
     th = plan.theta
-    analysis = {name: analyse_run(th[:r.n], r.step["F"][:r.n], r.step["Fn"][:r.n],
-                                  r.step["n_contact"][:r.n], r.step["max_pen"][:r.n])
-                for name, r in recs.items()}
+    analysis = {
+        name: analyse_run(
+            th[: r.n],
+            r.step["F"][: r.n],
+            r.step["Fn"][: r.n],
+            r.step["n_contact"][: r.n],
+            r.step["max_pen"][: r.n],
+        )
+        for name, r in recs.items()
+    }
     if "pitch" in recs:
         n = min(recs["baseline"].n, recs["pitch"].n)
         analysis["pitch_asymmetry"] = pitch_asymmetry(
-            th[:n], recs["baseline"].step["F"][:n], recs["pitch"].step["F"][:n], pitch_window,
-            pitch=plan.pitch["pitch"][:n])
+            th[:n],
+            recs["baseline"].step["F"][:n],
+            recs["pitch"].step["F"][:n],
+            pitch_window,
+            pitch=plan.pitch["pitch"][:n],
+        )
     return analysis
 
 
@@ -97,18 +165,35 @@ def draw_figures(out_dir: Path, plan, recs, analysis, args) -> dict:
     """Figure 7 (forces_vs_angle.png), Figure 10 with a pitch run (forces_vs_angle_pitch.png)
     and Figure 9 (deformed_shapes.png); returns {key: file name}."""
     brush_cfg = plan.scene.brush
-    title = (f"brush '{brush_cfg.name}', {args['path']}, v = {args['speed']:g} mm/s, "
-             f"dt = {args['dt']:g} s")
+    title = (
+        f"brush '{brush_cfg.name}', {args['path']}, v = {args['speed']:g} mm/s, "
+        f"dt = {args['dt']:g} s"
+    )
     files = {}
     figures = [("forces_vs_angle", {"baseline": recs["baseline"]})]
     if "pitch" in recs:
         figures.append(("forces_vs_angle_pitch", recs))
     for key, runs in figures:
-        plot_forces_vs_angle(out_dir / f"{key}.png", runs, plan.theta, analysis, plan.pitch,
-                             args["pitch_window"], title=title)
+        plot_forces_vs_angle(
+            out_dir / f"{key}.png",
+            runs,
+            plan.theta,
+            analysis,
+            plan.pitch,
+            args["pitch_window"],
+            title=title,
+            complete=plan.n_steps == plan.n_full,
+        )
         files[key] = f"{key}.png"
-    plot_deformed_shapes(out_dir / "deformed_shapes.png", recs["baseline"], plan.theta,
-                         plan.poses["baseline"], plan.sim, brush_cfg, analysis["baseline"],
-                         plan.times)
+    plot_deformed_shapes(
+        out_dir / "deformed_shapes.png",
+        recs["baseline"],
+        plan.theta,
+        plan.poses["baseline"],
+        plan.sim,
+        brush_cfg,
+        analysis["baseline"],
+        plan.times,
+    )
     files["deformed_shapes"] = "deformed_shapes.png"
     return files

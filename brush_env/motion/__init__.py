@@ -15,12 +15,32 @@ the value and the allowed range.
 from .base import R0, Approach, Hold, Press, Sequence, Trajectory
 from .circle import Circle
 from .movel import BLEND_RULE, MoveL
-from .paper import (PitchPerturbation, movel_circle_deviation, paper_circle_movel,
-                    paper_circle_waypoints, pitch_profile, pitch_profile_dot)
+from .paper import (
+    PitchPerturbation,
+    movel_circle_deviation,
+    paper_circle_movel,
+    paper_circle_waypoints,
+    pitch_profile,
+    pitch_profile_dot,
+)
 from .profiles import smoothstep, smoothstep_dot
 
 __all__ = [
-    "BLEND_RULE", "R0", "Approach", "Circle", "Hold", "MoveL", "PitchPerturbation", "Press", "Sequence",
-    "Trajectory", "movel_circle_deviation", "paper_circle_movel", "paper_circle_waypoints",
-    "pitch_profile", "pitch_profile_dot", "smoothstep", "smoothstep_dot",
+    "BLEND_RULE",
+    "R0",
+    "Approach",
+    "Circle",
+    "Hold",
+    "MoveL",
+    "PitchPerturbation",
+    "Press",
+    "Sequence",
+    "Trajectory",
+    "movel_circle_deviation",
+    "paper_circle_movel",
+    "paper_circle_waypoints",
+    "pitch_profile",
+    "pitch_profile_dot",
+    "smoothstep",
+    "smoothstep_dot",
 ]

@@ -165,7 +165,7 @@ class MoveL(Trajectory):
         except (TypeError, ValueError):
             raise ValueError(
                 f"waypoints must be an (N, 3) array of positions (mm), got {waypoints!r}"
-            )
+            ) from None
         if W.ndim != 2 or W.shape[1] != 3 or W.shape[0] < 1 or not np.all(np.isfinite(W)):
             raise ValueError(
                 f"waypoints must be a finite (N, 3) array with N >= 1, got shape {W.shape}"
@@ -204,7 +204,9 @@ class MoveL(Trajectory):
 
         self.has_angle = False
         if center is not None:
-            self._setup_angle(np.array(check_vec("center", center, 3)), check_unit("normal", normal))
+            self._setup_angle(
+                np.array(check_vec("center", center, 3)), check_unit("normal", normal)
+            )
 
     # -- construction ---------------------------------------------------------------------
     def _build(self):

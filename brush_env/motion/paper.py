@@ -101,8 +101,8 @@ def movel_circle_deviation(
 
     Builds ``paper_circle_movel`` with 3 turns and measures ``|p - c|⊥ - radius`` on points equally
     spaced in arc length.  The headline numbers (``max_abs_mm``, ``rms_mm``, ``max_outward_mm``,
-    ``max_inward_mm``, both >= 0; RMS weighted by arc length) are for the steady loop — the middle turn
-    θ ∈ [2π, 4π], where every corner has its steady blend.  ``first_quarter_max_abs_mm`` covers
+    ``max_inward_mm``, both >= 0; RMS weighted by arc length) are for the steady loop — the middle
+    turn θ ∈ [2π, 4π], where every corner has its steady blend.  ``first_quarter_max_abs_mm`` covers
     the excluded first move (θ ∈ [0, π/2]) and ``whole_path_max_abs_mm`` everything.
     The report also gives the requested and effective blend radii (steady corners and the first
     corner P1), whether the overlap rule cut them (``reduced``) and the rule itself.

@@ -8,10 +8,31 @@ not in the engine.
 
 from . import references
 from .cli import add_arguments, run
-from .suite import (PAPER_INNER, SLENDER, Check, Geometry, axial, cantilever, classified_modes,
-                    frequency, suite, torsion)
+from .suite import (
+    PAPER_INNER,
+    SLENDER,
+    Check,
+    Geometry,
+    axial,
+    cantilever,
+    classified_modes,
+    frequency,
+    suite,
+    torsion,
+)
 
 __all__ = [
-    "PAPER_INNER", "SLENDER", "Check", "Geometry", "add_arguments", "axial", "cantilever",
-    "classified_modes", "frequency", "references", "run", "suite", "torsion",
+    "PAPER_INNER",
+    "SLENDER",
+    "Check",
+    "Geometry",
+    "add_arguments",
+    "axial",
+    "cantilever",
+    "classified_modes",
+    "frequency",
+    "references",
+    "run",
+    "suite",
+    "torsion",
 ]

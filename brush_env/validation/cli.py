@@ -21,23 +21,33 @@ def _geometry_args(p) -> None:
     p.add_argument("--bodies", type=int, default=6, help="rigid bodies per bristle (default 6)")
     p.add_argument("--length", type=float, default=g.length, help="L [mm] (default %(default)s)")
     p.add_argument("--width", type=float, default=g.width, help="b [mm] (default %(default)s)")
-    p.add_argument("--thickness", type=float, default=g.thickness,
-                   help="h [mm] (default %(default)s)")
+    p.add_argument(
+        "--thickness", type=float, default=g.thickness, help="h [mm] (default %(default)s)"
+    )
     p.add_argument("--E", type=float, default=g.E, help="Young's modulus [MPa] (default 7)")
     p.add_argument("--nu", type=float, default=g.nu, help="Poisson ratio (default 0.48)")
-    p.add_argument("--plane", choices=("thin", "wide"), default="thin",
-                   help="bending about the thin (load along h) or wide direction")
+    p.add_argument(
+        "--plane",
+        choices=("thin", "wide"),
+        default="thin",
+        help="bending about the thin (load along h) or wide direction",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
 
 
 def add_arguments(parser) -> None:
     """One sub-parser per case, each with its geometry options."""
-    sub = parser.add_subparsers(dest="case", required=True, metavar="CASE",
-                                parser_class=type(parser))
+    sub = parser.add_subparsers(
+        dest="case", required=True, metavar="CASE", parser_class=type(parser)
+    )
     p = sub.add_parser("cantilever", help="static tip load, against Timoshenko / elastica")
     p.add_argument("--alpha", type=float, required=True, help="load P L^2 / (E I) [-]")
-    p.add_argument("--increments", type=int, default=None,
-                   help="load steps of the static solve (default ceil(alpha))")
+    p.add_argument(
+        "--increments",
+        type=int,
+        default=None,
+        help="load steps of the static solve (default ceil(alpha))",
+    )
     _geometry_args(p)
     p = sub.add_parser("frequency", help="first bending frequency, against Euler-Bernoulli")
     _geometry_args(p)
@@ -51,8 +61,12 @@ def run(args) -> int:
         rows = suite()
         ok = all(r.passed for r in rows)
         if args.json:
-            print(json.dumps({"passed": ok, "checks": [{**asdict(r), "passed": r.passed}
-                                                       for r in rows]}, indent=1))
+            print(
+                json.dumps(
+                    {"passed": ok, "checks": [{**asdict(r), "passed": r.passed} for r in rows]},
+                    indent=1,
+                )
+            )
         else:
             print(format_table(rows))
             print(f"\n{sum(r.passed for r in rows)}/{len(rows)} checks passed")
@@ -63,17 +77,23 @@ def run(args) -> int:
         if args.json:
             print(json.dumps(res, indent=1))
         else:
-            print(f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
-                  f"reference: {res['reference_kind']} ({res['reference_note']})")
+            print(
+                f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
+                f"reference: {res['reference_kind']} ({res['reference_note']})"
+            )
             for k in res["computed"]:
-                print(f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
-                      f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}")
+                print(
+                    f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
+                    f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}"
+                )
         return 0
     res = frequency(args.bodies, geom, args.plane)
     if args.json:
         print(json.dumps(res, indent=1))
     else:
-        print(f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
-              f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
-              f"rel. error {res['rel_error']:+.3e}")
+        print(
+            f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
+            f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
+            f"rel. error {res['rel_error']:+.3e}"
+        )
     return 0

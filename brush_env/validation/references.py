@@ -225,6 +225,6 @@ def euler_bernoulli_cantilever_frequencies(L, E, I, rho, A, n_modes=3):
     L [mm], E [N/mm^2], I [mm^4], rho [t/mm^3], A [mm^2]:
     f_k = (beta_k L)^2 / (2 pi) * sqrt(E I / (rho A L^4)).
     """
-    return cantilever_frequency_roots(n_modes) ** 2 / (2.0 * np.pi) * np.sqrt(
-        E * I / (rho * A * L**4)
+    return (
+        cantilever_frequency_roots(n_modes) ** 2 / (2.0 * np.pi) * np.sqrt(E * I / (rho * A * L**4))
     )

@@ -37,8 +37,9 @@ class Geometry:
 
     @property
     def material(self) -> Material:
-        return Material(name="validation", E=self.E, nu=self.nu, density=self.density,
-                        damping_ratio=0.1)
+        return Material(
+            name="validation", E=self.E, nu=self.nu, density=self.density, damping_ratio=0.1
+        )
 
     @property
     def section(self) -> Section:
@@ -46,11 +47,19 @@ class Geometry:
 
     def brush(self, bodies: int) -> BrushConfig:
         """One bristle, root at the origin, axis +x, width +y (TCP = head = world at reset)."""
-        br = BristleConfig(root=(0.0, 0.0, 0.0), axis=(1.0, 0.0, 0.0), width_dir=(0.0, 1.0, 0.0),
-                           length=self.length, section=self.section, material=self.material,
-                           bodies=bodies, tip_radius=min(0.2, self.length))
-        return BrushConfig(name="validation", head_offset=(0.0, 0.0, 0.0),
-                           head_rpy=(0.0, 0.0, 0.0), bristles=(br,))
+        br = BristleConfig(
+            root=(0.0, 0.0, 0.0),
+            axis=(1.0, 0.0, 0.0),
+            width_dir=(0.0, 1.0, 0.0),
+            length=self.length,
+            section=self.section,
+            material=self.material,
+            bodies=bodies,
+            tip_radius=min(0.2, self.length),
+        )
+        return BrushConfig(
+            name="validation", head_offset=(0.0, 0.0, 0.0), head_rpy=(0.0, 0.0, 0.0), bristles=(br,)
+        )
 
     def simulator(self, bodies: int, settings: SimSettings | None = None) -> Simulator:
         """A simulator holding this bristle, reset at the identity TCP pose (default settings:
@@ -60,8 +69,10 @@ class Geometry:
         return sim
 
     def label(self, bodies: int) -> str:
-        return (f"L={self.length:g} b={self.width:g} h={self.thickness:g} E={self.E:g} "
-                f"nu={self.nu:g} n={bodies}")
+        return (
+            f"L={self.length:g} b={self.width:g} h={self.thickness:g} E={self.E:g} "
+            f"nu={self.nu:g} n={bodies}"
+        )
 
 
 PAPER_INNER = Geometry()
@@ -76,8 +87,13 @@ def _cmp(computed: dict, reference: dict) -> dict:
     return {k: _rel(computed[k], reference[k]) for k in reference}
 
 
-def cantilever(alpha: float, bodies: int, geom: Geometry = PAPER_INNER,
-               increments: int | None = None, plane: str = "thin") -> dict:
+def cantilever(
+    alpha: float,
+    bodies: int,
+    geom: Geometry = PAPER_INNER,
+    increments: int | None = None,
+    plane: str = "thin",
+) -> dict:
     """Static tip of a clamped bristle under a dead transverse tip load P = alpha E I / L^2 [N].
 
     plane "thin": load along local z, I = I_y; "wide": load along local y, I = I_z.  Returns a
@@ -102,27 +118,52 @@ def cantilever(alpha: float, bodies: int, geom: Geometry = PAPER_INNER,
     out = sim.solve_static(increments=increments)
     tip = out.tip_pos[0]
     R = sim.state.rot[sim.model.bstart[1] - 1]
-    computed = {"v_over_L": float(tip[c] / L), "h_over_L": float(1.0 - tip[0] / L),
-                "tip_angle_rad": float(math.atan2(R[c, 0], R[0, 0]))}
+    computed = {
+        "v_over_L": float(tip[c] / L),
+        "h_over_L": float(1.0 - tip[0] / L),
+        "tip_angle_rad": float(math.atan2(R[c, 0], R[0, 0])),
+    }
     if alpha <= LINEAR_ALPHA_MAX:
         kind = "timoshenko"
-        tim = ref.timoshenko_cantilever_tip(P, L, mat.E, mat.G, I, sec.area,
-                                            sec.shear_coeff(mat.nu))
-        reference = {"v_over_L": tim["v"] / L, "h_over_L": alpha**2 / 15.0,
-                     "tip_angle_rad": tim["theta"]}
-        note = ("linear Timoshenko beam with shear (Cowper kappa); h_over_L is the elastica's "
-                "small-alpha value alpha^2/15 (second order, absent from linear theory)")
+        tim = ref.timoshenko_cantilever_tip(
+            P, L, mat.E, mat.G, I, sec.area, sec.shear_coeff(mat.nu)
+        )
+        reference = {
+            "v_over_L": tim["v"] / L,
+            "h_over_L": alpha**2 / 15.0,
+            "tip_angle_rad": tim["theta"],
+        }
+        note = (
+            "linear Timoshenko beam with shear (Cowper kappa); h_over_L is the elastica's "
+            "small-alpha value alpha^2/15 (second order, absent from linear theory)"
+        )
     else:
         kind = "elastica"
         reference = ref.elastica_cantilever(alpha)
-        note = ("exact elastica (Bisshopp-Drucker): inextensible, unshearable, dead load; "
-                "meaningful for slender bristles (L/h >= 50)")
-    settings = {**asdict(geom), "bodies": bodies, "alpha": alpha, "plane": plane,
-                "increments": increments, "P_N": P, "EI_Nmm2": EI,
-                "slenderness": L / (sec.thickness if plane == "thin" else sec.width)}
-    return {"check": "cantilever", "settings": settings, "reference_kind": kind,
-            "reference_note": note, "computed": computed, "reference": reference,
-            "rel_error": _cmp(computed, reference), "newton_iterations": out.iterations}
+        note = (
+            "exact elastica (Bisshopp-Drucker): inextensible, unshearable, dead load; "
+            "meaningful for slender bristles (L/h >= 50)"
+        )
+    settings = {
+        **asdict(geom),
+        "bodies": bodies,
+        "alpha": alpha,
+        "plane": plane,
+        "increments": increments,
+        "P_N": P,
+        "EI_Nmm2": EI,
+        "slenderness": L / (sec.thickness if plane == "thin" else sec.width),
+    }
+    return {
+        "check": "cantilever",
+        "settings": settings,
+        "reference_kind": kind,
+        "reference_note": note,
+        "computed": computed,
+        "reference": reference,
+        "rel_error": _cmp(computed, reference),
+        "newton_iterations": out.iterations,
+    }
 
 
 MODE_KINDS = ("axial", "bend_wide", "bend_thin", "torsion")  # dominant motion of a mode
@@ -153,15 +194,23 @@ def frequency(bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin") ->
     """
     sec, mat = geom.section, geom.material
     I = sec.I_y if plane == "thin" else sec.I_z
-    fref = float(ref.euler_bernoulli_cantilever_frequencies(geom.length, mat.E, I, mat.density,
-                                                            sec.area, 1)[0])
+    fref = float(
+        ref.euler_bernoulli_cantilever_frequencies(geom.length, mat.E, I, mat.density, sec.area, 1)[
+            0
+        ]
+    )
     sim = geom.simulator(bodies)
     f, kinds = classified_modes(sim)
     fc = float(f[kinds.index("bend_" + plane)])
     settings = {**asdict(geom), "bodies": bodies, "plane": plane}
-    return {"check": "frequency", "settings": settings, "computed_hz": fc, "reference_hz": fref,
-            "rel_error": _rel(fc, fref),
-            "lowest_modes_hz": [float(x) for x in natural_frequencies(sim, 0, 6)]}
+    return {
+        "check": "frequency",
+        "settings": settings,
+        "computed_hz": fc,
+        "reference_hz": fref,
+        "rel_error": _rel(fc, fref),
+        "lowest_modes_hz": [float(x) for x in natural_frequencies(sim, 0, 6)],
+    }
 
 
 def axial(bodies: int, geom: Geometry = PAPER_INNER, strain: float = 1e-4) -> dict:
@@ -172,8 +221,13 @@ def axial(bodies: int, geom: Geometry = PAPER_INNER, strain: float = 1e-4) -> di
     sim.set_tip_forces(np.array([[P, 0.0, 0.0]]))
     u = float(sim.solve_static().tip_pos[0, 0] - geom.length)
     uref = ref.axial_tip(P, geom.length, mat.E, sec.area)
-    return {"check": "axial", "settings": {**asdict(geom), "bodies": bodies, "P_N": P},
-            "computed_mm": u, "reference_mm": uref, "rel_error": _rel(u, uref)}
+    return {
+        "check": "axial",
+        "settings": {**asdict(geom), "bodies": bodies, "P_N": P},
+        "computed_mm": u,
+        "reference_mm": uref,
+        "rel_error": _rel(u, uref),
+    }
 
 
 def torsion(bodies: int, geom: Geometry = PAPER_INNER) -> dict:
@@ -186,8 +240,13 @@ def torsion(bodies: int, geom: Geometry = PAPER_INNER) -> dict:
     K, _ = bristle_stiffness_mass(geom.simulator(bodies), 0)
     c = float(np.linalg.solve(K, np.eye(len(K))[:, 6 * bodies - 3])[6 * bodies - 3])
     cref = ref.torsion_tip(1.0, geom.length, mat.G, sec.J)
-    return {"check": "torsion", "settings": {**asdict(geom), "bodies": bodies},
-            "computed_rad_per_Nmm": c, "reference_rad_per_Nmm": cref, "rel_error": _rel(c, cref)}
+    return {
+        "check": "torsion",
+        "settings": {**asdict(geom), "bodies": bodies},
+        "computed_rad_per_Nmm": c,
+        "reference_rad_per_Nmm": cref,
+        "rel_error": _rel(c, cref),
+    }
 
 
 # --------------------------------------------------------------------------- the suite
@@ -215,33 +274,82 @@ def suite() -> list[Check]:
             r = cantilever(alpha, 6, PAPER_INNER, plane=plane)
             s = f"{PAPER_INNER.label(6)} alpha={alpha:g} {plane}"
             for key in ("v_over_L", "tip_angle_rad"):
-                rows.append(Check(f"timoshenko {key}", s, r["computed"][key],
-                                  r["reference"][key], r["rel_error"][key], 0.005))
+                rows.append(
+                    Check(
+                        f"timoshenko {key}",
+                        s,
+                        r["computed"][key],
+                        r["reference"][key],
+                        r["rel_error"][key],
+                        0.005,
+                    )
+                )
     for alpha in (1.0, 2.0, 5.0, 10.0):
         for bodies, lim_v, lim_h in ((6, 0.02, 0.03), (24, 0.003, 0.005)):
             r = cantilever(alpha, bodies, SLENDER)
             s = f"{SLENDER.label(bodies)} alpha={alpha:g}"
             for key, lim in (("v_over_L", lim_v), ("h_over_L", lim_h)):
-                rows.append(Check(f"elastica {key}", s, r["computed"][key], r["reference"][key],
-                                  r["rel_error"][key], lim))
+                rows.append(
+                    Check(
+                        f"elastica {key}",
+                        s,
+                        r["computed"][key],
+                        r["reference"][key],
+                        r["rel_error"][key],
+                        lim,
+                    )
+                )
     r = axial(6, PAPER_INNER)
-    rows.append(Check("axial u [mm]", f"{PAPER_INNER.label(6)} P={r['settings']['P_N']:.3g}",
-                      r["computed_mm"], r["reference_mm"], r["rel_error"], 0.001))
+    rows.append(
+        Check(
+            "axial u [mm]",
+            f"{PAPER_INNER.label(6)} P={r['settings']['P_N']:.3g}",
+            r["computed_mm"],
+            r["reference_mm"],
+            r["rel_error"],
+            0.001,
+        )
+    )
     r = torsion(6, PAPER_INNER)
-    rows.append(Check("torsion compliance [1/(N mm)]", PAPER_INNER.label(6),
-                      r["computed_rad_per_Nmm"], r["reference_rad_per_Nmm"], r["rel_error"],
-                      0.001))
+    rows.append(
+        Check(
+            "torsion compliance [1/(N mm)]",
+            PAPER_INNER.label(6),
+            r["computed_rad_per_Nmm"],
+            r["reference_rad_per_Nmm"],
+            r["rel_error"],
+            0.001,
+        )
+    )
     for bodies, lim in ((6, 0.03), (24, 0.005)):
         r = frequency(bodies, SLENDER)
-        rows.append(Check("first frequency [Hz]", SLENDER.label(bodies), r["computed_hz"],
-                          r["reference_hz"], r["rel_error"], lim))
+        rows.append(
+            Check(
+                "first frequency [Hz]",
+                SLENDER.label(bodies),
+                r["computed_hz"],
+                r["reference_hz"],
+                r["rel_error"],
+                lim,
+            )
+        )
     return rows
 
 
 def format_table(rows: list[Check]) -> str:
     head = ("check", "settings", "computed", "reference", "error", "limit", "result")
-    body = [(r.check, r.settings, f"{r.computed:.6g}", f"{r.reference:.6g}", f"{r.error:+.3e}",
-             f"{r.limit:.1%}", "PASS" if r.passed else "FAIL") for r in rows]
+    body = [
+        (
+            r.check,
+            r.settings,
+            f"{r.computed:.6g}",
+            f"{r.reference:.6g}",
+            f"{r.error:+.3e}",
+            f"{r.limit:.1%}",
+            "PASS" if r.passed else "FAIL",
+        )
+        for r in rows
+    ]
     w = [max(len(x[i]) for x in [head, *body]) for i in range(len(head))]
     lines = ["  ".join(c.ljust(w[i]) for i, c in enumerate(x)).rstrip() for x in [head, *body]]
     lines.insert(1, "  ".join("-" * n for n in w))

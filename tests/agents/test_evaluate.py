@@ -10,35 +10,66 @@ SHORT = {"brush": "tiny_env", "max_episode_steps": 12}
 
 
 def test_evaluate_reference_writes_every_output(tmp_path):
-    s = evaluate("reference", 2, tmp_path, env_kwargs=SHORT, video=True, quiet=True)
+    evaluate("reference", 2, tmp_path, env_kwargs=SHORT, video=True, quiet=True)
     for name in ("summary.json", "table.md", "forces.png", "coverage.png", "episode_000.gif"):
         assert (tmp_path / name).stat().st_size > 0, name
     data = json.loads((tmp_path / "summary.json").read_text())
     assert data["episodes"] == 2 and len(data["per_episode"]) == 2
     ep = data["per_episode"][0]
-    for key in ("return", "coverage", "steps", "termination", "time_above_force_limit",
-                "peak_normal_force", "peak_tip_force", "reward_coverage", "reward_total_force",
-                "reward_tip_force", "reward_termination"):
+    for key in (
+        "return",
+        "coverage",
+        "steps",
+        "termination",
+        "time_above_force_limit",
+        "peak_normal_force",
+        "peak_tip_force",
+        "reward_coverage",
+        "reward_total_force",
+        "reward_tip_force",
+        "reward_termination",
+    ):
         assert key in ep
-    terms = sum(ep[f"reward_{k}"] for k in ("coverage", "total_force", "tip_force",
-                                            "termination"))
+    terms = sum(ep[f"reward_{k}"] for k in ("coverage", "total_force", "tip_force", "termination"))
     assert ep["return"] == pytest.approx(terms)
-    assert data["mean"]["return"] == pytest.approx(sum(e["return"] for e in data["per_episode"])
-                                                   / 2)
+    assert data["mean"]["return"] == pytest.approx(
+        sum(e["return"] for e in data["per_episode"]) / 2
+    )
     assert data["env_settings"]["brush"] == "tiny_env"
     assert [e["seed"] for e in data["per_episode"]] == [0, 1]
 
 
 def test_evaluate_cli_random(tmp_path, capsys):
-    assert main(["--policy", "random", "--episodes", "1", "--out", str(tmp_path),
-                 "--env-kw", 'brush="tiny_env"', "--env-kw", "max_episode_steps=5"]) == 0
+    assert (
+        main(
+            [
+                "--policy",
+                "random",
+                "--episodes",
+                "1",
+                "--out",
+                str(tmp_path),
+                "--env-kw",
+                'brush="tiny_env"',
+                "--env-kw",
+                "max_episode_steps=5",
+            ]
+        )
+        == 0
+    )
     assert "| seed | return |" in capsys.readouterr().out
     assert (tmp_path / "table.md").exists()
 
 
 def test_parse_env_kw_and_bad_policy(tmp_path):
     assert parse_env_kw(["a=3", "b=0.5", 'c="x"', "d=[1, 2]", "e=true", "f=tiny_env"]) == {
-        "a": 3, "b": 0.5, "c": "x", "d": [1, 2], "e": True, "f": "tiny_env"}
+        "a": 3,
+        "b": 0.5,
+        "c": "x",
+        "d": [1, 2],
+        "e": True,
+        "f": "tiny_env",
+    }
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_env_kw(["novalue"])
     with pytest.raises(ValueError, match="not 'reference', 'random'"):

@@ -65,12 +65,15 @@ def test_reference_works_with_sb3_evaluate_policy(variant):
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    venv = make_vec_env("brush_env:brush_env/FlatPlate-v0", n_envs=2, seed=0,
-                        env_kwargs={"brush": "tiny_env", "max_episode_steps": 15, **variant})
+    venv = make_vec_env(
+        "brush_env:brush_env/FlatPlate-v0",
+        n_envs=2,
+        seed=0,
+        env_kwargs={"brush": "tiny_env", "max_episode_steps": 15, **variant},
+    )
     policy = ReferencePolicy.for_env(venv)
     assert policy.horizon == 15
-    rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2,
-                                       return_episode_rewards=True)
+    rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2, return_episode_rewards=True)
     assert len(rewards) == 2 and all(n <= 15 for n in lengths)
     obs = venv.reset()
     actions, state = policy.predict(obs, state="kept", episode_start=np.ones(2, bool))

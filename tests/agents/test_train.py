@@ -39,8 +39,14 @@ def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
     out = tmp_path / "run"
     model = train("ppo", cfg, 192, 1, out, progress=False)
     assert model == out / "model.zip" and model.exists()
-    for name in ("vecnormalize.pkl", "meta.json", "reference.json", "progress.csv",
-                 "eval/evaluations.npz", "best/best_model.zip"):
+    for name in (
+        "vecnormalize.pkl",
+        "meta.json",
+        "reference.json",
+        "progress.csv",
+        "eval/evaluations.npz",
+        "best/best_model.zip",
+    ):
         assert (out / name).exists(), name
     assert list((out / "checkpoints").glob("ppo_*_steps.zip"))
     assert list((out / "checkpoints").glob("ppo_vecnormalize_*_steps.pkl"))
@@ -54,11 +60,15 @@ def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
 
 def test_short_sac_run(tmp_path):
     cfg = tmp_path / "sac.toml"
-    cfg.write_text(PPO_TOML.replace('algo = "ppo"', 'algo = "sac"').replace(
-        "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32")
+    cfg.write_text(
+        PPO_TOML.replace('algo = "ppo"', 'algo = "sac"')
+        .replace(
+            "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32"
+        )
         .replace("reward = true", "reward = false")
         .replace("eval_freq = 64", "eval_freq = 5000")
-        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000"))
+        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000")
+    )
     model = train("sac", cfg, 96, 1, tmp_path / "run", progress=False)
     s = evaluate(str(model), 1, tmp_path / "eval", quiet=True)
     assert s["episodes"] == 1
@@ -86,8 +96,11 @@ def test_misspelled_hyperparameter_and_env_key_fail_before_any_worker(tmp_path):
     """Checked in the main process against PPO's signature / the env's settings, with a hint."""
     cfg = tmp_path / "ppo.toml"
     cfg.write_text(PPO_TOML.replace("n_epochs = 2", "n_epoch = 2"))
-    with pytest.raises(ValueError, match=r"'n_epoch' is not an argument of PPO; did you mean "
-                                         r"n_epochs"):
+    with pytest.raises(
+        ValueError,
+        match=r"'n_epoch' is not an argument of PPO; did you mean "
+        r"n_epochs",
+    ):
         train("ppo", cfg, 10, 2, tmp_path / "x")
     cfg.write_text(PPO_TOML.replace("max_episode_steps = 16", "max_episode_step = 16"))
     with pytest.raises(ValueError, match=r"max_episode_step.*did you mean max_episode_steps"):

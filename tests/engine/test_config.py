@@ -155,8 +155,12 @@ def test_all_entry_kinds_and_per_group_overrides(tmp_path):
     brush = load_brush(path)
     assert brush.n_bristles == 4 + 3 + 1
     grid, row, (tilted,) = brush.bristles[:4], brush.bristles[4:7], brush.bristles[7:]
-    assert [b.root for b in grid] == [(-1.1, -0.8, 0.0), (1.1, -0.8, 0.0), (-1.1, 0.8, 0.0),
-                                      (1.1, 0.8, 0.0)]
+    assert [b.root for b in grid] == [
+        (-1.1, -0.8, 0.0),
+        (1.1, -0.8, 0.0),
+        (-1.1, 0.8, 0.0),
+        (1.1, 0.8, 0.0),
+    ]
     assert [b.root for b in row] == [(-2.0, 3.0, 0.0), (0.0, 3.0, 0.0), (2.0, 3.0, 0.0)]
     assert row[0].section == Section.circle(0.5) and row[0].group == "row[0]"
     assert tilted.group == "tilted" and tilted.material.name == "nylon_PA612"
@@ -177,8 +181,12 @@ def test_width_dir_is_orthogonalised_against_axis(tmp_path):
 def test_overrides_nested_and_dotted():
     brush = load_brush(
         "default",
-        overrides={"bodies_per_bristle": 3, "sections.outer.thickness_mm": 1.0,
-                   "grid[0]": {"length_mm": 8.5}, "head_rpy_deg": [0.0, 0.0, 90.0]},
+        overrides={
+            "bodies_per_bristle": 3,
+            "sections.outer.thickness_mm": 1.0,
+            "grid[0]": {"length_mm": 8.5},
+            "head_rpy_deg": [0.0, 0.0, 90.0],
+        },
     )
     assert {b.bodies for b in brush.bristles} == {3}
     assert {b.section.thickness for b in brush.bristles if b.group == "outer"} == {1.0}
@@ -294,8 +302,10 @@ def test_unknown_top_level_key(tmp_path):
 
 def test_unknown_material_key(tmp_path):
     msg = material_error(tmp_path, "E_MPa = 7.0", "E_Mpa = 7.0")
-    assert ("material 'soft': unknown key 'E_Mpa' (allowed: E_MPa, nu, density_t_per_mm3, "
-            "damping_ratio, description)") in msg
+    assert (
+        "material 'soft': unknown key 'E_Mpa' (allowed: E_MPa, nu, density_t_per_mm3, "
+        "damping_ratio, description)"
+    ) in msg
 
 
 def test_unknown_section_key_for_kind(tmp_path):
@@ -305,8 +315,10 @@ def test_unknown_section_key_for_kind(tmp_path):
 
 def test_missing_key(tmp_path):
     msg = brush_error(tmp_path, "length_mm = 9.0\n", "")
-    assert ("brush.grid[0]: missing required key 'length_mm' "
-            "(a number that must be > 0 and <= 100 (mm))") in msg
+    assert (
+        "brush.grid[0]: missing required key 'length_mm' "
+        "(a number that must be > 0 and <= 100 (mm))"
+    ) in msg
 
 
 def test_missing_material_key(tmp_path):
@@ -321,14 +333,16 @@ def test_missing_pitch_when_needed(tmp_path):
 
 def test_wrong_type_string_for_number(tmp_path):
     msg = brush_error(tmp_path, "length_mm = 9.0", 'length_mm = "9.0"')
-    assert ("brush.grid[0].length_mm = '9.0' has the wrong type: expected a number (mm), got str"
-            in msg)
+    assert (
+        "brush.grid[0].length_mm = '9.0' has the wrong type: expected a number (mm), got str" in msg
+    )
 
 
 def test_wrong_type_float_for_integer(tmp_path):
     msg = brush_error(tmp_path, "bodies_per_bristle = 6", "bodies_per_bristle = 6.5")
-    assert ("brush.bodies_per_bristle = 6.5 has the wrong type: expected an integer (count), "
-            "got float") in msg
+    assert (
+        "brush.bodies_per_bristle = 6.5 has the wrong type: expected an integer (count), got float"
+    ) in msg
 
 
 def test_wrong_type_vector_length(tmp_path):
@@ -344,18 +358,33 @@ def test_wrong_type_table(tmp_path):
 @pytest.mark.parametrize(
     "old, new, expected",
     [
-        ("E_MPa = 7.0", "E_MPa = 0.0",
-         "material 'soft'.E_MPa = 0.0 is out of range: must be > 0 and <= 1e+06 (MPa)"),
-        ("E_MPa = 7.0", "E_MPa = 2e6",
-         "material 'soft'.E_MPa = 2000000.0 is out of range: must be > 0 and <= 1e+06 (MPa)"),
-        ("nu = 0.48", "nu = 0.5",
-         "material 'soft'.nu = 0.5 is out of range: must be > -1 and < 0.5 (dimensionless)"),
-        ("density_t_per_mm3 = 1.15e-9", "density_t_per_mm3 = 1.15e-6",
-         "material 'soft'.density_t_per_mm3 = 1.15e-06 is out of range: "
-         "must be > 0 and <= 1e-07 (t/mm^3)"),
-        ("damping_ratio = 0.1", "damping_ratio = -0.1",
-         "material 'soft'.damping_ratio = -0.1 is out of range: "
-         "must be >= 0 and <= 2 (dimensionless)"),
+        (
+            "E_MPa = 7.0",
+            "E_MPa = 0.0",
+            "material 'soft'.E_MPa = 0.0 is out of range: must be > 0 and <= 1e+06 (MPa)",
+        ),
+        (
+            "E_MPa = 7.0",
+            "E_MPa = 2e6",
+            "material 'soft'.E_MPa = 2000000.0 is out of range: must be > 0 and <= 1e+06 (MPa)",
+        ),
+        (
+            "nu = 0.48",
+            "nu = 0.5",
+            "material 'soft'.nu = 0.5 is out of range: must be > -1 and < 0.5 (dimensionless)",
+        ),
+        (
+            "density_t_per_mm3 = 1.15e-9",
+            "density_t_per_mm3 = 1.15e-6",
+            "material 'soft'.density_t_per_mm3 = 1.15e-06 is out of range: "
+            "must be > 0 and <= 1e-07 (t/mm^3)",
+        ),
+        (
+            "damping_ratio = 0.1",
+            "damping_ratio = -0.1",
+            "material 'soft'.damping_ratio = -0.1 is out of range: "
+            "must be >= 0 and <= 2 (dimensionless)",
+        ),
     ],
     ids=["E_zero", "E_high", "nu", "density", "damping_ratio"],
 )
@@ -366,43 +395,102 @@ def test_material_range(tmp_path, old, new, expected):
 @pytest.mark.parametrize(
     "old, new, expected",
     [
-        ("width_mm = 1.8", "width_mm = 0.0",
-         "brush.sections.inner.width_mm = 0.0 is out of range: must be > 0 and <= 20 (mm)"),
-        ("thickness_mm = 0.8", "thickness_mm = 25.0",
-         "brush.sections.inner.thickness_mm = 25.0 is out of range: must be > 0 and <= 20 (mm)"),
-        ("diameter_mm = 0.5", "diameter_mm = -0.5",
-         "brush.sections.round.diameter_mm = -0.5 is out of range: must be > 0 and <= 20 (mm)"),
-        ("length_mm = 9.0", "length_mm = -2.0",
-         "brush.grid[0].length_mm = -2.0 is out of range: must be > 0 and <= 100 (mm)"),
-        ("length_mm = 9.0", "length_mm = nan",
-         "brush.grid[0].length_mm = nan is out of range: must be > 0 and <= 100 (mm)"),
-        ("bodies_per_bristle = 6", "bodies_per_bristle = 0",
-         "brush.bodies_per_bristle = 0 is out of range: must be >= 1 and <= 200 (count)"),
-        ("bodies = 4", "bodies = 201",
-         "brush.bristle[0].bodies = 201 is out of range: must be >= 1 and <= 200 (count)"),
-        ("tip_radius_mm = 0.44", "tip_radius_mm = 6.0",
-         "brush.tip_radius_mm = 6.0 is out of range: "
-         "must be > 0 and <= 5 (mm; at most min(5 mm, bristle length))"),
-        ("tip_radius_mm = 0.3", "tip_radius_mm = 0.0",
-         "brush.bristle[0].tip_radius_mm = 0.0 is out of range: must be > 0 and <= 5 (mm;"),
-        ("length_mm = 8.0", "length_mm = 0.4",  # inherited tip radius 0.44 > bristle length
-         "brush.tip_radius_mm (used by brush.row[0]) = 0.44 is out of range: "
-         "must be > 0 and <= 0.4 (mm; at most min(5 mm, bristle length))"),
-        ("pitch_x_mm = 2.2", "pitch_x_mm = 0.0",
-         "brush.grid[0].pitch_x_mm = 0.0 is out of range: must be > 0 and <= 50 (mm)"),
-        ("pitch_y_mm = 1.6", "pitch_y_mm = 60.0",
-         "brush.grid[0].pitch_y_mm = 60.0 is out of range: must be > 0 and <= 50 (mm)"),
-        ("nx = 2", "nx = 0",
-         "brush.grid[0].nx = 0 is out of range: must be >= 1 and <= 1000 (count)"),
-        ('name = "t"', 'name = "t"\nhead_rpy_deg = [0, 400, 0]',
-         "brush.head_rpy_deg[1] = 400.0 is out of range: must be >= -360 and <= 360 (deg)"),
-        ("root_mm = [0.0, -3.0, 0.0]", "root_mm = [0.0, -300.0, 0.0]",
-         "brush.bristle[0].root_mm[1] = -300.0 is out of range: "
-         "must be >= -100 and <= 100 (mm, head frame)"),
+        (
+            "width_mm = 1.8",
+            "width_mm = 0.0",
+            "brush.sections.inner.width_mm = 0.0 is out of range: must be > 0 and <= 20 (mm)",
+        ),
+        (
+            "thickness_mm = 0.8",
+            "thickness_mm = 25.0",
+            "brush.sections.inner.thickness_mm = 25.0 is out of range: must be > 0 and <= 20 (mm)",
+        ),
+        (
+            "diameter_mm = 0.5",
+            "diameter_mm = -0.5",
+            "brush.sections.round.diameter_mm = -0.5 is out of range: must be > 0 and <= 20 (mm)",
+        ),
+        (
+            "length_mm = 9.0",
+            "length_mm = -2.0",
+            "brush.grid[0].length_mm = -2.0 is out of range: must be > 0 and <= 100 (mm)",
+        ),
+        (
+            "length_mm = 9.0",
+            "length_mm = nan",
+            "brush.grid[0].length_mm = nan is out of range: must be > 0 and <= 100 (mm)",
+        ),
+        (
+            "bodies_per_bristle = 6",
+            "bodies_per_bristle = 0",
+            "brush.bodies_per_bristle = 0 is out of range: must be >= 1 and <= 200 (count)",
+        ),
+        (
+            "bodies = 4",
+            "bodies = 201",
+            "brush.bristle[0].bodies = 201 is out of range: must be >= 1 and <= 200 (count)",
+        ),
+        (
+            "tip_radius_mm = 0.44",
+            "tip_radius_mm = 6.0",
+            "brush.tip_radius_mm = 6.0 is out of range: "
+            "must be > 0 and <= 5 (mm; at most min(5 mm, bristle length))",
+        ),
+        (
+            "tip_radius_mm = 0.3",
+            "tip_radius_mm = 0.0",
+            "brush.bristle[0].tip_radius_mm = 0.0 is out of range: must be > 0 and <= 5 (mm;",
+        ),
+        (
+            "length_mm = 8.0",
+            "length_mm = 0.4",  # inherited tip radius 0.44 > bristle length
+            "brush.tip_radius_mm (used by brush.row[0]) = 0.44 is out of range: "
+            "must be > 0 and <= 0.4 (mm; at most min(5 mm, bristle length))",
+        ),
+        (
+            "pitch_x_mm = 2.2",
+            "pitch_x_mm = 0.0",
+            "brush.grid[0].pitch_x_mm = 0.0 is out of range: must be > 0 and <= 50 (mm)",
+        ),
+        (
+            "pitch_y_mm = 1.6",
+            "pitch_y_mm = 60.0",
+            "brush.grid[0].pitch_y_mm = 60.0 is out of range: must be > 0 and <= 50 (mm)",
+        ),
+        (
+            "nx = 2",
+            "nx = 0",
+            "brush.grid[0].nx = 0 is out of range: must be >= 1 and <= 1000 (count)",
+        ),
+        (
+            'name = "t"',
+            'name = "t"\nhead_rpy_deg = [0, 400, 0]',
+            "brush.head_rpy_deg[1] = 400.0 is out of range: must be >= -360 and <= 360 (deg)",
+        ),
+        (
+            "root_mm = [0.0, -3.0, 0.0]",
+            "root_mm = [0.0, -300.0, 0.0]",
+            "brush.bristle[0].root_mm[1] = -300.0 is out of range: "
+            "must be >= -100 and <= 100 (mm, head frame)",
+        ),
     ],
-    ids=["width", "thickness", "diameter", "length", "length_nan", "bodies_top", "bodies_group",
-         "tip_radius_top", "tip_radius_group", "tip_radius_vs_length", "pitch_x", "pitch_y",
-         "count", "head_angle", "root_position"],
+    ids=[
+        "width",
+        "thickness",
+        "diameter",
+        "length",
+        "length_nan",
+        "bodies_top",
+        "bodies_group",
+        "tip_radius_top",
+        "tip_radius_group",
+        "tip_radius_vs_length",
+        "pitch_x",
+        "pitch_y",
+        "count",
+        "head_angle",
+        "root_position",
+    ],
 )
 def test_brush_range(tmp_path, old, new, expected):
     assert expected in brush_error(tmp_path, old, new)
@@ -410,8 +498,10 @@ def test_brush_range(tmp_path, old, new, expected):
 
 def test_unknown_material_name(tmp_path):
     msg = brush_error(tmp_path, 'material = "nylon_PA612"', 'material = "nylon"')
-    assert ("brush.bristle[0].material = 'nylon' is not a known material "
-            "(known: silicone_7MPa, silicone_7GPa_printed, nylon_PA612)") in msg
+    assert (
+        "brush.bristle[0].material = 'nylon' is not a known material "
+        "(known: silicone_7MPa, silicone_7GPa_printed, nylon_PA612)"
+    ) in msg
 
 
 def test_unknown_section_name(tmp_path):
@@ -421,14 +511,17 @@ def test_unknown_section_name(tmp_path):
 
 def test_unknown_section_kind(tmp_path):
     msg = brush_error(tmp_path, 'kind = "circle"', 'kind = "hexagon"')
-    assert ("brush.sections.round.kind = 'hexagon' is not a known section kind "
-            "(known: rect, circle)") in msg
+    assert (
+        "brush.sections.round.kind = 'hexagon' is not a known section kind (known: rect, circle)"
+    ) in msg
 
 
 def test_axis_parallel_to_width_dir(tmp_path):
     msg = brush_error(tmp_path, "axis = [0.0, 0.2, 1.0]", "axis = [-2.0, 0.0, 0.0]")
-    assert ("brush.bristle[0].width_dir = [1.0, 0.0, 0.0] is invalid: must not be parallel to "
-            "axis = [-2.0, 0.0, 0.0]") in msg
+    assert (
+        "brush.bristle[0].width_dir = [1.0, 0.0, 0.0] is invalid: must not be parallel to "
+        "axis = [-2.0, 0.0, 0.0]"
+    ) in msg
 
 
 def test_zero_axis(tmp_path):
@@ -453,8 +546,14 @@ def test_root_gap_of_rotated_sections():
     diag = (1.0, 1.0, 0.0)  # squares turned by 45 deg: half-diagonal sqrt(0.5) along x
 
     def pair(dx, wd):
-        return BrushConfig("b", (0, 0, 0), (0, 0, 0), tuple(
-            BristleConfig((x, 0.0, 0.0), (0, 0, 1), wd, 5.0, sq, m, 6, 0.4) for x in (0.0, dx)))
+        return BrushConfig(
+            "b",
+            (0, 0, 0),
+            (0, 0, 0),
+            tuple(
+                BristleConfig((x, 0.0, 0.0), (0, 0, 1), wd, 5.0, sq, m, 6, 0.4) for x in (0.0, dx)
+            ),
+        )
 
     assert pair(1.5, (1, 0, 0)).min_root_gap() == pytest.approx((0.5, 0, 1))
     assert pair(1.5, diag).min_root_gap()[0] == pytest.approx(1.5 - 2 * math.sqrt(0.5))

@@ -11,8 +11,19 @@ import dataclasses
 import numpy as np
 import pytest
 
-from brush_env.engine import (BristleConfig, BrushConfig, ConfigError, Material, Plane, Scene, Section,
-                              SimSettings, Simulator, load_brush, load_scene)
+from brush_env.engine import (
+    BristleConfig,
+    BrushConfig,
+    ConfigError,
+    Material,
+    Plane,
+    Scene,
+    Section,
+    SimSettings,
+    Simulator,
+    load_brush,
+    load_scene,
+)
 from brush_env.engine import contact as ct
 from brush_env.engine.scene import ContactParams
 
@@ -21,13 +32,22 @@ SILICONE = Material(name="silicone", E=7.0, nu=0.48, density=1.15e-9, damping_ra
 CP = ContactParams()  # the scene default: the paper's Tables 2-3
 
 
-def one_bristle(length=10.0, bodies=6, material=SILICONE, section=None, lean=0.0, tip=0.44,
-                root=(0.0, 0.0, 0.0)):
-    br = BristleConfig(root=root, axis=(0, 0, 1), width_dir=(1, 0, 0), length=length,
-                       section=section or Section.rect(1.8, 0.8), material=material,
-                       bodies=bodies, tip_radius=tip)
-    return BrushConfig(name="one", head_offset=(0, 0, 0), head_rpy=(0, 0, 0), bristles=(br,),
-                       lean=np.radians(lean))
+def one_bristle(
+    length=10.0, bodies=6, material=SILICONE, section=None, lean=0.0, tip=0.44, root=(0.0, 0.0, 0.0)
+):
+    br = BristleConfig(
+        root=root,
+        axis=(0, 0, 1),
+        width_dir=(1, 0, 0),
+        length=length,
+        section=section or Section.rect(1.8, 0.8),
+        material=material,
+        bodies=bodies,
+        tip_radius=tip,
+    )
+    return BrushConfig(
+        name="one", head_offset=(0, 0, 0), head_rpy=(0, 0, 0), bristles=(br,), lean=np.radians(lean)
+    )
 
 
 def plate_scene(brush, tip_tip=False):
@@ -44,8 +64,9 @@ def test_bad_contact_key_names_key_value_and_range(tmp_path):
         load_scene(scene)
 
 
-@pytest.mark.parametrize("W, contact", [(0.01, ""), (0.1, ""), (0.5, ""),
-                                        (0.1, "k = 250.0\nm1 = 1.5\n")])
+@pytest.mark.parametrize(
+    "W, contact", [(0.01, ""), (0.1, ""), (0.5, ""), (0.1, "k = 250.0\nm1 = 1.5\n")]
+)
 def test_sphere_under_load_settles_at_closed_form_penetration(W, contact, tmp_path):
     """Static: a vertical bristle standing on the plate under a tip load W: the plate carries
     W - (EA/L) delta = k delta^m1 (eq 6).  k and m1 come from the scene's [contact] table (the
@@ -64,10 +85,10 @@ def test_sphere_under_load_settles_at_closed_form_penetration(W, contact, tmp_pa
     lo, hi = 0.0, (W / k) ** (1.0 / m1)
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if k * mid ** m1 + ka * mid < W else (lo, mid)
+        lo, hi = (mid, hi) if k * mid**m1 + ka * mid < W else (lo, mid)
     delta = 0.5 * (lo + hi)
     assert out.tip_penetration[0] == pytest.approx(delta, rel=1e-6)
-    assert out.tip_normal_force[0] == pytest.approx(k * delta ** m1, rel=1e-6)
+    assert out.tip_normal_force[0] == pytest.approx(k * delta**m1, rel=1e-6)
     # the robot's reaction is minus the net external load: -(-W + Fn) = +(EA/L) delta (up)
     assert out.tcp_force[2] == pytest.approx(ka * delta, rel=1e-5)
 
@@ -122,7 +143,7 @@ def test_stick_then_slide_at_the_friction_coefficients_and_reversal():
             out = sim.step(np.array([x, 0.0, z]), R0)
             ft = out.tip_tangential_force[0]
             ratios.append(np.sign(ft[0]) * np.linalg.norm(ft) / out.tip_normal_force[0])
-            deltas.append(np.linalg.norm(sim.state.tip_state[0, ct.S_DELTA:ct.S_DELTA + 3]))
+            deltas.append(np.linalg.norm(sim.state.tip_state[0, ct.S_DELTA : ct.S_DELTA + 3]))
             sliding.append(bool(out.tip_sliding[0]))
     r = np.abs(np.array(ratios))
     slow = r[:4000]
@@ -130,9 +151,9 @@ def test_stick_then_slide_at_the_friction_coefficients_and_reversal():
     assert mu_s <= slow.max() <= mu_s + 1.5 * mu_d * 0.05 / CP.v_d + 1e-3
     assert not any(sliding[:1000])  # sticks first
     assert max(deltas) <= CP.delta_max + 1e-12
-    fast = np.array(ratios[4000 + 300:4500])
+    fast = np.array(ratios[4000 + 300 : 4500])
     assert np.allclose(fast, -mu_d, atol=1e-6) and all(sliding[4300:4500])  # opposes +x slip
-    back = np.array(ratios[4500 + 600:])
+    back = np.array(ratios[4500 + 600 :])
     assert np.allclose(back, mu_d, atol=1e-6)  # sign flipped after the reversal
 
 
@@ -159,7 +180,7 @@ def test_two_facing_bristles_push_apart_with_table3_law_and_no_friction():
     ftt = out.extra["tip_tip_force"]
     # rel 1e-3: the pair is still creeping toward equilibrium (1e-4 after 3 s) and bristle 0 sees
     # bristle 1's tip of the previous step (one Gauss-Seidel sweep per step)
-    assert ftt[0] == pytest.approx(100.0 * delta ** 1.3, rel=1e-3)
+    assert ftt[0] == pytest.approx(100.0 * delta**1.3, rel=1e-3)
     assert ftt[1] == pytest.approx(ftt[0], rel=1e-3)
     # head-on and frictionless: the line of centres stays along x (no sideways force appears)
     assert abs(d[1]) < 1e-9 and abs(d[2]) < 1e-5 and d[0] < 0  # z: Gauss-Seidel asymmetry
@@ -171,11 +192,12 @@ def test_two_facing_bristles_push_apart_with_table3_law_and_no_friction():
 def _energy(sim):
     """Kinetic + elastic (1/2 e^T K e per element) energy of the bristles [N mm]."""
     st, m = sim.state, sim.model
-    ke = 0.5 * np.sum(m.bp[:, 0] * np.sum(st.vel ** 2, axis=1))
+    ke = 0.5 * np.sum(m.bp[:, 0] * np.sum(st.vel**2, axis=1))
     for i in range(m.n_bodies):
         om_b = st.rot[i].T @ st.omg[i]
-        ke += 0.5 * np.sum(m.bp[i, 1:4] * om_b ** 2)
+        ke += 0.5 * np.sum(m.bp[i, 1:4] * om_b**2)
     from brush_env.engine.modal import element_strains
+
     e = element_strains(sim)
     pe = 0.5 * np.einsum("ni,nij,nj->", e, m.K, e)
     # penalty contact potential of eq 6's elastic part: k delta^(m1+1) / (m1 + 1)
@@ -228,14 +250,18 @@ def test_hard_cases_stay_finite_and_bounded(name):
     dt = 1e-3
     if "kscale" in case:  # the scene's [contact] stiffnesses (Tables 2-3) scaled
         c = scene.contact
-        scene = dataclasses.replace(scene, contact=dataclasses.replace(
-            c, k=c.k * case["kscale"], k_tt=c.k_tt * case["kscale"]))
+        scene = dataclasses.replace(
+            scene,
+            contact=dataclasses.replace(c, k=c.k * case["kscale"], k_tt=c.k_tt * case["kscale"]),
+        )
     sim = Simulator(scene, SimSettings(dt=dt))
     z0 = brush.max_length + 0.44
     sim.reset(np.array([0.0, 0.0, z0]), R0)
     n_press = 300
-    poses = [np.array([0.0, 0.0, z0 - case["press"] * (3 * s * s - 2 * s ** 3)])
-             for s in np.arange(1, n_press + 1) / n_press]
+    poses = [
+        np.array([0.0, 0.0, z0 - case["press"] * (3 * s * s - 2 * s**3)])
+        for s in np.arange(1, n_press + 1) / n_press
+    ]
     if case["speed"]:
         n = int(case["stroke"] / case["speed"] / dt)
         x = np.cumsum(np.full(n, case["speed"] * dt))
@@ -250,7 +276,7 @@ def test_hard_cases_stay_finite_and_bounded(name):
         pen_max = max(pen_max, out.tip_penetration.max())
         fmax = max(fmax, np.linalg.norm(out.tcp_force))
     assert pen_max < 0.1  # mm: a tenth of the tip sphere... far above the silicone's ~5 um
-    assert fmax < brush.n_bristles * 100.0 * 0.1 ** 1.3 * 2.0
+    assert fmax < brush.n_bristles * 100.0 * 0.1**1.3 * 2.0
 
 
 #: Paper §3: k, c and the m_i are "set to ensure a penetration lower than 5 um".  The paper's brush
@@ -271,7 +297,7 @@ def test_paper_penetration_criterion_7MPa_meets_7GPa_does_not(E, must_meet):
     sim.reset(np.array([0.0, 0.0, z0]), R0)
     for k in range(1, 601):  # 0.4 s minimum-jerk-like press, 0.2 s hold
         s = min(k / 400.0, 1.0)
-        out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s ** 3)]), R0)
+        out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s**3)]), R0)
     pen_um = out.tip_penetration.max() * 1e3
     if must_meet:
         assert pen_um <= 2.0 * PAPER_PENETRATION_UM
@@ -287,15 +313,16 @@ def test_mesh_plate_and_analytic_plane_give_the_same_forces():
     brush = load_brush("tiny")
     runs = []
     for surf in (Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), MeshPlate((0.0, 0.0, 0.0), 60.0, 12)):
-        sim = Simulator(Scene(brush, (surf,), tip_tip=False), SimSettings(dt=1e-3,
-                                                                           newton_rtol=1e-10))
+        sim = Simulator(
+            Scene(brush, (surf,), tip_tip=False), SimSettings(dt=1e-3, newton_rtol=1e-10)
+        )
         z0 = brush.max_length + 0.44
         sim.reset(np.array([0.0, 0.0, z0]), R0)
         F = []
         for k in range(1, 601):  # press 2 mm in 0.3 s, then drag 3 mm along a diagonal
             s = min(k / 300.0, 1.0)
             d = max(k - 300, 0) * 0.01
-            out = sim.step(np.array([d, 0.7 * d, z0 - 2.0 * (3 * s * s - 2 * s ** 3)]), R0)
+            out = sim.step(np.array([d, 0.7 * d, z0 - 2.0 * (3 * s * s - 2 * s**3)]), R0)
             F.append(np.r_[out.tcp_force, out.tip_normal_force])
         runs.append(np.array(F))
     assert np.abs(runs[0]).max() > 0.05
@@ -331,11 +358,15 @@ def test_slip_step_limit_stops_a_newton_step_at_the_slip_turning_point(case):
     state = np.zeros(ct.N_TIP_STATE)
     state[ct.S_FN] = 0.1
     pt = np.array([0.0, 0.0, 0.43])
-    state[ct.S_CP:ct.S_CP + 3] = (0.0, 0.0, 0.0)
+    state[ct.S_CP : ct.S_CP + 3] = (0.0, 0.0, 0.0)
     v0 = np.array([0.0 if case == "inside" else 5.0, 0.0, 0.0]) + (case == "inside") * 0.5
-    state[ct.S_HIST:ct.S_HIST + 3] = v0 * h - pt  # backward Euler: v = (pt + hist) / h
-    dv = {"reversal": [-10.0, 0.0, 0.0], "band": [-10.0, 2.0, 0.0], "inside": [-10.0, 0.0, 0.0],
-          "speeding_up": [3.0, 1.0, 0.0]}[case]
+    state[ct.S_HIST : ct.S_HIST + 3] = v0 * h - pt  # backward Euler: v = (pt + hist) / h
+    dv = {
+        "reversal": [-10.0, 0.0, 0.0],
+        "band": [-10.0, 2.0, 0.0],
+        "inside": [-10.0, 0.0, 0.0],
+        "speeding_up": [3.0, 1.0, 0.0],
+    }[case]
     dp = np.array(dv) * h
     a = ct.slip_step_limit(pt, dp, state, 1.0, 1.0 / h, v_d)
     v = v0 + a * np.array(dv)

@@ -24,10 +24,10 @@ def _block_system(n, seed):
     L = rng.normal(size=(n, 6, 6))
     A = np.zeros((6 * n, 6 * n))
     for i in range(n):
-        A[6 * i:6 * i + 6, 6 * i:6 * i + 6] = D[i]
+        A[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] = D[i]
         if i + 1 < n:
-            A[6 * i:6 * i + 6, 6 * i + 6:6 * i + 12] = U[i]
-            A[6 * i + 6:6 * i + 12, 6 * i:6 * i + 6] = L[i + 1]
+            A[6 * i : 6 * i + 6, 6 * i + 6 : 6 * i + 12] = U[i]
+            A[6 * i + 6 : 6 * i + 12, 6 * i : 6 * i + 6] = L[i + 1]
     return D, U, L, A, rng.normal(size=(n, 6))
 
 
@@ -71,8 +71,9 @@ def test_tcp_wrench_and_tip_states_match_the_formulas():
     itg.tcp_wrench(R, root_p, rootw, w)
     x = root_p @ R.T  # root nodes relative to the TCP, world axes
     np.testing.assert_allclose(w[0:3], -rootw[:, 0:3].sum(0), rtol=1e-14, atol=1e-14)
-    np.testing.assert_allclose(w[3:6], -(rootw[:, 3:6] + np.cross(x, rootw[:, 0:3])).sum(0),
-                               rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(
+        w[3:6], -(rootw[:, 3:6] + np.cross(x, rootw[:, 0:3])).sum(0), rtol=1e-13, atol=1e-13
+    )
 
     sim = Simulator(load_brush(overrides={"bodies_per_bristle": 3}), SimSettings(dt=1e-3))
     sim.reset(np.array([0.0, 0.0, 10.0]), R0)
@@ -82,8 +83,9 @@ def test_tcp_wrench_and_tip_states_match_the_formulas():
     last = m.bstart[1:] - 1
     r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
     np.testing.assert_allclose(sim.tip_positions(), st.pos[last] + r, rtol=1e-15, atol=1e-14)
-    np.testing.assert_allclose(sim.tip_velocities(), st.vel[last] + np.cross(st.omg[last], r),
-                               rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(
+        sim.tip_velocities(), st.vel[last] + np.cross(st.omg[last], r), rtol=1e-14, atol=1e-14
+    )
 
 
 def test_pose_check():
@@ -116,8 +118,22 @@ def test_a_failed_step_raises_and_leaves_the_state_untouched():
         assert err.value.time == pytest.approx(before.time + 1e-3)
         assert len(err.value.bristles) > 0
         now = sim.state
-        for name in ("pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "pppos", "pprot",
-                     "hist_ok", "tcp_p", "tcp_R", "tip_state"):
+        for name in (
+            "pos",
+            "rot",
+            "vel",
+            "omg",
+            "ppos",
+            "prot",
+            "pvel",
+            "pomg",
+            "pppos",
+            "pprot",
+            "hist_ok",
+            "tcp_p",
+            "tcp_R",
+            "tip_state",
+        ):
             assert np.array_equal(getattr(now, name), getattr(before, name)), name
         assert now.time == before.time and now.steps == before.steps
         assert np.array_equal(sim.tip_positions(), tips_before)
@@ -152,13 +168,18 @@ def test_predictor_is_exact_for_polynomial_motion(order):
 
     def local(t):  # positions and rotations in the base frame
         x = x0 + v * t + 0.5 * acc * t * t
-        Q = np.stack([_rodrigues(axis[k] * (th0[k] + w[k] * t + 0.5 * al[k] * t * t)) @ Q0[k]
-                      for k in range(n)])
+        Q = np.stack(
+            [
+                _rodrigues(axis[k] * (th0[k] + w[k] * t + 0.5 * al[k] * t * t)) @ Q0[k]
+                for k in range(n)
+            ]
+        )
         return x, Q
 
     def base(t):  # an arbitrary moving base pose
-        return np.array([1.0, 2.0, 3.0]) + 40.0 * t * np.array([1.0, -0.5, 0.2]), \
-            _rodrigues(np.array([0.3, -0.2, 0.5]) + 5.0 * t * np.array([0.1, 0.7, -0.2]))
+        return np.array([1.0, 2.0, 3.0]) + 40.0 * t * np.array([1.0, -0.5, 0.2]), _rodrigues(
+            np.array([0.3, -0.2, 0.5]) + 5.0 * t * np.array([0.1, 0.7, -0.2])
+        )
 
     def world(t):
         pA, RA = base(t)
@@ -168,7 +189,27 @@ def test_predictor_is_exact_for_polynomial_motion(order):
     (pq, Rq), (pp, Rp), (ps, Rs), (pe, Re) = (world(k * h) for k in (-2, -1, 0, 1))
     (bq, BQ), (bp, BP), (bs, BS), (be, BE) = (base(k * h) for k in (-2, -1, 0, 1))
     pos, rot = np.zeros((n, 3)), np.zeros((n, 3, 3))
-    itg._extrapolate(0, n, pos, rot, ps, Rs, pp, Rp, pq, Rq, order, bs, BS, bp, BP, bq, BQ, be, BE,
-                     np.zeros((itg.N_SW, 12)))
+    itg._extrapolate(
+        0,
+        n,
+        pos,
+        rot,
+        ps,
+        Rs,
+        pp,
+        Rp,
+        pq,
+        Rq,
+        order,
+        bs,
+        BS,
+        bp,
+        BP,
+        bq,
+        BQ,
+        be,
+        BE,
+        np.zeros((itg.N_SW, 12)),
+    )
     np.testing.assert_allclose(pos, pe, rtol=0, atol=1e-11)
     np.testing.assert_allclose(rot, Re, rtol=0, atol=1e-11)

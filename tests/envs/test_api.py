@@ -38,8 +38,12 @@ def test_sb3_check_env(env_id, variant):
         # (m, m) on purpose (that is what a Dict is for); SB3's MultiInputPolicy flattens every
         # non-image Box (CombinedExtractor -> nn.Flatten), so the shapes are handled.  The Box
         # variant (the registered default) raises no warning at all.
-        warnings.filterwarnings("ignore", message=r"Your observation \w+ has an unconventional "
-                                "shape", category=UserWarning)
+        warnings.filterwarnings(
+            "ignore",
+            message=r"Your observation \w+ has an unconventional "
+            "shape",
+            category=UserWarning,
+        )
         sb3_check_env(env.unwrapped, warn=True)
     env.close()
 
@@ -54,19 +58,19 @@ def test_make_with_module_prefix_in_fresh_subprocess():
         "assert obs.shape == env.observation_space.shape\n"
         "print('OK', env.spec.max_episode_steps)\n"
     )
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=120)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "OK 300"
 
 
 def test_import_registers_without_loading_envs():
-    code = ("import sys, brush_env, gymnasium as gym\n"
-            "assert 'brush_env/FlatPlate-v0' in gym.registry\n"
-            "assert 'brush_env.envs.flat_plate' not in sys.modules\n"
-            "print('OK')\n")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=60)
+    code = (
+        "import sys, brush_env, gymnasium as gym\n"
+        "assert 'brush_env/FlatPlate-v0' in gym.registry\n"
+        "assert 'brush_env.envs.flat_plate' not in sys.modules\n"
+        "print('OK')\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0 and res.stdout.strip() == "OK", res.stderr
 
 
@@ -84,8 +88,13 @@ def test_subproc_vec_env_steps():
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = make_vec_env("brush_env:brush_env/FlatPlate-v0", n_envs=2, seed=0,
-                        vec_env_cls=SubprocVecEnv, env_kwargs=TINY)
+    venv = make_vec_env(
+        "brush_env:brush_env/FlatPlate-v0",
+        n_envs=2,
+        seed=0,
+        vec_env_cls=SubprocVecEnv,
+        env_kwargs=TINY,
+    )
     try:
         obs = venv.reset()
         assert obs.shape == (2,) + venv.observation_space.shape
@@ -93,8 +102,12 @@ def test_subproc_vec_env_steps():
             obs, rew, done, infos = venv.step(np.zeros((2, 6), np.float32))
         assert obs.shape[0] == 2 and rew.shape == (2,) and len(infos) == 2
         assert not np.array_equal(obs[0], obs[1])  # different seeds, different start poses
-        assert set(infos[0]["reward_terms"]) == {"coverage", "total_force", "tip_force",
-                                                 "termination"}
+        assert set(infos[0]["reward_terms"]) == {
+            "coverage",
+            "total_force",
+            "tip_force",
+            "termination",
+        }
     finally:
         venv.close()
 

@@ -7,9 +7,24 @@ import pytest
 
 from brush_env.envs.bench_env import add_arguments, bench_env, run
 
-KEYS = {"mode", "n_envs", "steps", "wall_s", "steps_per_s", "steps_per_s_per_env",
-        "real_time_factor", "engine_steps_per_s", "cold_start_s", "terminations", "brush",
-        "n_bristles", "bodies_per_bristle", "engine_dt", "frame_skip", "control_hz"}
+KEYS = {
+    "mode",
+    "n_envs",
+    "steps",
+    "wall_s",
+    "steps_per_s",
+    "steps_per_s_per_env",
+    "real_time_factor",
+    "engine_steps_per_s",
+    "cold_start_s",
+    "terminations",
+    "brush",
+    "n_bristles",
+    "bodies_per_bristle",
+    "engine_dt",
+    "frame_skip",
+    "control_hz",
+}
 
 
 def test_bench_env_rows():
@@ -24,8 +39,9 @@ def test_bench_env_rows():
 def test_bench_env_cli_json(capsys):
     p = argparse.ArgumentParser()
     add_arguments(p)
-    assert run(p.parse_args(["--steps", "5", "--n-envs", "1", "--brush", "tiny_env",
-                             "--json"])) == 0
+    assert (
+        run(p.parse_args(["--steps", "5", "--n-envs", "1", "--brush", "tiny_env", "--json"])) == 0
+    )
     rows = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert len(rows) == 1 and rows[0]["steps"] == 5 and rows[0]["frame_skip"] == 10
 

@@ -1,11 +1,11 @@
 """The tables of the env module docstring (and docs/env.md) are pinned to the code."""
 
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
 import brush_env
 from brush_env.engine import configs_dir

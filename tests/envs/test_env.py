@@ -86,15 +86,17 @@ def test_reward_terms_sum_to_reward(make_env):
     env = make_env(max_episode_steps=40)
     n = 0
     for seed in (0, 1, 2):
-        for obs, r, term, trunc, info in _rollout(env, seed, _actions(40, seed=seed,
-                                                                      z_bias=-0.5))[1:]:
+        for _obs, r, term, _trunc, info in _rollout(
+            env, seed, _actions(40, seed=seed, z_bias=-0.5)
+        )[1:]:
             terms = info["reward_terms"]
             assert tuple(terms) == REWARD_TERMS
             assert r == pytest.approx(sum(terms.values()), abs=1e-12)
             assert terms["coverage"] >= 0.0
             assert terms["total_force"] <= 0.0 and terms["tip_force"] <= 0.0
-            assert terms["termination"] == (-env.unwrapped.config.termination_penalty
-                                            if term else 0.0)
+            assert terms["termination"] == (
+                -env.unwrapped.config.termination_penalty if term else 0.0
+            )
             n += 1
     assert n > 0
 
@@ -167,8 +169,9 @@ def test_reset_options_are_validated(make_env):
         env.reset(seed=0, options={"tcp_pos": [0, 0, 12]})
     with pytest.raises(ValueError, match="plate_offset"):
         env.reset(seed=0, options={"plate_offset": [0, 0]})
-    _, info = env.reset(seed=0, options={"tcp_position": [1.0, 2.0, 12.0],
-                                         "plate_offset": [0.0, 0.0, 0.0]})
+    _, info = env.reset(
+        seed=0, options={"tcp_position": [1.0, 2.0, 12.0], "plate_offset": [0.0, 0.0, 0.0]}
+    )
     assert np.allclose(info["tcp_position"], [1.0, 2.0, 12.0])
 
 
@@ -176,7 +179,7 @@ def test_reset_options_are_validated(make_env):
 def test_leaving_the_workspace_terminates(make_env):
     env = make_env()
     env.reset(seed=0, options=NO_CONTACT)
-    for k in range(500):
+    for _k in range(500):
         _, r, term, trunc, info = env.step(np.array([0, 0, 1, 0, 0, 0], np.float32))
         if term:
             break
@@ -246,7 +249,6 @@ def test_divergence_terminates_and_keeps_the_last_converged_state(make_env):
 
 def test_hard_force_limit_terminates_within_the_step(make_env):
     env = make_env(hard_force_limit=2.0)
-    u = env.unwrapped
     env.reset(seed=0)
     fault = _inject(env, force_from=3, force=1.0)  # 4 tips x 1 N = 4 N > 2 N from call 3 on
     _, r, term, _, info = env.step(ZERO)
@@ -256,9 +258,14 @@ def test_hard_force_limit_terminates_within_the_step(make_env):
 
 
 def test_force_penalties_integrate_the_excess(make_env):
-    cfg_kw = dict(total_force_limit=1.0, total_force_weight=2.0, tip_force_limit=0.1,
-                  tip_force_weight=3.0, hard_force_limit=100.0,
-                  tip_force_window=(0.0, 10.0))
+    cfg_kw = dict(
+        total_force_limit=1.0,
+        total_force_weight=2.0,
+        tip_force_limit=0.1,
+        tip_force_weight=3.0,
+        hard_force_limit=100.0,
+        tip_force_window=(0.0, 10.0),
+    )
     env = make_env(**cfg_kw)
     u = env.unwrapped
     env.reset(seed=0, options={"tcp_position": [0.0, 0.0, 12.0]})
@@ -274,18 +281,24 @@ def test_force_penalties_integrate_the_excess(make_env):
 
 
 # ---------------------------------------------------------------- config validation
-@pytest.mark.parametrize("kw,match", [
-    ({"frame_skip": 0}, r"frame_skip = 0 is out of range: must be in \[1, 1000\]"),
-    ({"engine_dt": -1e-3}, r"engine_dt = -0.001 is out of range: must be in \(0, 0.02\]"),
-    ({"action_mode": "7d"}, r"action_mode = '7d' is not allowed: must be one of '6d', '3d'"),
-    ({"max_linear_speed": [10, 10]}, r"max_linear_speed = \[10, 10\].*list of 3 numbers"),
-    ({"tip_force_window": [0.3, 0.1]}, r"tip_force_window = \[0.3, 0.1\] is invalid"),
-    ({"frame_skp": 3}, r"unknown env override 'frame_skp'; did you mean frame_skip"),
-    ({"gravity": 1}, r"gravity = 1 has the wrong type"),
-    ({"start_height": [0.2, 1.0]}, r"plate_offset_range\[2\] = 0.5 is out of range"),
-    ({"brush": "no_such_brush"}, r"no_such_brush"),
-    ({"tip_tip": "yes"}, r"tip_tip = 'yes' is not allowed: must be one of 'scene', 'on', 'off'"),
-])
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"frame_skip": 0}, r"frame_skip = 0 is out of range: must be in \[1, 1000\]"),
+        ({"engine_dt": -1e-3}, r"engine_dt = -0.001 is out of range: must be in \(0, 0.02\]"),
+        ({"action_mode": "7d"}, r"action_mode = '7d' is not allowed: must be one of '6d', '3d'"),
+        ({"max_linear_speed": [10, 10]}, r"max_linear_speed = \[10, 10\].*list of 3 numbers"),
+        ({"tip_force_window": [0.3, 0.1]}, r"tip_force_window = \[0.3, 0.1\] is invalid"),
+        ({"frame_skp": 3}, r"unknown env override 'frame_skp'; did you mean frame_skip"),
+        ({"gravity": 1}, r"gravity = 1 has the wrong type"),
+        ({"start_height": [0.2, 1.0]}, r"plate_offset_range\[2\] = 0.5 is out of range"),
+        ({"brush": "no_such_brush"}, r"no_such_brush"),
+        (
+            {"tip_tip": "yes"},
+            r"tip_tip = 'yes' is not allowed: must be one of 'scene', 'on', 'off'",
+        ),
+    ],
+)
 def test_config_errors_name_parameter_value_and_range(kw, match):
     with pytest.raises(ConfigError, match=match):
         gym.make(ENV_ID, **kw)
@@ -310,5 +323,5 @@ def test_bad_render_mode_and_config_file(tmp_path):
     with pytest.raises(ConfigError, match="unknown section .*'physics'"):
         BrushEnv(config=bad)
     good = tmp_path / "good.toml"
-    good.write_text("[engine]\nbrush = \"tiny_env\"\nframe_skip = 4\n")
+    good.write_text('[engine]\nbrush = "tiny_env"\nframe_skip = 4\n')
     assert BrushEnv(config=good).dt == pytest.approx(0.016)

@@ -14,10 +14,9 @@ import numpy as np
 import pytest
 
 from brush_env.engine import load_brush
-from brush_env.engine.scene import Scene
 from brush_env.engine.rotation import expmap as _exp_so3
-from brush_env.motion import R0
 from brush_env.engine.rotation import rotation_vectors
+from brush_env.engine.scene import Scene
 from brush_env.experiments import (
     CSV_COLUMNS,
     PAPER_JAMMING_ANGLES,
@@ -30,6 +29,7 @@ from brush_env.experiments import (
     repeatability,
     run_reference,
 )
+from brush_env.motion import R0
 
 TWO_PI = 2 * math.pi
 
@@ -99,7 +99,8 @@ def test_jamming_analysis_maps_peaks_to_the_paper_angles():
         assert ev["count"] >= 3
         assert ev["mean_offset_from_paper_deg"] == pytest.approx(math.degrees(shift), abs=1.0)
         assert ev["mean_angle_mod_2pi_deg"] == pytest.approx(
-            math.degrees(paper % TWO_PI + shift), abs=1.0)
+            math.degrees(paper % TWO_PI + shift), abs=1.0
+        )
         assert ev["angle_std_deg"] < 1.0
     for p in jam["peaks"]:
         assert p["Fz_N"] == pytest.approx(-2.0)
@@ -148,10 +149,12 @@ def test_pitch_asymmetry_on_a_known_change():
     assert ch["absFy_peak_N"]["pitch"] == pytest.approx(0.8 * ch["absFy_peak_N"]["baseline"])
     assert ch["Fx_over_Fy_peak_ratio"]["change_percent"] == pytest.approx(25.0, abs=0.01)
     assert ch["absFx_peak_N"]["change"] == pytest.approx(0.0)
-    assert res["turn_to_turn"]["baseline"]["absFy_peak_ratio_window_to_next_turn"] == \
-        pytest.approx(1.0, abs=1e-3)
-    assert res["turn_to_turn"]["pitch"]["absFy_peak_ratio_window_to_next_turn"] == \
-        pytest.approx(0.8, abs=1e-3)
+    assert res["turn_to_turn"]["baseline"]["absFy_peak_ratio_window_to_next_turn"] == pytest.approx(
+        1.0, abs=1e-3
+    )
+    assert res["turn_to_turn"]["pitch"]["absFy_peak_ratio_window_to_next_turn"] == pytest.approx(
+        0.8, abs=1e-3
+    )
     assert res["rms_difference_N"]["after_window"]["y"] == pytest.approx(0.0, abs=1e-12)
     assert res["rms_difference_N"]["window"]["y"] > 0.1
     assert res["pitch_peak_deg"] == pytest.approx(math.degrees(0.01))
@@ -181,8 +184,13 @@ def _read_csv(path):
 
 
 def _check_outputs(out, summary, nb, pitch=False):
-    for name in ("timeseries.csv", "tips.npz", "forces_vs_angle.png", "deformed_shapes.png",
-                 "summary.json"):
+    for name in (
+        "timeseries.csv",
+        "tips.npz",
+        "forces_vs_angle.png",
+        "deformed_shapes.png",
+        "summary.json",
+    ):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     # the pitch comparison (Figure 10) has its own file and leaves Figure 7 alone
     assert (out / "forces_vs_angle_pitch.png").is_file() == pitch
@@ -201,10 +209,22 @@ def _check_outputs(out, summary, nb, pitch=False):
     assert col["Fh_N"] == pytest.approx(np.hypot(col["Fx_N"], col["Fy_N"]), abs=1e-6)
     assert np.all(col["n_contact"] <= nb) and np.all(col["max_penetration_mm"] >= 0)
     with np.load(out / "tips.npz") as z:
-        for k in ("time", "theta", "tip_pos", "tip_vel", "tip_normal_force",
-                  "tip_tangential_force", "tip_contact_force", "tip_in_contact",
-                  "tip_penetration", "shape_body_pos", "shape_tip_pos", "shape_root_pos",
-                  "bstart", "group"):
+        for k in (
+            "time",
+            "theta",
+            "tip_pos",
+            "tip_vel",
+            "tip_normal_force",
+            "tip_tangential_force",
+            "tip_contact_force",
+            "tip_in_contact",
+            "tip_penetration",
+            "shape_body_pos",
+            "shape_tip_pos",
+            "shape_root_pos",
+            "bstart",
+            "group",
+        ):
             assert k in z.files, k
         M = z["time"].shape[0]
         assert z["tip_pos"].shape == (M, nb, 3) and z["tip_vel"].shape == (M, nb, 3)
@@ -213,8 +233,19 @@ def _check_outputs(out, summary, nb, pitch=False):
         assert z["shape_body_pos"].shape[1] == int(z["bstart"][-1])
     s = summary
     st = s["settings"]
-    for k in ("brush", "material", "dt_s", "bodies", "integrator", "speed_mm_s", "accel_mm_s2",
-              "path", "turns", "press_depth_mm", "pitch_error_deg"):
+    for k in (
+        "brush",
+        "material",
+        "dt_s",
+        "bodies",
+        "integrator",
+        "speed_mm_s",
+        "accel_mm_s2",
+        "path",
+        "turns",
+        "press_depth_mm",
+        "pitch_error_deg",
+    ):
         assert k in st, k
     assert st["brush"]["name"] == "tiny" and st["brush"]["n_bristles"] == nb
     assert st["brush"]["file"].endswith("tiny.toml")
@@ -222,8 +253,9 @@ def _check_outputs(out, summary, nb, pitch=False):
     assert st["bodies"] == [3]
     for k in ("wall_time_s", "sim_wall_time_s", "simulated_time_s", "real_time_factor"):
         assert s["performance"][k] > 0, k
-    assert s["trajectory"]["movel"]["deviation_from_circle"]["max_abs_mm"] == \
-        pytest.approx(1.213, abs=2e-3)
+    assert s["trajectory"]["movel"]["deviation_from_circle"]["max_abs_mm"] == pytest.approx(
+        1.213, abs=2e-3
+    )
     a = s["analysis"]["baseline"]
     for k in ("per_turn", "jamming", "repeatability", "max_penetration_mm", "theta_range_rad"):
         assert k in a, k
@@ -259,8 +291,9 @@ def test_reference_end_to_end_tiny(tmp_path):
 def test_reference_pitch_error_produces_both_series(tmp_path):
     out = tmp_path / "pitch"
     win = (0.55 * math.pi, 0.8 * math.pi)  # inside the short run (the paper's is [2π, 5π/2])
-    s = run_reference(scene=_free_scene(), out_dir=out, turns=0.45, pitch_error_deg=1.0,
-                      pitch_window=win, **QUICK)
+    s = run_reference(
+        scene=_free_scene(), out_dir=out, turns=0.45, pitch_error_deg=1.0, pitch_window=win, **QUICK
+    )
     assert s["run_status"] == {"baseline": "ok", "pitch": "ok"}
     _check_outputs(out, s, nb=4, pitch=True)
     for name in ("timeseries_pitch.csv", "tips_pitch.npz"):
@@ -301,9 +334,30 @@ def test_reference_cli_free_brush(tmp_path):
     scene = tmp_path / "free.toml"
     scene.write_text('name = "free"\nbrush = "tiny"\ntip_tip = false\n')
     out = tmp_path / "cli"
-    rc = cli.main(["reference", "--scene", str(scene), "--out", str(out), "--turns", "0.3",
-                   "--dt", "0.01", "--speed", "40", "--accel", "200", "--path", "circle",
-                   "--bodies", "2", "--integrator", "euler", "--no-progress"])
+    rc = cli.main(
+        [
+            "reference",
+            "--scene",
+            str(scene),
+            "--out",
+            str(out),
+            "--turns",
+            "0.3",
+            "--dt",
+            "0.01",
+            "--speed",
+            "40",
+            "--accel",
+            "200",
+            "--path",
+            "circle",
+            "--bodies",
+            "2",
+            "--integrator",
+            "euler",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
     st = s["settings"]
@@ -324,8 +378,9 @@ def test_run_reference_rejects_bad_input(tmp_path):
     with pytest.raises(ValueError, match="dt"):
         run_reference(brush="tiny", out_dir=tmp_path, dt=-1, progress=False)
     with pytest.raises(ValueError, match="path"):
-        run_reference(brush="tiny", out_dir=tmp_path, turns=0.1, path="square", progress=False,
-                      plots=False)
+        run_reference(
+            brush="tiny", out_dir=tmp_path, turns=0.1, path="square", progress=False, plots=False
+        )
 
 
 def test_tiny_brush_config():

@@ -13,9 +13,9 @@ import pytest
 
 from brush_env import cli
 from brush_env.engine import Scene, SimSettings, Simulator, load_brush
-from brush_env.validation import references as ref
 from brush_env.engine.modal import bristle_stiffness_mass
 from brush_env.validation import PAPER_INNER, SLENDER, Geometry, classified_modes
+from brush_env.validation import references as ref
 
 R0 = np.diag([1.0, -1.0, -1.0])  # default TCP orientation: bristles hang toward -z
 
@@ -60,8 +60,9 @@ def test_small_deflection_matches_timoshenko_with_shear(plane, alpha, tol):
     force = np.zeros(3)
     force[c] = P
     tip, R = _static_tip(g, 6, force)
-    tim = ref.timoshenko_cantilever_tip(P, g.length, mat.E, mat.G, I, sec.area,
-                                        sec.shear_coeff(mat.nu))
+    tim = ref.timoshenko_cantilever_tip(
+        P, g.length, mat.E, mat.G, I, sec.area, sec.shear_coeff(mat.nu)
+    )
     angle = math.atan2(R[c, 0], R[0, 0])
     assert tip[c] == pytest.approx(tim["v"], rel=tol)
     assert angle == pytest.approx(tim["theta"], rel=tol)
@@ -75,8 +76,9 @@ def test_axial_stiffness():
     g = PAPER_INNER
     P = 1e-4 * g.E * g.section.area  # strain 1e-4, tension
     tip, _ = _static_tip(g, 6, [P, 0.0, 0.0])
-    assert tip[0] - g.length == pytest.approx(ref.axial_tip(P, g.length, g.E, g.section.area),
-                                              rel=1e-3)
+    assert tip[0] - g.length == pytest.approx(
+        ref.axial_tip(P, g.length, g.E, g.section.area), rel=1e-3
+    )
     assert np.abs(tip[1:]).max() < 1e-12
 
 
@@ -87,8 +89,9 @@ def test_torsional_stiffness(geom):
     K, _ = bristle_stiffness_mass(geom.simulator(n), 0)
     twist = np.linalg.solve(K, np.eye(6 * n)[:, 6 * n - 3])
     mat = geom.material
-    assert twist[6 * n - 3] == pytest.approx(ref.torsion_tip(1.0, geom.length, mat.G,
-                                                             geom.section.J), rel=1e-4)
+    assert twist[6 * n - 3] == pytest.approx(
+        ref.torsion_tip(1.0, geom.length, mat.G, geom.section.J), rel=1e-4
+    )
 
 
 def test_torsional_frequency():
@@ -190,7 +193,9 @@ def test_static_wrench_balances_tip_loads():
     # static solve with tip-tip contact does not converge (reported); contact forces between tips
     # are internal and would cancel in the balance anyway
     brush = load_brush()
-    sim = Simulator(Scene(brush, tip_tip=False), SimSettings(gravity=(0.0, 0.0, 0.0), newton_rtol=1e-10))
+    sim = Simulator(
+        Scene(brush, tip_tip=False), SimSettings(gravity=(0.0, 0.0, 0.0), newton_rtol=1e-10)
+    )
     p = np.array([0.0, 0.0, 10.0])
     tips0 = sim.reset(p, R0).tip_pos
     F = np.random.default_rng(7).normal(scale=1e-3, size=(brush.n_bristles, 3))
@@ -206,8 +211,9 @@ def test_static_wrench_balances_tip_loads():
 def _driven_bristle(dt, integrator, T=0.05):
     """Paper's inner bristle (f1 ~ 100 Hz) on a base moving sideways by sin^4(pi f t), f = 20 Hz,
     1 mm: C^2-smooth start from rest.  Returns times [s], TCP force [N] and tip position [mm]."""
-    sim = PAPER_INNER.simulator(6, SimSettings(gravity=(0.0, 0.0, 0.0), dt=dt,
-                                               integrator=integrator))
+    sim = PAPER_INNER.simulator(
+        6, SimSettings(gravity=(0.0, 0.0, 0.0), dt=dt, integrator=integrator)
+    )
     n = int(round(T / dt))
     F, X = [np.zeros(3)], [sim.tip_positions()[0].copy()]
     for k in range(1, n + 1):
@@ -248,8 +254,13 @@ def _drive(sim, k0, k1):
     out = []
     for k in range(k0, k1):
         t = k * sim.settings.dt
-        p = np.array([2.0 * math.sin(4.0 * math.pi * t), 1.0 - math.cos(4.0 * math.pi * t),
-                      10.0 - 0.5 * math.sin(10.0 * math.pi * t)])
+        p = np.array(
+            [
+                2.0 * math.sin(4.0 * math.pi * t),
+                1.0 - math.cos(4.0 * math.pi * t),
+                10.0 - 0.5 * math.sin(10.0 * math.pi * t),
+            ]
+        )
         r = sim.step(p, _rot((0.0, 1.0, 0.0), 0.2 * math.sin(6.0 * math.pi * t)) @ R0)
         out.append(np.concatenate([r.tcp_force, r.tcp_moment, r.tip_pos.ravel()]))
     return np.array(out)
@@ -304,31 +315,55 @@ def test_cli_validate_all_passes(capsys):
 
 def test_cli_bench_engine_quick(capsys):
     assert cli.main(["bench", "engine", "--quick", "--json"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
-            if line.startswith("{")]
-    keys = {"bodies", "dt", "integrator", "rms_force_error", "rms_moment_error", "wall_s", "rtf",
-            "newton_per_step_per_bristle"}
+    rows = [
+        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
+    ]
+    keys = {
+        "bodies",
+        "dt",
+        "integrator",
+        "rms_force_error",
+        "rms_moment_error",
+        "wall_s",
+        "rtf",
+        "newton_per_step_per_bristle",
+    }
     assert rows and all(keys <= set(r) for r in rows)
     assert all(np.isfinite(r["rms_force_error"]) and r["wall_s"] > 0 for r in rows)
 
 
 def test_cli_bench_contact_quick(capsys):
     assert cli.main(["bench", "contact", "--quick", "--json"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
-            if line.startswith("{")]
-    keys = {"bodies", "dt", "integrator", "tip_tip", "rtf", "rms_force_error", "status",
-            "newton_per_step_per_bristle", "substeps_extra", "reference"}
+    rows = [
+        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
+    ]
+    keys = {
+        "bodies",
+        "dt",
+        "integrator",
+        "tip_tip",
+        "rtf",
+        "rms_force_error",
+        "status",
+        "newton_per_step_per_bristle",
+        "substeps_extra",
+        "reference",
+    }
     assert rows and all(keys <= set(r) for r in rows)
     assert {r["tip_tip"] for r in rows} == {False, True}
     grid = [r for r in rows if not r["reference"]]
-    assert grid and all(r["rtf"] > 0 and r["newton_per_step_per_bristle"] > 0 for r in rows
-                        if r["status"] == "ok")
+    assert grid and all(
+        r["rtf"] > 0 and r["newton_per_step_per_bristle"] > 0 for r in rows if r["status"] == "ok"
+    )
     # a diverged row is reported with a NaN error, never dropped or given a number
     assert all(np.isfinite(r["rms_force_error"]) == (r["status"] == "ok") for r in grid)
     # quick grid: its reference has the rows' own bodies (3), so both errors are the same number
     assert all("rms_force_error_same_bodies" in r for r in grid)
-    assert all(r["rms_force_error_same_bodies"] == r["rms_force_error"] for r in grid
-               if r["status"] == "ok")
+    assert all(
+        r["rms_force_error_same_bodies"] == r["rms_force_error"]
+        for r in grid
+        if r["status"] == "ok"
+    )
 
 
 def test_cli_bench_convergence_quick(capsys):
@@ -336,8 +371,9 @@ def test_cli_bench_convergence_quick(capsys):
     docs/model.md) the error against the finest run shrinks as dt is refined; the body series
     compares against its most refined run."""
     assert cli.main(["bench", "convergence", "--quick", "--json"]) == 0
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()
-            if line.startswith("{")]
+    rows = [
+        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
+    ]
     assert {r["series"] for r in rows} == {"dt", "bodies"}
     dt_rows = sorted((r for r in rows if r["series"] == "dt"), key=lambda r: -r["dt"])
     assert all(r["status"] == "ok" for r in dt_rows)
