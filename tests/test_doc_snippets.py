@@ -36,9 +36,9 @@ def test_snippet_runs(code):
 
 
 def test_designer_snippet_first_step_is_gentle():
-    """The README's designer snippet resets at ``sim.touch_height``: its first 0.015 mm press
-    step must read a tiny force (< 0.05 N), not the several newtons of tips started inside the
-    plate."""
+    """The README's designer snippet resets at ``sim.touch_height`` and starts the press
+    smoothly: its first step must read a tiny force (< 0.05 N), not the several newtons of tips
+    started inside the plate."""
     code = next(
         c
         for c in re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
