@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib
 import sys
 
+from .kernel_cache import announce
 from .user_errors import OneLineParser, run_main
 
 #: name -> (module, one-line help)
@@ -38,10 +39,11 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """``brush-env warmup``: compile (or load) every kernel set and report the time."""
-    from .engine.warmup import COMPILE_NOTICE, kernels_compiled, warm_up
+    from .kernel_cache import announce
 
-    if not kernels_compiled():
-        print(COMPILE_NOTICE, flush=True)
+    announce()
+    from .engine.warmup import warm_up
+
     print(f"kernels ready in {warm_up():.1f} s")
     return 0
 
@@ -71,6 +73,8 @@ def build_parser(command: str | None = None) -> tuple[OneLineParser, dict]:
 
 def _main(argv) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
+    if command in ("reference", "bench", "validate") and "-h" not in argv and "--help" not in argv:
+        announce()  # before the heavy imports: a first start compiles for about a minute
     parser, modules = build_parser(command if command in SUBCOMMANDS else "")
     args = parser.parse_args(argv)
     return int(modules[args.command].run(args) or 0)

@@ -10,38 +10,16 @@ it can say so before any progress bar (``brush-env warmup`` calls it on purpose)
 
 from __future__ import annotations
 
-import hashlib
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..kernel_cache import COMPILE_NOTICE, announce, kernels_compiled, write_stamp
+
 _HERE = Path(__file__).resolve().parent
-_STAMP = _HERE / "__pycache__" / "brush_env_kernels.stamp"
 
-#: Shown before the first compile; the figure is the measured first start (docs/benchmarks.md).
-COMPILE_NOTICE = "compiling numba kernels, first run only (~60 s; `brush-env warmup` does it ahead)"
-
-
-def _sources_key() -> str:
-    """Hash of the engine sources and the numba/numpy/python versions the cache depends on."""
-    import numba
-
-    h = hashlib.sha256()
-    for p in sorted(_HERE.glob("*.py")):
-        h.update(p.name.encode())
-        h.update(p.read_bytes())
-    h.update(f"{numba.__version__} {np.__version__} {sys.version}".encode())
-    return h.hexdigest()
-
-
-def kernels_compiled() -> bool:
-    """True if :func:`warm_up` ran on these exact sources (the numba cache is then warm)."""
-    try:
-        return _STAMP.read_text().strip() == _sources_key()
-    except OSError:
-        return False
+__all__ = ["COMPILE_NOTICE", "ensure_compiled", "kernels_compiled", "warm_up"]
 
 
 def warm_up() -> float:
@@ -70,18 +48,14 @@ def warm_up() -> float:
     sim.reset(np.array([0.0, 0.0, top]), R)  # static solve of a small press (tips sticking)
     sim.solve_static(np.array([0.0, 0.0, top - 0.1]), R, increments=2)
     seconds = time.perf_counter() - t0
-    try:
-        _STAMP.parent.mkdir(exist_ok=True)
-        _STAMP.write_text(_sources_key())
-    except OSError:  # a read-only install still works, it only compiles again next time
-        pass
+    write_stamp()
     return seconds
 
 
 def ensure_compiled(notice=print) -> float:
-    """Warm the kernels if needed, announcing it first; returns the seconds spent (0 if warm)."""
+    """Warm the kernels if needed, announcing it first (once per process); returns the seconds
+    spent (0 if warm)."""
     if kernels_compiled():
         return 0.0
-    if notice is not None:
-        notice(COMPILE_NOTICE, flush=True) if notice is print else notice(COMPILE_NOTICE)
+    announce(notice)
     return warm_up()
