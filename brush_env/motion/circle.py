@@ -1,5 +1,9 @@
-"""An exact circle of the TCP with a trapezoidal speed profile; ``angle(t)`` is the rotation
-angle θ of the paper's Figure 7 (§4–5)."""
+"""``Circle``: the exact circular TCP path at constant orientation (§4-§5, the θ of Figure 7).
+
+The reference the four-point MoveL loop of the paper (``motion.paper``) approximates; a
+trapezoidal tangential speed profile (``motion.profiles.Trapezoid``) starts and ends it at rest.
+No numbered equation of the paper: §5.1 states the path in words.
+"""
 
 from __future__ import annotations
 
@@ -7,26 +11,12 @@ import math
 
 import numpy as np
 
-from ..engine.checks import (
-    POSITIVE,
-    check_real,
-    check_rotation,
-    check_unit,
-    check_vec,
-)
-from .base import R0, Trajectory
-from .profiles import _Trapezoid
+from brush_env.engine.checks import Limit, check_real, check_rotation, check_unit
 
+from .base import ACCEL, ANGLE, LENGTH, R0, SPEED, Trajectory, check_point, plane_basis
+from .profiles import Trapezoid
 
-def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """In-plane basis (e1, e2) with e1 x e2 = normal; e1 = world x projected (or y if parallel)."""
-    ref = np.array([1.0, 0.0, 0.0])
-    if np.linalg.norm(np.cross(ref, normal)) < 1e-6:
-        ref = np.array([0.0, 1.0, 0.0])
-    e1 = ref - np.dot(ref, normal) * normal
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(normal, e1)
-    return e1, e2
+__all__ = ["Circle"]
 
 
 class Circle(Trajectory):
@@ -61,19 +51,19 @@ class Circle(Trajectory):
         R=R0,
         clockwise: bool = False,
     ):
-        self.center = np.array(check_vec("center", center, 3))
-        self.radius = check_real("radius", radius, POSITIVE)
-        self.speed = check_real("speed", speed, POSITIVE)
-        self.accel = check_real("accel", accel, POSITIVE)
-        self.turns = check_real("turns", turns, POSITIVE)
-        self.start_angle = check_real("start_angle", start_angle)
+        self.center = check_point("center", center)
+        self.radius = check_real("radius", radius, LENGTH)
+        self.speed = check_real("speed", speed, SPEED)
+        self.accel = check_real("accel", accel, ACCEL)
+        self.turns = check_real("turns", turns, Limit("turns", gt=0))
+        self.start_angle = check_real("start_angle", start_angle, ANGLE)
         self.normal = check_unit("normal", normal)
         self.R = check_rotation("R", R)
         self.clockwise = bool(clockwise)
-        self.e1, self.e2 = _plane_basis(self.normal)
+        self.e1, self.e2 = plane_basis(self.normal)
         self.sign = -1.0 if self.clockwise else 1.0
         self.arc_length = 2.0 * math.pi * self.radius * self.turns
-        self._prof = _Trapezoid(self.arc_length, self.speed, self.accel)
+        self._prof = Trapezoid(self.arc_length, self.speed, self.accel)
         self.duration = self._prof.duration
 
     @property

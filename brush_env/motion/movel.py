@@ -1,5 +1,11 @@
-"""UR-style ``MoveL`` through waypoints with a blend radius (the paper's Algorithm 1, Figures 5–6):
-straight segments joined by quadratic blends, a trapezoidal speed profile over the path length."""
+"""UR ``MoveL`` emulation: linear moves through waypoints with blend radius (§4, Figure 5).
+
+The UR5 builds the paper's circle from four ``MoveL`` control points with blend radius
+(Algorithm 1, ``motion.paper``).  Here each blend is a quadratic Bézier traversed at constant
+tool speed (``_QuadBlend``), straight parts are ``_Line`` s, and every rest-to-rest piece between
+stop points follows a ``motion.profiles.Trapezoid``.  The paper gives this motion as robot
+commands, not as a numbered equation.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +13,20 @@ import math
 
 import numpy as np
 
-from ..engine.checks import (
-    NONNEG,
-    POSITIVE,
+from brush_env.engine.checks import (
+    ConfigError,
+    Limit,
+    check_int,
     check_real,
     check_rotation,
     check_unit,
-    check_vec,
 )
-from .base import R0, Trajectory, _pose
-from .circle import _plane_basis
-from .profiles import _clip, _Trapezoid
 
-# --------------------------------------------------------------------------------------------
-# MoveL with blend radius
-# --------------------------------------------------------------------------------------------
+from .base import ACCEL, R0, SPEED, Trajectory, check_point, check_pose, plane_basis
+from .profiles import Trapezoid, clip
+
+__all__ = ["MoveL", "BLEND_RULE"]
+
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
 
@@ -68,8 +73,8 @@ class _QuadBlend:
     def u_of_s(self, s: np.ndarray, newton: int = 2) -> np.ndarray:
         """Inverse arc length: cubic Hermite guess from the table (du/ds = 1/|B'| known at the
         nodes, error ~1e-10 of the sub-interval), then Newton step(s) on the exact arc length."""
-        s = _clip(s, 0.0, self.length)
-        j = _clip(np.searchsorted(self.s_tab, s, side="right") - 1, 0, self._NTAB - 1)
+        s = clip(s, 0.0, self.length)
+        j = clip(np.searchsorted(self.s_tab, s, side="right") - 1, 0, self._NTAB - 1)
         u0, u1 = self.u_tab[j], self.u_tab[j + 1]
         s0, s1 = self.s_tab[j], self.s_tab[j + 1]
         h = s1 - s0
@@ -82,10 +87,10 @@ class _QuadBlend:
             + (-2 * x3 + 3 * x2) * u1
             + (x3 - x2) * m1
         )
-        u = _clip(u, u0, u1)
+        u = clip(u, u0, u1)
         for _ in range(newton):
             f = s0 + self._integral(u0, u) - s
-            u = _clip(u - f / self._speed(u), u0, u1)
+            u = clip(u - f / self._speed(u), u0, u1)
         return u
 
     def eval(self, s: np.ndarray):
@@ -103,6 +108,21 @@ BLEND_RULE = (
     "each adjacent segment, so neighbouring blend zones never overlap (they may touch); corners "
     "with r_i = 0 or a turn of more than 179° (near reversal) are stop points"
 )
+
+
+def _check_waypoints(waypoints) -> np.ndarray:
+    """A finite (N, 3) array of positions [mm], N >= 1."""
+    try:
+        W = np.array(waypoints, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(
+            f"waypoints must be an (N, 3) array of positions (mm), got {waypoints!r}"
+        ) from None
+    if W.ndim != 2 or W.shape[1] != 3 or W.shape[0] < 1 or not np.all(np.isfinite(W)):
+        raise ConfigError(
+            f"waypoints must be a finite (N, 3) array with N >= 1, got shape {W.shape}"
+        )
+    return W
 
 
 class MoveL(Trajectory):
@@ -152,33 +172,20 @@ class MoveL(Trajectory):
         center=None,
         normal=(0.0, 0.0, 1.0),
     ):
-        self.speed = check_real("speed", speed, POSITIVE)
-        self.accel = check_real("accel", accel, POSITIVE)
-        self.blend_radius = check_real("blend_radius", blend_radius, NONNEG)
-        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)) or repeat < 1:
-            raise ValueError(
-                f"repeat must be an integer >= 1 (allowed range [1, inf)), got {repeat!r}"
-            )
-        self.repeat = int(repeat)
-        try:
-            W = np.array(waypoints, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"waypoints must be an (N, 3) array of positions (mm), got {waypoints!r}"
-            ) from None
-        if W.ndim != 2 or W.shape[1] != 3 or W.shape[0] < 1 or not np.all(np.isfinite(W)):
-            raise ValueError(
-                f"waypoints must be a finite (N, 3) array with N >= 1, got shape {W.shape}"
-            )
+        self.speed = check_real("speed", speed, SPEED)
+        self.accel = check_real("accel", accel, ACCEL)
+        self.blend_radius = check_real("blend_radius", blend_radius, Limit("mm", ge=0))
+        self.repeat = check_int("repeat", repeat, Limit("repeats", ge=1))
+        W = _check_waypoints(waypoints)
         R_start = None
         if start_pose is not None:
-            p_start, R_start = _pose("start_pose", start_pose)
+            p_start, R_start = check_pose("start_pose", start_pose)
             if not (isinstance(start_pose, (tuple, list)) and len(start_pose) == 2):
                 R_start = None  # bare position: no orientation constraint
         if orientation is not None:
             self.R = check_rotation("orientation", orientation)
             if R_start is not None and np.max(np.abs(R_start - self.R)) > 1e-9:
-                raise ValueError(
+                raise ConfigError(
                     "orientation must equal the start_pose rotation (MoveL keeps a constant "
                     "orientation), got a difference of "
                     f"{float(np.max(np.abs(R_start - self.R))):.3g}"
@@ -189,13 +196,13 @@ class MoveL(Trajectory):
         pts = [p_start] if start_pose is not None else []
         pts += [w for _ in range(self.repeat) for w in W]
         if end is not None:
-            pts.append(np.array(check_vec("end", end, 3)))
+            pts.append(check_point("end", end))
         merged = [pts[0]]
         for q in pts[1:]:
             if np.linalg.norm(q - merged[-1]) > 1e-9:
                 merged.append(q)
         if len(merged) < 2:
-            raise ValueError(
+            raise ConfigError(
                 "waypoints must define a path of non-zero length (all points coincide)"
             )
         self.points = np.array(merged)
@@ -204,9 +211,7 @@ class MoveL(Trajectory):
 
         self.has_angle = False
         if center is not None:
-            self._setup_angle(
-                np.array(check_vec("center", center, 3)), check_unit("normal", normal)
-            )
+            self._setup_angle(check_point("center", center), check_unit("normal", normal))
 
     # -- construction ---------------------------------------------------------------------
     def _build(self):
@@ -252,7 +257,7 @@ class MoveL(Trajectory):
         piece_S0, piece_t0 = [0.0], [0.0]
         for k in range(len(stops) - 1):
             plen = float(self._elem_S0[stops[k + 1]] - self._elem_S0[stops[k]])
-            prof = _Trapezoid(plen, self.speed, self.accel)
+            prof = Trapezoid(plen, self.speed, self.accel)
             self._pieces.append(prof)
             piece_S0.append(piece_S0[-1] + plen)
             piece_t0.append(piece_t0[-1] + prof.duration)
@@ -262,25 +267,25 @@ class MoveL(Trajectory):
     # -- geometry -------------------------------------------------------------------------
     def _geom(self, S: np.ndarray):
         """Position and unit tangent at global arc lengths S (clamped)."""
-        S = _clip(S, 0.0, self.length)
+        S = clip(S, 0.0, self.length)
         nE = len(self._elements)
-        e = _clip(np.searchsorted(self._elem_S0, S, side="right") - 1, 0, nE - 1)
+        e = clip(np.searchsorted(self._elem_S0, S, side="right") - 1, 0, nE - 1)
         if e.min() == e.max():  # fast path (scalar queries)
             k = int(e[0])
             el = self._elements[k]
-            return el.eval(_clip(S - self._elem_S0[k], 0.0, el.length))
+            return el.eval(clip(S - self._elem_S0[k], 0.0, el.length))
         P = np.empty((S.shape[0], 3))
         T = np.empty((S.shape[0], 3))
         for k in np.unique(e):
             m = e == k
             el = self._elements[k]
-            sl = _clip(S[m] - self._elem_S0[k], 0.0, el.length)
+            sl = clip(S[m] - self._elem_S0[k], 0.0, el.length)
             P[m], T[m] = el.eval(sl)
         return P, T
 
     def _arc(self, t: np.ndarray):
         """Global arc length and path speed at clamped times."""
-        k = _clip(np.searchsorted(self._piece_t0, t, side="right") - 1, 0, len(self._pieces) - 1)
+        k = clip(np.searchsorted(self._piece_t0, t, side="right") - 1, 0, len(self._pieces) - 1)
         if k.min() == k.max():  # fast path (scalar queries)
             j = int(k[0])
             s, sd = self._pieces[j].s(t - self._piece_t0[j])
@@ -296,8 +301,7 @@ class MoveL(Trajectory):
 
     def path_points(self, n: int) -> np.ndarray:
         """``n`` points (n, 3) equally spaced in arc length from start to end."""
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-            raise ValueError(f"n must be an integer >= 2 (allowed range [2, inf)), got {n!r}")
+        n = check_int("n", n, Limit("points", ge=2))
         P, _ = self._geom(np.linspace(0.0, self.length, int(n)))
         return P
 
@@ -315,14 +319,14 @@ class MoveL(Trajectory):
         rel -= np.outer(rel @ normal, normal)
         rmin = float(np.min(np.linalg.norm(rel, axis=1)))
         if rmin < 1e-6:
-            raise ValueError(
+            raise ConfigError(
                 f"center must not lie on the path (distance > 1e-6 mm), got min distance {rmin:.3g}"
             )
-        e1, e2 = _plane_basis(normal)
+        e1, e2 = plane_basis(normal)
         phi = np.unwrap(np.arctan2(rel @ e2, rel @ e1))
         if phi[-1] < phi[0]:  # make θ increase along the path
             normal = -normal
-            e1, e2 = _plane_basis(normal)
+            e1, e2 = plane_basis(normal)
             phi = np.unwrap(np.arctan2(rel @ e2, rel @ e1))
         self._ang_center, self._ang_normal, self._ang_e = center, normal, (e1, e2)
         self._ang_phi0 = float(phi[0])
@@ -345,7 +349,7 @@ class MoveL(Trajectory):
 
     def _angle_and_rate(self, t):
         self._require_angle()
-        tc = _clip(t, 0.0, self.duration)
+        tc = clip(t, 0.0, self.duration)
         S, Sd = self._arc(tc)
         P, T = self._geom(S)
         V = Sd[:, None] * T

@@ -1,5 +1,12 @@
-"""Time-scaling profiles of the robot motions: the cubic step of eq 10, rest-to-rest quintic and
-cubic unit profiles, and the trapezoidal speed profile of UR MoveL/circle moves (§4)."""
+"""Scalar motion profiles: the eq 10 cubic step, rest-to-rest unit profiles and the trapezoid.
+
+* ``smoothstep`` / ``smoothstep_dot`` — the cubic ``step`` of eq 10 and its derivative (also the
+  building block of the eq 12 pitch profile, see ``motion.pitch``).
+* ``unit_profile`` — rest-to-rest sigma(tau) on tau in [0, 1]: quintic (minimum jerk) or the eq 10
+  cubic; drives ``Press`` and ``Approach``.
+* ``Trapezoid`` — path length over time at bounded speed and acceleration; drives ``Circle`` and
+  each rest-to-rest piece of ``MoveL`` (the UR5's linear moves, §4).
+"""
 
 from __future__ import annotations
 
@@ -7,12 +14,15 @@ import math
 
 import numpy as np
 
-from ..engine.checks import (
-    check_real,
-)
+from brush_env.engine.checks import ConfigError, check_real
+
+__all__ = ["smoothstep", "smoothstep_dot", "unit_profile", "Trapezoid", "PROFILES", "clip"]
+
+#: Names of the rest-to-rest unit profiles accepted by ``Press`` and ``Approach``.
+PROFILES = ("quintic", "cubic")
 
 
-def _clip(x, lo, hi):
+def clip(x, lo, hi):
     """np.clip without its per-call overhead (hot in scalar pose queries)."""
     return np.minimum(np.maximum(x, lo), hi)
 
@@ -25,9 +35,9 @@ def _step_u(x, x0, x1):
     x0 = check_real("x0", x0)
     x1 = check_real("x1", x1)
     if x0 == x1:
-        raise ValueError(f"x1 must differ from x0 (allowed: x1 != x0), got x0 = x1 = {x0!r}")
+        raise ConfigError(f"x1 = {x1!r} is out of range: must differ from x0 = {x0!r}")
     x = np.asarray(x, dtype=float)
-    return x0, x1, _clip((x - x0) / (x1 - x0), 0.0, 1.0)
+    return x0, x1, clip((x - x0) / (x1 - x0), 0.0, 1.0)
 
 
 def smoothstep(x, x0, h0, x1, h1):
@@ -51,13 +61,14 @@ def smoothstep_dot(x, x0, h0, x1, h1):
     return float(out) if out.ndim == 0 else out
 
 
-def _unit_profile(tau: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray]:
-    """Rest-to-rest unit profile sigma(tau), dsigma/dtau on tau in [0, 1]."""
-    tau = _clip(tau, 0.0, 1.0)
+def unit_profile(tau: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray]:
+    """Rest-to-rest unit profile sigma(tau), dsigma/dtau on tau in [0, 1] (``profile`` one of
+    ``PROFILES``, already checked)."""
+    tau = clip(tau, 0.0, 1.0)
     if profile == "quintic":  # minimum jerk: zero velocity and acceleration at both ends
         s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
         ds = 30.0 * tau * tau * (1.0 - tau) ** 2
-    else:  # eq-10 cubic step: zero velocity at both ends, acceleration jumps to +-6/T^2
+    else:  # eq 10 cubic step: zero velocity at both ends, acceleration jumps to +-6/T^2
         s = tau * tau * (3.0 - 2.0 * tau)
         ds = 6.0 * tau * (1.0 - tau)
     return s, ds
@@ -66,7 +77,7 @@ def _unit_profile(tau: np.ndarray, profile: str) -> tuple[np.ndarray, np.ndarray
 # --------------------------------------------------------------------------------------------
 # trapezoidal speed profile (used by Circle and MoveL)
 # --------------------------------------------------------------------------------------------
-class _Trapezoid:
+class Trapezoid:
     """Rest-to-rest path-length profile: accelerate at ``a`` to ``v``, cruise, decelerate at ``a``.
 
     If the path is too short to reach ``v`` (``v**2 / a > length``) the profile is triangular with
@@ -90,7 +101,7 @@ class _Trapezoid:
 
     def s(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Path length and speed at times t (clamped to [0, duration])."""
-        t = _clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        t = clip(np.asarray(t, dtype=float), 0.0, self.duration)
         a, ta, tc, T = self.accel, self.ta, self.tc, self.duration
         tau = T - t
         s = np.where(
@@ -104,7 +115,8 @@ class _Trapezoid:
         return s, sd
 
     def t_at_s(self, s: np.ndarray) -> np.ndarray:
-        s = _clip(np.asarray(s, dtype=float), 0.0, self.length)
+        """Inverse of ``s``: the time at which path length s (clamped to [0, length]) is reached."""
+        s = clip(np.asarray(s, dtype=float), 0.0, self.length)
         a = self.accel
         t_acc = np.sqrt(np.maximum(2.0 * s / a, 0.0))
         t_cru = self.ta + (s - self.sa) / self.vpeak
