@@ -1,70 +1,92 @@
 """brush_env: toothbrush DFM dynamics engine and Gymnasium environments.
 
-``import brush_env`` (or ``import brush_env.engine``) never imports gymnasium: the engine runs
-without it.  The Gymnasium ids are registered as soon as gymnasium is importable *and* imported:
-at once if it already is, otherwise by a one-shot import hook that registers them right after
-gymnasium's own import finishes.  So ``gym.make("brush_env/FlatPlate-v0")`` works whatever the
-import order, and ``gym.make("brush_env:brush_env/FlatPlate-v0")`` also in subprocess workers.
+Importing the package registers the Gymnasium ids (idempotently; the env modules themselves load
+on the first ``gym.make``), so ``gym.make("brush_env:brush_env/FlatPlate-v0")`` also works in
+subprocess workers.  It does so without importing gymnasium (``import brush_env.engine`` must
+not need it): if gymnasium is already loaded the ids are registered at once, otherwise a one-shot
+import hook registers them right after gymnasium's own ``__init__`` has run.  Gymnasium >= 1.0
+has no env plugin entry points any more, hence the hook.
 """
 
-from __future__ import annotations
-
 import importlib.abc
+import importlib.util
 import sys
 
 __version__ = "0.1.0"
 
 #: Registered ids -> (entry point, max_episode_steps). 300 steps = 12 s at the default 25 Hz;
 #: it equals ``[episode] max_episode_steps`` of configs/envs/flat_plate.toml (a test pins it).
+#: ``gym.make`` wraps the env in a ``TimeLimit`` of that many steps and then in
+#: ``brush_env.envs.horizon:TimeLimitHorizon``, which hands the TimeLimit's number to the env
+#: (``BrushEnv.set_horizon``), so ``gym.make(id, max_episode_steps=N)`` sets both.
 ENV_IDS = {
     "brush_env/FlatPlate-v0": ("brush_env.envs.flat_plate:BrushEnv", 300),
 }
 
+#: The wrapper ``gym.make`` adds outside the TimeLimit of every registered id.
+HORIZON_WRAPPER = ("TimeLimitHorizon", "brush_env.envs.horizon:TimeLimitHorizon")
+
 
 def _register() -> None:
-    """Register every id (idempotent).  The horizon wrapper hands gymnasium's TimeLimit to the
-    env (brush_env/envs/horizon.py)."""
-    from gymnasium.envs.registration import WrapperSpec, register, registry
-
-    horizon = WrapperSpec(
-        name="HorizonFromTimeLimit",
-        entry_point="brush_env.envs.horizon:HorizonFromTimeLimit",
-        kwargs={},
-    )
+    """Register ``ENV_IDS`` with gymnasium (skipping ids already registered)."""
+    try:
+        from gymnasium.envs.registration import WrapperSpec, register, registry
+    except ImportError:  # the engine alone does not need gymnasium
+        return
+    name, entry = HORIZON_WRAPPER
     for env_id, (entry_point, steps) in ENV_IDS.items():
         if env_id not in registry:
             register(
                 id=env_id,
                 entry_point=entry_point,
                 max_episode_steps=steps,
-                additional_wrappers=(horizon,),
+                additional_wrappers=(WrapperSpec(name, entry, {}),),
             )
 
 
 class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
-    """Finds nothing itself; when ``gymnasium`` is about to be imported it wraps that module's
-    loader so that our ids are registered right after gymnasium has finished importing."""
+    """Finds nothing itself: on the first ``import gymnasium`` it removes itself, lets the other
+    finders locate gymnasium and wraps the loader so that the ids are registered right after
+    gymnasium's ``__init__`` has run."""
+
+    brush_env_hook = True  # marker: one hook at a time, also across importlib.reload(brush_env)
 
     def find_spec(self, fullname, path=None, target=None):
         if fullname != "gymnasium":
             return None
-        sys.meta_path.remove(self)  # one shot; the other finders locate gymnasium
-        import importlib.util
-
-        spec = importlib.util.find_spec("gymnasium")
-        if spec is None or spec.loader is None:
-            return spec
-        exec_module = spec.loader.exec_module
-
-        def exec_then_register(module):
-            exec_module(module)
-            _register()
-
-        spec.loader.exec_module = exec_then_register
+        if self in sys.meta_path:
+            sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(fullname)  # the remaining finders (may raise ImportError)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _RegisteringLoader(spec.loader)
         return spec
 
 
-if "gymnasium" in sys.modules:
-    _register()
-elif not any(isinstance(f, _RegisterAfterGymnasium) for f in sys.meta_path):
-    sys.meta_path.insert(0, _RegisterAfterGymnasium())
+class _RegisteringLoader(importlib.abc.Loader):
+    """Delegates to gymnasium's own loader, restores it on the module and then registers."""
+
+    def __init__(self, loader):
+        self._loader = loader
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        module.__loader__ = self._loader
+        if module.__spec__ is not None:
+            module.__spec__.loader = self._loader
+        self._loader.exec_module(module)
+        _register()
+
+    def __getattr__(self, name):
+        return getattr(self._loader, name)
+
+
+def _install() -> None:
+    if "gymnasium" in sys.modules:
+        _register()
+    elif not any(getattr(f, "brush_env_hook", False) for f in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterAfterGymnasium())
+
+
+_install()

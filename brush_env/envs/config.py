@@ -14,7 +14,6 @@ s, rad/s, degrees where a name ends in ``_deg``.
 
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
 import os
@@ -24,7 +23,8 @@ from typing import Any
 
 import tomllib
 
-from brush_env.engine import ConfigError, configs_dir
+from brush_env.engine import configs_dir
+from brush_env.engine.checks import ConfigError, Limit, did_you_mean, type_error
 
 __all__ = ["EnvConfig", "FIELDS", "SECTIONS", "load_env_config", "arguments_table"]
 
@@ -326,11 +326,6 @@ class EnvConfig:
                 "episode starts out of contact"
             )
 
-    @property
-    def control_dt(self) -> float:
-        """Duration of one action [s] = engine_dt * frame_skip."""
-        return self.engine_dt * self.frame_skip
-
     def replace(self, **overrides) -> EnvConfig:
         """A validated copy with ``overrides`` (unknown names raise ConfigError)."""
         _check_names(overrides, "override")
@@ -353,11 +348,39 @@ def _range_text(m) -> str:
     return f"{lb}{lo:g}, {hi:g}{rb}"
 
 
+@dataclass(frozen=True)
+class _Range(Limit):
+    """A field's :class:`~brush_env.engine.checks.Limit`, described in the interval notation of
+    the Arguments table: ``must be in [1, 1000] (count)``."""
+
+    text: str = "any"
+
+    def describe(self) -> str:
+        unit = f" ({self.unit})" if self.unit not in ("-", "") else ""
+        return f"must be in {self.text}{unit}"
+
+
+def _limit(m) -> _Range:
+    lo, hi = m["lo"], m["hi"]
+    return _Range(
+        m["unit"],
+        text=_range_text(m),
+        gt=lo if m["lo_open"] else None,
+        ge=None if m["lo_open"] else lo,
+        lt=hi if m["hi_open"] else None,
+        le=None if m["hi_open"] else hi,
+    )
+
+
+#: Each numeric field's allowed range (made once from its metadata).
+_LIMITS = {name: _limit(f.metadata) for name, f in FIELDS.items()}
+
+
 def _check(f, value):
     """Type- and range-check one field; returns the normalised value."""
     m, name, default = f.metadata, f.name, f.default
+    limit = _LIMITS[name]
     unit = f" ({m['unit']})" if m["unit"] not in ("-", "") else ""
-    allowed = _range_text(m)
     if isinstance(default, bool):
         if not isinstance(value, bool):
             raise ConfigError(f"{name} = {value!r} has the wrong type: expected true/false")
@@ -367,51 +390,36 @@ def _check(f, value):
             raise ConfigError(f"{name} = {value!r} has the wrong type: expected a string")
         value = os.fspath(value)
         if m["choices"] and value not in m["choices"]:
-            raise ConfigError(f"{name} = {value!r} is not allowed: must be {allowed}")
+            raise ConfigError(f"{name} = {value!r} is not allowed: must be {limit.text}")
         return value
     if isinstance(default, tuple):
         n = len(default)
         if hasattr(value, "tolist"):
             value = value.tolist()
         if not isinstance(value, (list, tuple)) or len(value) != n:
-            raise ConfigError(
-                f"{name} = {value!r} has the wrong type: expected a list of {n} "
-                f"numbers{unit}, each in {allowed}"
-            )
-        return tuple(
-            _number(f"{name}[{i}]", v, m, float, allowed, unit) for i, v in enumerate(value)
-        )
-    kind = int if isinstance(default, int) else float
-    return _number(name, value, m, kind, allowed, unit)
+            raise type_error(name, value, f"a list of {n} numbers{unit}, each in {limit.text}")
+        return tuple(_number(f"{name}[{i}]", v, float, limit) for i, v in enumerate(value))
+    return _number(name, value, int if isinstance(default, int) else float, limit)
 
 
-def _number(name, value, m, kind, allowed, unit):
-    ok_type = isinstance(value, numbers.Real) and not isinstance(value, bool)
-    if kind is int:
-        ok_type = ok_type and float(value) == int(value)
-    if not ok_type:
+def _number(name: str, value, kind: type, limit: _Range):
+    """A real (``kind`` float) or integral (``kind`` int; 3.0 passes as 3) number in ``limit``."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if ok and kind is int:
+        ok = math.isfinite(value) and float(value) == int(value)
+    if not ok:
         what = "an integer" if kind is int else "a number"
-        raise ConfigError(
-            f"{name} = {value!r} has the wrong type: expected {what}{unit} in {allowed}"
-        )
-    x = kind(value)
-    lo, hi = m["lo"], m["hi"]
-    bad = not math.isfinite(x)
-    if lo is not None:
-        bad |= x <= lo if m["lo_open"] else x < lo
-    if hi is not None:
-        bad |= x >= hi if m["hi_open"] else x > hi
-    if bad:
-        raise ConfigError(f"{name} = {value!r} is out of range: must be in {allowed}{unit}")
-    return x
+        unit = f" ({limit.unit})" if limit.unit not in ("-", "") else ""
+        raise type_error(name, value, f"{what}{unit} in {limit.text}")
+    return limit.check(name, kind(value))
 
 
 def _check_names(names, what: str, section: str | None = None) -> None:
     for k in names:
         if k not in FIELDS:
-            close = difflib.get_close_matches(k, list(FIELDS), n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise ConfigError(f"unknown env {what} {k!r}{hint} (known: {', '.join(FIELDS)})")
+            raise ConfigError(
+                f"unknown env {what} {k!r}{did_you_mean(k, FIELDS)} (known: {', '.join(FIELDS)})"
+            )
         if section is not None and FIELDS[k].metadata["section"] != section:
             raise ConfigError(
                 f"env setting {k!r} is in section [{section}]: it belongs in "
@@ -474,7 +482,7 @@ def arguments_table() -> str:
         m = f.metadata
         d = list(f.default) if isinstance(f.default, tuple) else f.default
         rows.append(
-            f"| `{f.name}` | {m['section']} | `{d!r}` | {m['unit']} | {_range_text(m)} "
-            f"| {m['doc']} |"
+            f"| `{f.name}` | {m['section']} | `{d!r}` | {m['unit']} "
+            f"| {_LIMITS[f.name].text} | {m['doc']} |"
         )
     return "\n".join(rows)

@@ -90,8 +90,9 @@ force exceeded ``hard_force_limit`` (15 N) at an engine step (the robot's protec
 step ends there); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
 (TCP z - z_t) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
-``envs/horizon.py`` hands its limit to the env at ``gym.make``;
-default 300 = 12 s at 25 Hz).
+default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
+env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
+calls with its ``TimeLimit``'s N (``brush_env.envs.horizon``).
 
 Arguments
 ---------
@@ -163,7 +164,7 @@ from brush_env.engine import (
     load_brush,
     load_scene,
 )
-from brush_env.engine.rotation import expmap
+from brush_env.engine.rotation import expmap, rot_axis
 from brush_env.motion import R0
 
 from .action import make_action_type
@@ -180,11 +181,7 @@ R_START = R0
 
 REWARD_TERMS = ("coverage", "total_force", "tip_force", "termination")
 RESET_OPTIONS = ("tcp_position", "yaw_deg", "plate_offset")
-
-
-def _rot_z(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+_Z = np.array([0.0, 0.0, 1.0])  # the start yaw is about base z
 
 
 class BrushEnv(gym.Env):
@@ -272,15 +269,21 @@ class BrushEnv(gym.Env):
 
     @property
     def horizon(self) -> int:
-        """Time limit in control steps that ``time_remaining`` counts down and at which the env
-        truncates: the env setting ``max_episode_steps``, or the ``TimeLimit`` of
-        ``gym.make(id, max_episode_steps=N)`` handed over by ``envs.horizon``."""
+        """Time limit in control steps that ``time_remaining`` counts down: the config's
+        ``max_episode_steps``, or the number passed to :meth:`set_horizon` (``gym.make`` passes
+        its ``TimeLimit``'s, so ``gym.make(id, max_episode_steps=N)`` sets it to N)."""
         return self._horizon
 
     def set_horizon(self, steps: int) -> None:
-        """Set the horizon [control steps] (``HorizonFromTimeLimit`` calls it after ``make``)."""
-        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-            raise ConfigError(f"horizon = {steps!r} is out of range: must be an integer >= 1")
+        """Set the time limit [control steps] that ``time_remaining`` counts down.
+
+        ``gym.make`` calls it through ``brush_env.envs.horizon.TimeLimitHorizon`` with its
+        ``TimeLimit``'s ``max_episode_steps``; call it yourself when wrapping a ``BrushEnv`` in a
+        ``TimeLimit`` by hand with a number other than the config's ``max_episode_steps``."""
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise ValueError(
+                f"horizon = {steps!r} is out of range: must be an integer >= 1 (control steps)"
+            )
         self._horizon = steps
 
     # ------------------------------------------------------------------ reset
@@ -305,7 +308,7 @@ class BrushEnv(gym.Env):
             off = self._vec_option("plate_offset", opts["plate_offset"])
         self.plate_offset = off
         self._p = self._to_engine(p_obs)
-        self._R = _rot_z(yaw) @ R_START
+        self._R = rot_axis(_Z, yaw) @ R_START
         self._v = np.zeros(3)
         self._w = np.zeros(3)
         self._last = self.sim.reset(self._p, self._R)

@@ -1,27 +1,27 @@
-"""The episode horizon handed to the env explicitly, not guessed.
+"""The registered ids' outermost wrapper: it hands the ``TimeLimit``'s horizon to the env.
 
-``BrushEnv.horizon`` (the number of control steps that the ``time_remaining`` observation counts
-down) is the env setting ``max_episode_steps`` by default.  ``gym.make(id, max_episode_steps=N)``
-consumes N for gymnasium's ``TimeLimit`` wrapper and never passes it to the env, so registration
-adds :class:`HorizonFromTimeLimit` as an *additional wrapper*: gymnasium applies it right after
-``TimeLimit``, and it hands the limit it finds in the wrapper chain to ``BrushEnv.set_horizon``.
+``time_remaining`` (an observation block) counts down the time limit, so the env must know it.
+``gym.make(id, max_episode_steps=N)`` consumes ``N`` for its ``TimeLimit`` wrapper and never
+passes it to the env; the registration (``brush_env.ENV_IDS``) therefore adds this wrapper
+outside the ``TimeLimit``, and it passes ``N`` (the wrapped env's ``spec.max_episode_steps``)
+explicitly to :meth:`BrushEnv.set_horizon` once, when the env is made.  Without a ``TimeLimit``
+(``max_episode_steps=-1``, or ``BrushEnv(...)`` built directly) the horizon stays the config's
+``max_episode_steps``.  The wrapper changes nothing else: reset, step and render pass through.
 """
 
 from __future__ import annotations
 
 import gymnasium as gym
-from gymnasium.wrappers import TimeLimit
+
+__all__ = ["TimeLimitHorizon"]
 
 
-class HorizonFromTimeLimit(gym.Wrapper, gym.utils.RecordConstructorArgs):
-    """Tells the env the ``max_episode_steps`` of the ``TimeLimit`` it is wrapped in (if any)."""
+class TimeLimitHorizon(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Sets ``env.unwrapped``'s horizon to the time limit of the wrapped stack, if it has one."""
 
     def __init__(self, env: gym.Env):
         gym.utils.RecordConstructorArgs.__init__(self)
         gym.Wrapper.__init__(self, env)
-        inner = env
-        while isinstance(inner, gym.Wrapper):
-            if isinstance(inner, TimeLimit):
-                env.unwrapped.set_horizon(int(inner._max_episode_steps))
-                break
-            inner = inner.env
+        steps = env.spec.max_episode_steps if env.spec is not None else None
+        if steps is not None:
+            env.unwrapped.set_horizon(int(steps))

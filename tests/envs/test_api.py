@@ -127,9 +127,9 @@ def test_dt_and_render_fps(make_env, engine_dt, frame_skip):
 def test_time_limit_from_make_overrides_config(make_env):
     """gym.make's max_episode_steps (the TimeLimit) is what time_remaining counts down."""
     env = make_env(max_episode_steps=4)
-    assert env.unwrapped.horizon == 4  # handed over at make (envs/horizon.py), before any reset
+    assert env.unwrapped.config.max_episode_steps == 300
+    assert env.unwrapped.horizon == 4  # passed by gym.make's TimeLimitHorizon wrapper
     env.reset(seed=0)
-    assert env.unwrapped.horizon == 4
     for k in range(4):
         obs, _, term, trunc, _ = env.step(np.zeros(6, np.float32))
         assert not term
@@ -137,7 +137,7 @@ def test_time_limit_from_make_overrides_config(make_env):
     assert env.unwrapped.layout.block(obs, "time_remaining")[0] == 0.0
 
 
-def test_horizon_without_time_limit_is_the_config_value():
+def test_horizon_without_time_limit_is_the_config_value(make_env):
     from brush_env.envs import BrushEnv
 
     env = BrushEnv(brush="tiny_env", max_episode_steps=7)
@@ -145,3 +145,23 @@ def test_horizon_without_time_limit_is_the_config_value():
     assert env.horizon == 7
     obs, *_ = env.step(np.zeros(6, np.float32))
     assert env.layout.block(obs, "time_remaining")[0] == pytest.approx(6 / 7)
+    # gym.make without a TimeLimit: the env's own setting
+    made = make_env(max_episode_steps=-1, **{"config": "flat_plate"})
+    assert made.unwrapped.horizon == 300
+    with pytest.raises(ValueError, match="horizon = 0 is out of range"):
+        env.set_horizon(0)
+
+
+def test_horizon_is_not_found_by_stack_walking():
+    """A BrushEnv wrapped in a TimeLimit by hand keeps its config's horizon until told: the
+    number is passed explicitly (set_horizon), never read off the call stack."""
+    from gymnasium.wrappers import TimeLimit
+
+    from brush_env.envs import BrushEnv
+
+    env = TimeLimit(BrushEnv(brush="tiny_env", max_episode_steps=7), max_episode_steps=3)
+    env.reset(seed=0)
+    assert env.unwrapped.horizon == 7
+    env.unwrapped.set_horizon(3)
+    obs, *_ = env.step(np.zeros(6, np.float32))
+    assert env.unwrapped.layout.block(obs, "time_remaining")[0] == pytest.approx(2 / 3)

@@ -2,9 +2,11 @@
 
 import argparse
 import json
+import time
 
 import pytest
 
+from brush_env.engine import Simulator
 from brush_env.envs.bench_env import add_arguments, bench_env, run
 
 KEYS = {
@@ -32,8 +34,30 @@ def test_bench_env_rows():
     assert [r["mode"] for r in rows] == ["single", "vector"]
     for r in rows:
         assert set(r) == KEYS and r["steps_per_s"] > 0 and r["n_bristles"] == 4
-        assert r["real_time_factor"] == pytest.approx(r["steps_per_s"] * 0.04)
+        assert r["control_hz"] == pytest.approx(1.0 / (r["engine_dt"] * r["frame_skip"]))
     assert rows[1]["steps"] == 24  # 12 per env: each env runs the same stretch as the single one
+
+
+def test_bench_env_rates_are_what_ran_over_its_wall_time(monkeypatch):
+    """The single-env row's rates, against the engine steps counted here and a clock outside:
+    real-time factor = simulated seconds / wall seconds, engine steps/s = engine steps / wall."""
+    calls = []
+    step = Simulator.step
+
+    def counting(self, *args, **kwargs):
+        calls.append(self.settings.dt)
+        return step(self, *args, **kwargs)
+
+    monkeypatch.setattr(Simulator, "step", counting)
+    t0 = time.perf_counter()
+    (row,) = bench_env({"steps": 15, "n_envs": [1], "brush": "tiny_env", "frame_skip": 4})
+    outside = time.perf_counter() - t0
+    timed = calls[row["frame_skip"] :]  # the first control step is the cold start, not timed
+    assert len(timed) == row["steps"] * row["frame_skip"] == 60  # no episode ended early here
+    assert 0.0 < row["wall_s"] < outside - row["cold_start_s"]
+    assert row["real_time_factor"] * row["wall_s"] == pytest.approx(sum(timed), rel=1e-12)
+    assert row["engine_steps_per_s"] * row["wall_s"] == pytest.approx(len(timed), rel=1e-12)
+    assert row["steps_per_s"] * row["wall_s"] == pytest.approx(row["steps"], rel=1e-12)
 
 
 def test_bench_env_cli_json(capsys):

@@ -37,7 +37,7 @@ def test_observation_table_matches_layout(nb, m):
     rows = _table("Observation Space\n-----------------")
     assert [r[1] for r in rows] == [b.name for b in lay.blocks]
     env = {"nb": nb, "m": m}
-    for (idx, name, shape, bounds, *_), b in zip(rows, lay.blocks):
+    for (idx, name, shape, bounds, *_), b in zip(rows, lay.blocks, strict=True):
         lo, hi = (eval(x, env) for x in idx.split(".."))  # noqa: S307 - our own docstring
         assert (lo, hi + 1) == (lay.slices[name].start, lay.slices[name].stop), name
         assert eval(shape, env) == b.shape, name  # noqa: S307
@@ -52,7 +52,7 @@ def test_action_table_matches_action_type_and_defaults():
     assert [int(r[0]) for r in rows] == list(range(6))
     cfg = EnvConfig()
     scales = list(cfg.max_linear_speed) + list(cfg.max_angular_speed)
-    for r, s in zip(rows, scales):
+    for r, s in zip(rows, scales, strict=True):
         assert float(r[3].split("=")[1]) == s
         assert ("3d" in r[4]) == (int(r[0]) < 3)
 
