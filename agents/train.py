@@ -94,7 +94,7 @@ def _progress_callback(total: int, announce: bool):
             self.bar.update(self.training_env.num_envs)
             wall = time.perf_counter() - self.t0
             done = self.bar.n
-            if announce and not self.told and (wall > 20.0 or done >= 0.05 * self.todo):
+            if announce and not self.told and (wall > 45.0 or done >= 0.1 * self.todo):
                 rate = done / max(wall, 1e-9)
                 eta = (self.todo - done) / max(rate, 1e-9)
                 self.bar.write(
