@@ -202,7 +202,7 @@ def _node(c, R, half, out):
 
 
 @njit(**HOT)
-def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist, gs, hs, out12, e):
+def _element_gen(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """Generalised forces of one Timoshenko element (eq 5) on the centres of its bodies A and B.
 
     Nodes: p_A = c_A + halfA R_A e_x (or ``pAbase`` for the root element, whose A is the head) and
@@ -214,10 +214,20 @@ def _element_gen(aIsBase, cA, RA, halfA, pAbase, cB, RB, halfB, K, length, ehist
     M_c = M_node + (p - c) x F.
     out12[0:6]: force [N] and moment [N mm] on A (at the root node when A is the head, else about
     c_A), out12[6:12]: on B about c_B (world).  ``e`` receives the strain.
+    A, B: ``records.Node`` (centre, rotation, half length); damp: ``records.Damp``.
 
     Written out in scalars on purpose: array views and helper calls cost reference counting in
     numba, which made this (the innermost kernel) ~6x slower than its arithmetic.
     """
+    cA = A.c
+    RA = A.R
+    halfA = A.half
+    cB = B.c
+    RB = B.R
+    halfB = B.half
+    ehist = damp.ehist
+    gs = damp.gs
+    hs = damp.hs
     if aIsBase:
         pA0 = pAbase[0]
         pA1 = pAbase[1]

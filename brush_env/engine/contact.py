@@ -237,25 +237,26 @@ def _surface_gap(surf, pt, nrm, cpt, mesh):
 
 
 @njit(**HOT)
-def tip_load(
-    b, pt, c0, inv_h, static, args, state, surf, cp, tips, pair_ptr, pair_idx, mesh, F, Kt, tw
-):
+def tip_load(b, pt, sub, con, F, Kt, tw):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
 
-    Sums the dead external force, the tip-surface contact (eq 6-10) of the deepest surface and the
-    tip-tip contacts (Table 3) with the partner tips listed in pair_idx[pair_ptr[b]:pair_ptr[b+1]]
-    (partners held at tips[j, 0:3] with velocity tips[j, 3:6]).  Stores the contact outputs and the
-    trial stiction deformation in ``state``.  Kt is the Newton tangent (normal stiffness and
-    damping, isotropic tangential friction stiffness; the dependence of friction on Fn is omitted).
+    Sums the dead external force, the tip-surface contact of the deepest surface (eq 6, with
+    friction eq 7-10) and the tip-tip contacts (Table 3) with the partner tips listed in
+    con.pair_idx[con.pair_ptr[b]:con.pair_ptr[b+1]] (partners held at con.tips[j, 0:3] with
+    velocity con.tips[j, 3:6]).  Stores the contact outputs and the trial stiction deformation in
+    con.tip_state[b].  Kt is the Newton tangent (normal stiffness and damping, tangential friction
+    stiffness, and the friction's dependence on Fn).  sub: the (sub)step (c0, inv_h, static);
+    tw: ``records.TipScratch``.
     """
-    R = args[A_RADIUS]
-    vt = tw[0, 0:3]  # tw: (2, >= 9) scratch, so that the Newton loop does not allocate
+    state = con.tip_state[b]
+    R = con.tip_args[b, A_RADIUS]
+    vt = tw.vt
     for a in range(3):
-        F[a] = args[A_FEXT + a]
+        F[a] = con.tip_args[b, A_FEXT + a]
         for bb in range(3):
             Kt[a, bb] = 0.0
         # tip velocity from the discrete rate formula (zero for statics)
-        vt[a] = 0.0 if static else (c0 * pt[a] + state[S_HIST + a]) * inv_h
+        vt[a] = 0.0 if sub.static else (sub.c0 * pt[a] + state[S_HIST + a]) * sub.inv_h
     state[S_FN] = 0.0
     state[S_FT] = 0.0
     state[S_FT + 1] = 0.0
@@ -267,184 +268,203 @@ def tip_load(
     for a in range(3):
         state[S_DNEW + a] = 0.0
         state[S_CP + a] = pt[a]
-    # ---- tip-surface: the deepest surface
-    nrm = tw[0, 3:6]
-    cpt = tw[0, 6:9]
-    best = 1e300
-    ibest = -1
-    for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, mesh)
-        if gap < best:
-            best = gap
-            ibest = s
-    if ibest >= 0 and best < R:
-        _surface_gap(surf[ibest], pt, nrm, cpt, mesh)
-        delta = R - best
-        vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
-        Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])
-        for a in range(3):
-            state[S_CP + a] = cpt[a]
-        state[S_PEN] = delta
-        if Fn > 0.0:
-            state[S_FN] = Fn
-            # normal force and tangent: delta = R - n.(pt - p0) -> d delta/d pt = -n;
-            # d(ddelta)/d pt = -(c0/h) n
-            kk = kn + (0.0 if static else cn * c0 * inv_h)
-            for a in range(3):
-                F[a] += Fn * nrm[a]
-                for bb in range(3):
-                    Kt[a, bb] -= kk * nrm[a] * nrm[bb]
-            # ---- friction: eq 7 (F_mu = stiction + sliding), eq 8, eq 9, the steps of eq 10
-            mus = cp[C_MUS]
-            if mus > 0.0 or cp[C_MUD] > 0.0:
-                # slip velocity and stiction deformation in the tangent plane
-                vs = tw[1, 0:3]
-                for a in range(3):
-                    vs[a] = vt[a] - vn * nrm[a]
-                vmag = np.sqrt(vs[0] ** 2 + vs[1] ** 2 + vs[2] ** 2)
-                dn = tw[1, 3:6]
-                for a in range(3):
-                    dn[a] = state[S_DELTA + a] + pt[a] - state[S_PN + a]
-                dnn = dn[0] * nrm[0] + dn[1] * nrm[1] + dn[2] * nrm[2]
-                for a in range(3):
-                    dn[a] -= dnn * nrm[a]
-                dmag = np.sqrt(dn[0] ** 2 + dn[1] ** 2 + dn[2] ** 2)
-                dmax = cp[C_DMAX]
-                if dmag > dmax:
-                    for a in range(3):
-                        dn[a] *= dmax / dmag
-                    dmag = dmax
-                for a in range(3):
-                    state[S_DNEW + a] = dn[a]
-                v_s = cp[C_VS]
-                v_d = cp[C_VD]
-                # beta: C1 form step(|v|, 0, 0, v_s, 1).  The printed step(|v|, -v_s, -1, v_s, 1)
-                # has the same end values but a kink at v = 0 (slope 1.5/v_s in |v|), which makes
-                # Newton cycle around v = 0 for a sticking tip.  beta is taken at the slip speed
-                # of the step start (lagged one step): with mu_s > mu_d the law is non-monotone in
-                # |v| once Delta = Delta_max (the stick-slip drop), and an implicit step through
-                # the falling branch has no unique solution for a nearly massless tip; with beta
-                # frozen within the step the friction force rises monotonically with |v| and
-                # |Delta|, and the break-away still happens, over one step.
-                beta = state[S_BETA]
-                state[S_BNEW] = step10(vmag, 0.0, 0.0, v_s, 1.0)
-                gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
-                gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
-                fst = (1.0 - beta) * mus * Fn * gst  # eq 8: stiction force magnitude
-                fsl = cp[C_MUD] * Fn * gsl  # eq 9: sliding force magnitude
-                ft = tw[1, 6:9]
-                for a in range(3):
-                    ft[a] = 0.0
-                if dmag > 0.0:
-                    for a in range(3):
-                        ft[a] -= fst * dn[a] / dmag
-                if vmag > 0.0:
-                    for a in range(3):
-                        ft[a] -= fsl * vs[a] / vmag
-                for a in range(3):  # eq 7: F_mu = F_stiction + F_sliding
-                    F[a] += ft[a]
-                    state[S_FT + a] = ft[a]
-                state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
-                # Exact Newton tangent of F_t w.r.t. pt (beta is frozen within the step):
-                # dDelta/dpt = P_t (unclamped), dv/dpt = (c0/h) P_t; for a magnitude f(|x|) along
-                # u = x/|x|:  d(-f u)/dx = -f' u u^T - (f/|x|)(P_t - u u^T).
-                rate = 0.0 if static else c0 * inv_h
-                if dmag > 0.0:
-                    dfd = 0.0
-                    if dmag < dmax:
-                        dfd = (
-                            (1.0 - beta)
-                            * mus
-                            * Fn
-                            * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
-                            / dmax
-                        )
-                    ftr = fst / dmag
-                    for a in range(3):
-                        ua = dn[a] / dmag
-                        for bb in range(3):
-                            ub = dn[bb] / dmag
-                            pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
-                            Kt[a, bb] -= dfd * ua * ub + ftr * (pab - ua * ub)
-                else:  # Delta = 0: the stiction spring's slope at the origin
-                    kst = (1.0 - beta) * mus * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
-                    for a in range(3):
-                        for bb in range(3):
-                            Kt[a, bb] -= kst * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
-                if rate > 0.0:
-                    if vmag > 0.0:
-                        dfv = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d
-                        ftr = fsl / vmag
-                        for a in range(3):
-                            ua = vs[a] / vmag
-                            for bb in range(3):
-                                ub = vs[bb] / vmag
-                                pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
-                                Kt[a, bb] -= rate * (dfv * ua * ub + ftr * (pab - ua * ub))
-                    else:
-                        dfv = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
-                        for a in range(3):
-                            for bb in range(3):
-                                Kt[a, bb] -= (
-                                    rate * dfv * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
-                                )
-                # friction is proportional to Fn: dF_t = (F_t / Fn) dFn, dFn = -kk n^T dpt
-                for a in range(3):
-                    for bb in range(3):
-                        Kt[a, bb] -= kk * ft[a] / Fn * nrm[bb]
-    # ---- tip-tip contact, no friction (Table 3)
-    if pair_ptr.shape[0] > b + 1:
-        for q in range(pair_ptr[b], pair_ptr[b + 1]):
-            j = pair_idx[q]
-            d0 = pt[0] - tips[j, 0]
-            d1 = pt[1] - tips[j, 1]
-            d2 = pt[2] - tips[j, 2]
-            dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            rj = tips[j, 6]
-            delta = R + rj - dist
-            if dist < 1e-12 or delta <= 0.0:
-                continue
-            u0 = d0 / dist
-            u1 = d1 / dist
-            u2 = d2 / dist
-            rv = 0.0
-            if not static:
-                rv = (
-                    u0 * (vt[0] - tips[j, 3])
-                    + u1 * (vt[1] - tips[j, 4])
-                    + u2 * (vt[2] - tips[j, 5])
-                )
-            Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
-            if Fn <= 0.0:
-                continue
-            state[S_FTT] += Fn
-            kk = kn + (0.0 if static else cn * c0 * inv_h)
-            F[0] += Fn * u0
-            F[1] += Fn * u1
-            F[2] += Fn * u2
-            u = (u0, u1, u2)
-            # d(Fn u)/dpt = -kk u u^T + (Fn / dist)(I - u u^T): the second (geometric) term is
-            # ~10x the bristle's lateral stiffness for a squeezed tip; without it Newton crawls
-            geo = Fn / dist
-            for a in range(3):
-                for bb in range(3):
-                    Kt[a, bb] += -kk * u[a] * u[bb] + geo * (
-                        (1.0 if a == bb else 0.0) - u[a] * u[bb]
-                    )
+    _surface_load(pt, R, sub, con, state, F, Kt, tw)
+    _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt)
 
 
 @njit(**HOT)
-def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh, tw):
+def _surface_load(pt, R, sub, con, state, F, Kt, tw):
+    """Tip-surface contact with the deepest surface: the penalty normal force of eq 6 and its
+    tangent, then friction (eq 7-10, ``_friction_load``)."""
+    surf = con.surf
+    cp = con.cp
+    vt = tw.vt
+    nrm = tw.nrm
+    cpt = tw.cpt
+    best = 1e300
+    ibest = -1
+    for s in range(surf.shape[0]):
+        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh)
+        if gap < best:
+            best = gap
+            ibest = s
+    if ibest < 0 or best >= R:
+        return
+    _surface_gap(surf[ibest], pt, nrm, cpt, con.mesh)
+    delta = R - best
+    vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
+    Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])  # eq 6
+    for a in range(3):
+        state[S_CP + a] = cpt[a]
+    state[S_PEN] = delta
+    if Fn <= 0.0:
+        return
+    state[S_FN] = Fn
+    # normal force and tangent: delta = R - n.(pt - p0) -> d delta/d pt = -n;
+    # d(ddelta)/d pt = -(c0/h) n
+    kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
+    for a in range(3):
+        F[a] += Fn * nrm[a]
+        for bb in range(3):
+            Kt[a, bb] -= kk * nrm[a] * nrm[bb]
+    if cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0:
+        _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
+
+
+@njit(**HOT)
+def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
+    """Friction on a tip pressed with Fn [N] (normal tangent kk [N/mm]): eq 7 (F_mu = stiction +
+    sliding), eq 8 (stiction), eq 9 (sliding), with the steps of eq 10; adds force and Newton
+    tangent to F, Kt and stores the trial stiction deformation and beta in ``state``."""
+    mus = cp[C_MUS]
+    nrm = tw.nrm
+    vt = tw.vt
+    vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
+    # slip velocity and stiction deformation in the tangent plane
+    vs = tw.vs
+    for a in range(3):
+        vs[a] = vt[a] - vn * nrm[a]
+    vmag = np.sqrt(vs[0] ** 2 + vs[1] ** 2 + vs[2] ** 2)
+    dn = tw.dn
+    for a in range(3):
+        dn[a] = state[S_DELTA + a] + pt[a] - state[S_PN + a]
+    dnn = dn[0] * nrm[0] + dn[1] * nrm[1] + dn[2] * nrm[2]
+    for a in range(3):
+        dn[a] -= dnn * nrm[a]
+    dmag = np.sqrt(dn[0] ** 2 + dn[1] ** 2 + dn[2] ** 2)
+    dmax = cp[C_DMAX]
+    if dmag > dmax:
+        for a in range(3):
+            dn[a] *= dmax / dmag
+        dmag = dmax
+    for a in range(3):
+        state[S_DNEW + a] = dn[a]
+    v_s = cp[C_VS]
+    v_d = cp[C_VD]
+    # beta: C1 form step(|v|, 0, 0, v_s, 1).  The printed step(|v|, -v_s, -1, v_s, 1) has the same
+    # end values but a kink at v = 0 (slope 1.5/v_s in |v|), which makes Newton cycle around v = 0
+    # for a sticking tip.  beta is taken at the slip speed of the step start (lagged one step):
+    # with mu_s > mu_d the law is non-monotone in |v| once Delta = Delta_max (the stick-slip drop),
+    # and an implicit step through the falling branch has no unique solution for a nearly massless
+    # tip; with beta frozen within the step the friction force rises monotonically with |v| and
+    # |Delta|, and the break-away still happens, over one step.
+    beta = state[S_BETA]
+    state[S_BNEW] = step10(vmag, 0.0, 0.0, v_s, 1.0)
+    gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
+    gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
+    fst = (1.0 - beta) * mus * Fn * gst  # eq 8: stiction force magnitude
+    fsl = cp[C_MUD] * Fn * gsl  # eq 9: sliding force magnitude
+    ft = tw.ft
+    for a in range(3):
+        ft[a] = 0.0
+    if dmag > 0.0:
+        for a in range(3):
+            ft[a] -= fst * dn[a] / dmag
+    if vmag > 0.0:
+        for a in range(3):
+            ft[a] -= fsl * vs[a] / vmag
+    for a in range(3):  # eq 7: F_mu = F_stiction + F_sliding
+        F[a] += ft[a]
+        state[S_FT + a] = ft[a]
+    state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
+    # Exact Newton tangent of F_t w.r.t. pt (beta is frozen within the step):
+    # dDelta/dpt = P_t (unclamped), dv/dpt = (c0/h) P_t; for a magnitude f(|x|) along
+    # u = x/|x|:  d(-f u)/dx = -f' u u^T - (f/|x|)(P_t - u u^T).
+    rate = 0.0 if sub.static else sub.c0 * sub.inv_h
+    if dmag > 0.0:
+        dfd = 0.0
+        if dmag < dmax:
+            dfd = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0) / dmax
+        ftr = fst / dmag
+        for a in range(3):
+            ua = dn[a] / dmag
+            for bb in range(3):
+                ub = dn[bb] / dmag
+                pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
+                Kt[a, bb] -= dfd * ua * ub + ftr * (pab - ua * ub)
+    else:  # Delta = 0: the stiction spring's slope at the origin
+        kst = (1.0 - beta) * mus * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
+        for a in range(3):
+            for bb in range(3):
+                Kt[a, bb] -= kst * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+    if rate > 0.0:
+        if vmag > 0.0:
+            dfv = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d
+            ftr = fsl / vmag
+            for a in range(3):
+                ua = vs[a] / vmag
+                for bb in range(3):
+                    ub = vs[bb] / vmag
+                    pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
+                    Kt[a, bb] -= rate * (dfv * ua * ub + ftr * (pab - ua * ub))
+        else:
+            dfv = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
+            for a in range(3):
+                for bb in range(3):
+                    Kt[a, bb] -= rate * dfv * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
+    # friction is proportional to Fn: dF_t = (F_t / Fn) dFn, dFn = -kk n^T dpt
+    for a in range(3):
+        for bb in range(3):
+            Kt[a, bb] -= kk * ft[a] / Fn * nrm[bb]
+
+
+@njit(**HOT)
+def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
+    """Tip-tip contact, no friction (Table 3): the normal law of eq 6 with the tip-tip parameters
+    along the line of centres, for every listed partner (held at its latest position)."""
+    pair_ptr = con.pair_ptr
+    if pair_ptr.shape[0] <= b + 1:
+        return
+    tips = con.tips
+    cp = con.cp
+    for q in range(pair_ptr[b], pair_ptr[b + 1]):
+        j = con.pair_idx[q]
+        d0 = pt[0] - tips[j, 0]
+        d1 = pt[1] - tips[j, 1]
+        d2 = pt[2] - tips[j, 2]
+        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        rj = tips[j, 6]
+        delta = R + rj - dist
+        if dist < 1e-12 or delta <= 0.0:
+            continue
+        u0 = d0 / dist
+        u1 = d1 / dist
+        u2 = d2 / dist
+        rv = 0.0
+        if not sub.static:
+            rv = u0 * (vt[0] - tips[j, 3]) + u1 * (vt[1] - tips[j, 4]) + u2 * (vt[2] - tips[j, 5])
+        Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
+        if Fn <= 0.0:
+            continue
+        state[S_FTT] += Fn
+        kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
+        F[0] += Fn * u0
+        F[1] += Fn * u1
+        F[2] += Fn * u2
+        u = (u0, u1, u2)
+        # d(Fn u)/dpt = -kk u u^T + (Fn / dist)(I - u u^T): the second (geometric) term is
+        # ~10x the bristle's lateral stiffness for a squeezed tip; without it Newton crawls
+        geo = Fn / dist
+        for a in range(3):
+            for bb in range(3):
+                Kt[a, bb] += -kk * u[a] * u[bb] + geo * ((1.0 if a == bb else 0.0) - u[a] * u[bb])
+
+
+@njit(**HOT)
+def penetration_step_limit(b, pt, dp, R, con, tw):
     """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
     tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from
     outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
     back out (a limit cycle).  This replaces a "pre-search" tangent, which made Newton converge
-    only linearly whenever a tip rests just outside a contact.  tw: (>= 6,) scratch."""
-    nrm = tw[0:3]
-    cpt = tw[3:6]
+    only linearly whenever a tip rests just outside a contact.  tw: ``records.TipScratch``."""
+    nrm = tw.pnrm
+    cpt = tw.pcpt
+    surf = con.surf
+    tips = con.tips
+    pair_ptr = con.pair_ptr
     amax = 1.0
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, mesh) - R  # < 0: penetrating
+        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh) - R  # < 0: penetrating
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
@@ -456,7 +476,7 @@ def penetration_step_limit(b, pt, dp, R, surf, tips, pair_ptr, pair_idx, mesh, t
     # the same for the partner tips (held fixed), along the current line of centres
     if pair_ptr.shape[0] > b + 1:
         for q in range(pair_ptr[b], pair_ptr[b + 1]):
-            j = pair_idx[q]
+            j = con.pair_idx[q]
             d0 = pt[0] - tips[j, 0]
             d1 = pt[1] - tips[j, 1]
             d2 = pt[2] - tips[j, 2]

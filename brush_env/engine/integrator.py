@@ -15,6 +15,9 @@ bristle that still fails is restored to its state at the start of the step and r
 
 Bristles are coupled only through the base (kinematic) and tip-tip contact (handled outside, by
 splitting), so ``step_bristles`` loops over bristles without Python overhead.
+
+The kernels take the named records of ``records.py`` (model, chain state, drive, contact scene,
+Newton cache, scratch), never position-indexed tuples.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from ._kernels import (
     reorthonormalize,
 )
 from .contact import (
+    A_RADIUS,
     C_VD,
     S_BETA,
     S_BNEW,
@@ -46,8 +50,23 @@ from .contact import (
     slip_step_limit,
     tip_load,
 )
+from .records import (
+    B_BETA,
+    B_FSCALE,
+    B_HALF,
+    B_JX,
+    B_LEN,
+    B_MASS,
+    Bristle,
+    Damp,
+    Node,
+    Substep,
+    Trial,
+    make_newton_cache,
+    make_work,
+)
 
-# status codes per bristle (step_bristles' ``status``)
+# status codes per bristle (step_bristles' ``out.status``)
 OK = 0
 NEWTON_FAILED = 1  # Newton failed on the smallest sub-step; the bristle is restored
 
@@ -72,36 +91,9 @@ MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip 
 SLOW = 0.1
 REBUILD_ITERS = 3.0
 
-
-N_SW = 16  # rows of the (N_SW, 12) scratch ``sw`` shared by the kernels (see their bodies)
-
-
-def make_workspace(nmax: int, n_tip_state: int):
-    """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
-    return (
-        np.zeros((8, nmax, 3, 3)),
-        np.zeros((6, nmax, 6)),
-        np.zeros((nmax, 6, 6)),
-        np.zeros((N_SW, 12)),
-        np.zeros(32),
-        np.zeros((7, nmax, 3)),
-        np.zeros((3, nmax, 3, 3)),
-        np.zeros(n_tip_state),
-    )
-
-
-def make_jacobian_store(n_bodies: int, n_bristles: int):
-    """Per-bristle factored Newton matrices kept across steps (see ``_newton``): D, G, L, pivots,
-    key, age, and the tip body's Schur complement without the tip load (nb, 6, 6)."""
-    return (
-        np.zeros((n_bodies, 6, 6)),
-        np.zeros((n_bodies, 6, 6)),
-        np.zeros((n_bodies, 6, 6)),
-        np.zeros((n_bodies, 6), np.int64),
-        np.zeros(n_bristles),
-        np.zeros(n_bristles, np.int64),
-        np.zeros((n_bristles, 6, 6)),
-    )
+#: scratch and Newton-factor constructors (records.py), re-exported for the Simulator
+make_workspace = make_work
+make_jacobian_store = make_newton_cache
 
 
 @njit(**HOT, inline="always")
@@ -135,149 +127,64 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
     _rotate_left(s * tmp[0], s * tmp[1], s * tmp[2], R0, Rout)
 
 
+# ------------------------------------------------------------------------------ residual (eq 11)
 @njit(**HOT)
-def _residual(
-    b,
-    b0,
-    n,
-    bp,
-    K,
-    pos,
-    rot,
-    gvec,
-    static,
-    c0,
-    inv_h,
-    cm,
-    vm,
-    Lm,
-    thp,
-    Rn,
-    ehist,
-    gs,
-    hs,
-    pAb,
-    RAb,
-    tip_args,
-    tip_state,
-    ctx,
-    res,
-    rootw,
-    tipF,
-    tipK,
-    sw,
-):
-    """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm).
+def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
+    """Element k of bristle ``br`` (eq 5) for body poses P/Q (positions/rotations of all bodies)
+    and the base node (pAb, RAb): generalised forces into el.out12, strain into el.e."""
+    bp = model.bp
+    i = br.b0 + k
+    B = Node(P[i], Q[i], bp[i, B_HALF])
+    if k == 0:
+        A = Node(pAb, RAb, 0.0)
+        _element_gen(True, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
+    else:
+        A = Node(P[i - 1], Q[i - 1], bp[i - 1, B_HALF])
+        _element_gen(False, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
 
-    Returns the scaled max norm: forces / bristle force scale and moments / (scale * l).  Also
-    fills ``rootw`` (force and moment that the root element applies to the head, at the root node)
-    and ``tipF``/``tipK`` (tip load and its stiffness d F / d p_tip).
-    """
-    e = sw[0, 0:6]
-    out12 = sw[1]
-    th = sw[6, 0:3]
-    pt = sw[6, 3:6]
-    for k in range(n):
-        i = b0 + k
-        m = bp[i, 0]
-        if static:
+
+@njit(**HOT)
+def _inertia_residual(br, model, chain, sub, hist, res, th):
+    """res <- rate of momentum minus gravity of every body (eq 11, the discrete formula)."""
+    bp = model.bp
+    pos = chain.pos
+    rot = chain.rot
+    c0 = sub.c0
+    inv_h = sub.inv_h
+    gvec = sub.g
+    for k in range(br.n):
+        i = br.b0 + k
+        m = bp[i, B_MASS]
+        if sub.static:
             for a in range(3):
                 res[k, a] = -m * gvec[a]
                 res[k, 3 + a] = 0.0
             continue
         for a in range(3):
-            vk = (c0 * pos[i, a] + cm[k, a]) * inv_h
-            res[k, a] = m * (c0 * vk + vm[k, a]) * inv_h - m * gvec[a]
-        _local_rot_into(rot[i], Rn[k], th)
-        om0 = (c0 * th[0] + thp[k, 0]) * inv_h
-        om1 = (c0 * th[1] + thp[k, 1]) * inv_h
-        om2 = (c0 * th[2] + thp[k, 2]) * inv_h
+            vk = (c0 * pos[i, a] + hist.cm[k, a]) * inv_h
+            res[k, a] = m * (c0 * vk + hist.vm[k, a]) * inv_h - m * gvec[a]
+        _local_rot_into(rot[i], hist.Rn[k], th)
+        om0 = (c0 * th[0] + hist.thp[k, 0]) * inv_h
+        om1 = (c0 * th[1] + hist.thp[k, 1]) * inv_h
+        om2 = (c0 * th[2] + hist.thp[k, 2]) * inv_h
         R = rot[i]
-        ob0 = (R[0, 0] * om0 + R[1, 0] * om1 + R[2, 0] * om2) * bp[i, 1]
-        ob1 = (R[0, 1] * om0 + R[1, 1] * om1 + R[2, 1] * om2) * bp[i, 2]
-        ob2 = (R[0, 2] * om0 + R[1, 2] * om1 + R[2, 2] * om2) * bp[i, 3]
+        ob0 = (R[0, 0] * om0 + R[1, 0] * om1 + R[2, 0] * om2) * bp[i, B_JX]
+        ob1 = (R[0, 1] * om0 + R[1, 1] * om1 + R[2, 1] * om2) * bp[i, B_JX + 1]
+        ob2 = (R[0, 2] * om0 + R[1, 2] * om1 + R[2, 2] * om2) * bp[i, B_JX + 2]
         for a in range(3):
             La = R[a, 0] * ob0 + R[a, 1] * ob1 + R[a, 2] * ob2
-            res[k, 3 + a] = (c0 * La + Lm[k, a]) * inv_h
-    for k in range(n):
-        i = b0 + k
-        if k == 0:
-            _element_gen(
-                True,
-                pAb,
-                RAb,
-                0.0,
-                pAb,
-                pos[i],
-                rot[i],
-                bp[i, 4],
-                K[i],
-                bp[i, 5],
-                ehist[k],
-                gs[k],
-                hs[k],
-                out12,
-                e,
-            )
-            for a in range(6):
-                rootw[a] = out12[a]
-        else:
-            _element_gen(
-                False,
-                pos[i - 1],
-                rot[i - 1],
-                bp[i - 1, 4],
-                pAb,
-                pos[i],
-                rot[i],
-                bp[i, 4],
-                K[i],
-                bp[i, 5],
-                ehist[k],
-                gs[k],
-                hs[k],
-                out12,
-                e,
-            )
-            for a in range(6):
-                res[k - 1, a] -= out12[a]
-        for a in range(6):
-            res[k, a] -= out12[6 + a]
-    il = b0 + n - 1
-    _node(pos[il], rot[il], bp[il, 4], pt)
-    surf, cp, tips, pair_ptr, pair_idx, mesh = ctx
-    tip_load(
-        b,
-        pt,
-        c0,
-        inv_h,
-        static,
-        tip_args,
-        tip_state,
-        surf,
-        cp,
-        tips,
-        pair_ptr,
-        pair_idx,
-        mesh,
-        tipF,
-        tipK,
-        sw[2:4],
-    )
-    rx = pt[0] - pos[il, 0]
-    ry = pt[1] - pos[il, 1]
-    rz = pt[2] - pos[il, 2]
-    res[n - 1, 0] -= tipF[0]
-    res[n - 1, 1] -= tipF[1]
-    res[n - 1, 2] -= tipF[2]
-    res[n - 1, 3] -= ry * tipF[2] - rz * tipF[1]
-    res[n - 1, 4] -= rz * tipF[0] - rx * tipF[2]
-    res[n - 1, 5] -= rx * tipF[1] - ry * tipF[0]
+            res[k, 3 + a] = (c0 * La + hist.Lm[k, a]) * inv_h
+
+
+@njit(**HOT)
+def _residual_norm(br, bp, res):
+    """Scaled max norm of the residual: forces / bristle force scale, moments / (scale * l);
+    inf if any entry is not finite."""
     nrm = 0.0
-    for k in range(n):
-        i = b0 + k
-        fs = bp[i, 7]
-        ls = fs * bp[i, 5]
+    for k in range(br.n):
+        i = br.b0 + k
+        fs = bp[i, B_FSCALE]
+        ls = fs * bp[i, B_LEN]
         for a in range(3):
             v1 = abs(res[k, a]) / fs
             v2 = abs(res[k, 3 + a]) / ls
@@ -291,123 +198,149 @@ def _residual(
 
 
 @njit(**HOT)
-def _jacobian(
-    b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, tipF, tipK, D, U, L, sw
-):
+def _residual(br, model, chain, sub, base, con, ws, rootw):
+    """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm) into
+    ``ws.it.res``: inertia and gravity, the elements (eq 1-5), the tip load (eq 6-10, Table 3).
+
+    Returns the scaled max norm (``_residual_norm``).  Also fills ``rootw`` (force and moment that
+    the root element applies to the head, at the root node) and ``ws.it.tipF``/``tipK`` (tip load
+    and its stiffness d F / d p_tip).
+    """
+    it = ws.it
+    hist = ws.hist
+    el = ws.el
+    res = it.res
+    out12 = el.out12
+    _inertia_residual(br, model, chain, sub, hist, res, el.th)
+    for k in range(br.n):
+        damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
+        _element_at(k, br, model, chain.pos, chain.rot, base.pAe, base.RAe, damp, el)
+        if k == 0:
+            for a in range(6):
+                rootw[a] = out12[a]
+        else:
+            for a in range(6):
+                res[k - 1, a] -= out12[a]
+        for a in range(6):
+            res[k, a] -= out12[6 + a]
+    il = br.il
+    pos = chain.pos
+    pt = el.pt
+    tipF = it.tipF
+    _node(pos[il], chain.rot[il], model.bp[il, B_HALF], pt)
+    tip_load(br.b, pt, sub, con, tipF, it.tipK, ws.tipw)
+    rx = pt[0] - pos[il, 0]
+    ry = pt[1] - pos[il, 1]
+    rz = pt[2] - pos[il, 2]
+    n = br.n
+    res[n - 1, 0] -= tipF[0]
+    res[n - 1, 1] -= tipF[1]
+    res[n - 1, 2] -= tipF[2]
+    res[n - 1, 3] -= ry * tipF[2] - rz * tipF[1]
+    res[n - 1, 4] -= rz * tipF[0] - rx * tipF[2]
+    res[n - 1, 5] -= rx * tipF[1] - ry * tipF[0]
+    return _residual_norm(br, model.bp, res)
+
+
+# ------------------------------------------------------------------------------ Newton matrix
+@njit(**HOT)
+def _jacobian(br, model, chain, sub, base, hist, D, U, L, ws):
     """Newton matrix d(res)/d(q), q_k = (dc_k, dtheta_k) in world axes (block tridiagonal).
 
     Inertia blocks m c0^2/h^2 and R J R^T c0^2/h^2 (terms of order omega*h dropped); element
     blocks by forward differences of the element's generalised forces; tip load blocks from the
-    tip stiffness ``tipK`` and the lever arm.  The Jacobian only steers Newton: the converged
-    state is fixed by the residual alone.
+    tip stiffness ``ws.it.tipK`` and the lever arm.  The Jacobian only steers Newton: the
+    converged state is fixed by the residual alone.
     """
-    _jacobian_chain(b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L, sw)
-    _add_tip_block(D[n - 1], bp, rot, b0 + n - 1, tipF, tipK, sw)
+    _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, ws.el)
+    _add_tip_block(D[br.n - 1], model.bp, chain.rot, br.il, ws.it, ws.blk)
 
 
 @njit(**HOT)
-def _jacobian_chain(
-    b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAb, RAb, D, U, L, sw
-):
+def _inertia_blocks(br, bp, rot, sub, D):
+    """D_k <- the inertia blocks m c0^2/h^2 I and R J R^T c0^2/h^2 (zero for statics)."""
+    if sub.static:
+        return
+    s2 = sub.c0 * sub.c0 * sub.inv_h * sub.inv_h
+    for k in range(br.n):
+        i = br.b0 + k
+        R = rot[i]
+        for a in range(3):
+            D[k, a, a] = bp[i, B_MASS] * s2
+            for b in range(3):
+                D[k, 3 + a, 3 + b] = s2 * (
+                    R[a, 0] * bp[i, B_JX] * R[b, 0]
+                    + R[a, 1] * bp[i, B_JX + 1] * R[b, 1]
+                    + R[a, 2] * bp[i, B_JX + 2] * R[b, 2]
+                )
+
+
+@njit(**HOT)
+def _perturbed(src, col, eps_x, eps_r, pos, rot, cP, RP):
+    """(cP, RP) <- body ``src``'s pose moved along coordinate ``col`` (0-2: translation by eps_x,
+    3-5: rotation by eps_r about a world axis).  Returns the step taken."""
+    for a in range(3):
+        cP[a] = pos[src, a]
+    if col < 3:
+        cP[col] += eps_x
+        for a in range(3):
+            for b in range(3):
+                RP[a, b] = rot[src, a, b]
+        return eps_x
+    _rotate_left(
+        eps_r if col == 3 else 0.0,
+        eps_r if col == 4 else 0.0,
+        eps_r if col == 5 else 0.0,
+        rot[src],
+        RP,
+    )
+    return eps_r
+
+
+@njit(**HOT)
+def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
     """The inertia and element blocks of ``_jacobian`` (everything but the tip load)."""
-    e = sw[0, 0:6]
-    cP = sw[6, 6:9]
-    base = sw[7]
-    pert = sw[1]
-    RP = sw[8:11, 0:3]
-    for k in range(n):
+    bp = model.bp
+    pos = chain.pos
+    rot = chain.rot
+    pAb = base.pAe
+    RAb = base.RAe
+    e = el.e
+    basef = el.base12
+    pert = el.pert12
+    for k in range(br.n):
         for a in range(6):
             for b in range(6):
                 D[k, a, b] = 0.0
                 U[k, a, b] = 0.0
                 L[k, a, b] = 0.0
-    if not static:
-        s2 = c0 * c0 * inv_h * inv_h
-        for k in range(n):
-            i = b0 + k
-            R = rot[i]
-            for a in range(3):
-                D[k, a, a] = bp[i, 0] * s2
-                for b in range(3):
-                    D[k, 3 + a, 3 + b] = s2 * (
-                        R[a, 0] * bp[i, 1] * R[b, 0]
-                        + R[a, 1] * bp[i, 2] * R[b, 1]
-                        + R[a, 2] * bp[i, 3] * R[b, 2]
-                    )
-    for k in range(n):
-        i = b0 + k
-        hB = bp[i, 4]
-        ln = bp[i, 5]
+    _inertia_blocks(br, bp, rot, sub, D)
+    for k in range(br.n):
+        i = br.b0 + k
+        hB = bp[i, B_HALF]
+        ln = bp[i, B_LEN]
         epsx = 1e-7 * ln
         epsr = 1e-7
         isroot = k == 0
         j = i - 1 if k > 0 else i  # index of body A (unused for the root element)
-        hA = bp[j, 4]
-        RAk = RAb if isroot else rot[j]
-        cAk = pAb if isroot else pos[j]
-        _element_gen(
-            isroot, cAk, RAk, hA, pAb, pos[i], rot[i], hB, K[i], ln, ehist[k], gs[k], hs[k], base, e
-        )
+        A = Node(pAb, RAb, 0.0) if isroot else Node(pos[j], rot[j], bp[j, B_HALF])
+        B = Node(pos[i], rot[i], hB)
+        damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
+        _element_gen(isroot, A, pAb, B, model.K[i], ln, damp, basef, e)
         nside = 1 if isroot else 2
         for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
             src = i if side == 0 else j
             for col in range(6):
-                for a in range(3):
-                    cP[a] = pos[src, a]
-                if col < 3:
-                    cP[col] += epsx
-                    eps = epsx
-                    for a in range(3):
-                        for b in range(3):
-                            RP[a, b] = rot[src, a, b]
-                else:
-                    _rotate_left(
-                        epsr if col == 3 else 0.0,
-                        epsr if col == 4 else 0.0,
-                        epsr if col == 5 else 0.0,
-                        rot[src],
-                        RP,
-                    )
-                    eps = epsr
+                eps = _perturbed(src, col, epsx, epsr, pos, rot, el.cP, el.RP)
                 if side == 0:
-                    _element_gen(
-                        isroot,
-                        cAk,
-                        RAk,
-                        hA,
-                        pAb,
-                        cP,
-                        RP,
-                        hB,
-                        K[i],
-                        ln,
-                        ehist[k],
-                        gs[k],
-                        hs[k],
-                        pert,
-                        e,
-                    )
+                    BP = Node(el.cP, el.RP, hB)
+                    _element_gen(isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
                 else:
-                    _element_gen(
-                        False,
-                        cP,
-                        RP,
-                        hA,
-                        pAb,
-                        pos[i],
-                        rot[i],
-                        hB,
-                        K[i],
-                        ln,
-                        ehist[k],
-                        gs[k],
-                        hs[k],
-                        pert,
-                        e,
-                    )
+                    AP = Node(el.cP, el.RP, A.half)
+                    _element_gen(False, AP, pAb, B, model.K[i], ln, damp, pert, e)
                 for a in range(6):
-                    dA = (pert[a] - base[a]) / eps  # d(force on A)
-                    dB = (pert[6 + a] - base[6 + a]) / eps  # d(force on B)
+                    dA = (pert[a] - basef[a]) / eps  # d(force on A)
+                    dB = (pert[6 + a] - basef[6 + a]) / eps  # d(force on B)
                     if side == 0:
                         D[k, a, col] -= dB
                         if not isroot:
@@ -418,201 +351,175 @@ def _jacobian_chain(
 
 
 @njit(**HOT)
-def _add_tip_block(Dk, bp, rot, il, tipF, tipK, sw):
+def _add_tip_block(Dk, bp, rot, il, it, blk):
     """Dk += d(-tip load, -its moment about c)/d(dc, dtheta) of the tip body ``il``.
 
-    Tip load F at p_tip = c + r, r = half * R e_x:  dp_tip = dc - [r]x dtheta."""
-    Sr = sw[8:11, 3:6]
-    SF = sw[8:11, 6:9]
-    KS = sw[8:11, 9:12]
-    SrK = sw[11:14, 0:3]
-    SrKS = sw[11:14, 3:6]
-    SFSr = sw[11:14, 6:9]
-    hl = bp[il, 4]
+    Tip load F = it.tipF at p_tip = c + r, r = half * R e_x, stiffness it.tipK:
+    dp_tip = dc - [r]x dtheta."""
+    tipF = it.tipF
+    tipK = it.tipK
+    Sr = blk.Sr
+    hl = bp[il, B_HALF]
     _skew_into(hl * rot[il, 0, 0], hl * rot[il, 1, 0], hl * rot[il, 2, 0], Sr)
-    _skew_into(tipF[0], tipF[1], tipF[2], SF)
-    _mul3(tipK, Sr, KS)
-    _mul3(Sr, tipK, SrK)
-    _mul3(Sr, KS, SrKS)
-    _mul3(SF, Sr, SFSr)
+    _skew_into(tipF[0], tipF[1], tipF[2], blk.SF)
+    _mul3(tipK, Sr, blk.KS)
+    _mul3(Sr, tipK, blk.SrK)
+    _mul3(Sr, blk.KS, blk.SrKS)
+    _mul3(blk.SF, Sr, blk.SFSr)
     # residual rows: -F and -(r x F); dF = K (dc - [r]x dth); d(r x F) = [r]x dF + [F]x [r]x dth
     for a in range(3):
         for b in range(3):
             Dk[a, b] -= tipK[a, b]
-            Dk[a, 3 + b] += KS[a, b]
-            Dk[3 + a, b] -= SrK[a, b]
-            Dk[3 + a, 3 + b] += SrKS[a, b] - SFSr[a, b]
+            Dk[a, 3 + b] += blk.KS[a, b]
+            Dk[3 + a, b] -= blk.SrK[a, b]
+            Dk[3 + a, 3 + b] += blk.SrKS[a, b] - blk.SFSr[a, b]
 
 
 @njit(**HOT)
-def _tip_refactor(n, D, piv, S, bp, rot, il, tipF, tipK, sw):
+def _tip_refactor(br, D, piv, S, bp, rot, ws):
     """Last block of the factored Newton matrix <- LU(S + tip block at the current tip load).
 
     S is the tip body's Schur complement without the tip load (``block_factor_head``), so this
     makes the contact part of the Newton matrix current for the price of one 6x6 LU, while the
     chain's blocks (which change slowly) are reused.  Returns False if the block is singular."""
-    Dl = D[n - 1]
+    Dl = D[br.n - 1]
     for a in range(6):
         for c in range(6):
             Dl[a, c] = S[a, c]
-    _add_tip_block(Dl, bp, rot, il, tipF, tipK, sw)
-    return _lu6(Dl, piv[n - 1])
+    _add_tip_block(Dl, bp, rot, br.il, ws.it, ws.blk)
+    return _lu6(Dl, piv[br.n - 1])
 
 
 @njit(**HOT)
-def _prepare(
-    b0,
-    n,
-    bp,
-    K,
-    pos,
-    rot,
-    vel,
-    omg,
-    ppos,
-    prot,
-    pvel,
-    pomg,
-    c1,
-    c2,
-    pAs,
-    RAs,
-    pAp,
-    RAp,
-    cm,
-    vm,
-    Lm,
-    thp,
-    Rn,
-    ehist,
-    sw,
-):
+def _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
+    """Fresh Newton matrix of one bristle (``_jacobian_chain``), factored by block Thomas up to
+    the tip body, its Schur complement kept in jc.S, the tip block added at the current tip load.
+    Returns False (and marks the factors stale) if a pivot block is singular."""
+    b0 = br.b0
+    n = br.n
+    D = jc.D[b0 : b0 + n]
+    G = jc.G[b0 : b0 + n]
+    L = jc.L[b0 : b0 + n]
+    piv = jc.piv[b0 : b0 + n]
+    S = jc.S[br.b]
+    _jacobian_chain(br, model, chain, sub, base, ws.hist, D, ws.it.U, L, ws.el)
+    jc.age[br.b] = 0
+    good = block_factor_head(n, D, ws.it.U, L, G, piv)
+    if good:
+        for a in range(6):
+            for c in range(6):
+                S[a, c] = D[n - 1, a, c]
+        good = _tip_refactor(br, D, piv, S, model.bp, chain.rot, ws)
+    jc.key[br.b] = key if good else 0.0
+    return good
+
+
+# ------------------------------------------------------------------------------ step constants
+@njit(**HOT)
+def _prepare(br, model, chain, sub, base, hist, el):
     """Constants of one (sub)step: cm = c1 c_n + c2 c_{n-1}, vm, Lm (angular momenta),
-    thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains)."""
-    e = sw[0, 0:6]
-    out12 = sw[1]
-    tmp = sw[6, 0:3]
-    zero6 = sw[6, 6:12]
+    thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains),
+    and the damping factors gs = 1 + beta c0 / h, hs = beta / h (eq 4-5; 1 and 0 for statics)."""
+    bp = model.bp
+    c1 = sub.c1
+    c2 = sub.c2
+    e = el.e
+    tmp = el.th
+    zero6 = el.zero6
     for a in range(6):
         zero6[a] = 0.0
-    for k in range(n):
-        i = b0 + k
+    still = Damp(zero6, 1.0, 0.0)
+    for k in range(br.n):
+        i = br.b0 + k
+        beta = 0.0 if sub.static else bp[i, B_BETA]
+        hist.gs[k] = 1.0 + beta * sub.c0 * sub.inv_h
+        hist.hs[k] = beta * sub.inv_h
         for a in range(3):
             for bb in range(3):
-                Rn[k, a, bb] = rot[i, a, bb]
-            cm[k, a] = c1 * pos[i, a] + c2 * ppos[i, a]
-            vm[k, a] = c1 * vel[i, a] + c2 * pvel[i, a]
-            Lm[k, a] = 0.0
-            thp[k, a] = 0.0
+                hist.Rn[k, a, bb] = chain.rot[i, a, bb]
+            hist.cm[k, a] = c1 * chain.pos[i, a] + c2 * chain.ppos[i, a]
+            hist.vm[k, a] = c1 * chain.vel[i, a] + c2 * chain.pvel[i, a]
+            hist.Lm[k, a] = 0.0
+            hist.thp[k, a] = 0.0
         for which in range(2):
             coef = c1 if which == 0 else c2
             if coef == 0.0:
                 continue
-            RR = rot[i] if which == 0 else prot[i]
-            om = omg[i] if which == 0 else pomg[i]
-            ob0 = (RR[0, 0] * om[0] + RR[1, 0] * om[1] + RR[2, 0] * om[2]) * bp[i, 1]
-            ob1 = (RR[0, 1] * om[0] + RR[1, 1] * om[1] + RR[2, 1] * om[2]) * bp[i, 2]
-            ob2 = (RR[0, 2] * om[0] + RR[1, 2] * om[1] + RR[2, 2] * om[2]) * bp[i, 3]
+            RR = chain.rot[i] if which == 0 else chain.prot[i]
+            om = chain.omg[i] if which == 0 else chain.pomg[i]
+            ob0 = (RR[0, 0] * om[0] + RR[1, 0] * om[1] + RR[2, 0] * om[2]) * bp[i, B_JX]
+            ob1 = (RR[0, 1] * om[0] + RR[1, 1] * om[1] + RR[2, 1] * om[2]) * bp[i, B_JX + 1]
+            ob2 = (RR[0, 2] * om[0] + RR[1, 2] * om[1] + RR[2, 2] * om[2]) * bp[i, B_JX + 2]
             for a in range(3):
-                Lm[k, a] += coef * (RR[a, 0] * ob0 + RR[a, 1] * ob1 + RR[a, 2] * ob2)
+                hist.Lm[k, a] += coef * (RR[a, 0] * ob0 + RR[a, 1] * ob1 + RR[a, 2] * ob2)
         if c2 != 0.0:
-            _local_rot_into(prot[i], rot[i], tmp)
+            _local_rot_into(chain.prot[i], chain.rot[i], tmp)
             for a in range(3):
-                thp[k, a] = c2 * tmp[a]
+                hist.thp[k, a] = c2 * tmp[a]
         for a in range(6):
-            ehist[k, a] = 0.0
+            hist.ehist[k, a] = 0.0
         for which in range(2):
             coef = c1 if which == 0 else c2
             if coef == 0.0:
                 continue
-            P = pos if which == 0 else ppos
-            Q = rot if which == 0 else prot
-            if k == 0:
-                pa = pAs if which == 0 else pAp
-                Ra = RAs if which == 0 else RAp
-                _element_gen(
-                    True,
-                    pa,
-                    Ra,
-                    0.0,
-                    pa,
-                    P[i],
-                    Q[i],
-                    bp[i, 4],
-                    K[i],
-                    bp[i, 5],
-                    zero6,
-                    1.0,
-                    0.0,
-                    out12,
-                    e,
-                )
+            if which == 0:
+                _element_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, still, el)
             else:
-                _element_gen(
-                    False,
-                    P[i - 1],
-                    Q[i - 1],
-                    bp[i - 1, 4],
-                    pAs,
-                    P[i],
-                    Q[i],
-                    bp[i, 4],
-                    K[i],
-                    bp[i, 5],
-                    zero6,
-                    1.0,
-                    0.0,
-                    out12,
-                    e,
-                )
+                _element_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, still, el)
             for a in range(6):
-                ehist[k, a] += coef * e[a]
-
-
-@njit(**HOT, inline="always")
-def _save_chain(b0, n, pos, rot, t_pos, t_rot):
-    """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
-    for k in range(n):
-        for a in range(3):
-            t_pos[k, a] = pos[b0 + k, a]
-            for bb in range(3):
-                t_rot[k, a, bb] = rot[b0 + k, a, bb]
-
-
-@njit(**HOT, inline="always")
-def _load_chain(b0, n, pos, rot, t_pos, t_rot):
-    """pos/rot of one bristle <- t_pos/t_rot (see ``_save_chain``)."""
-    for k in range(n):
-        for a in range(3):
-            pos[b0 + k, a] = t_pos[k, a]
-            for bb in range(3):
-                rot[b0 + k, a, bb] = t_rot[k, a, bb]
+                hist.ehist[k, a] += coef * e[a]
 
 
 @njit(**HOT)
-def _extrapolate(
-    b0,
-    n,
-    pos,
-    rot,
-    s_pos,
-    s_rot,
-    ppos,
-    prot,
-    pppos,
-    pprot,
-    order,
-    pAs,
-    RAs,
-    pAp,
-    RAp,
-    pAq,
-    RAq,
-    pAe,
-    RAe,
-    sw,
-):
-    """pos/rot <- the state at t_n moved on by polynomial extrapolation in the base frame.
+def _start(br, model, chain, sub, base, con, ws):
+    """Set up one (sub)step of one bristle: the step constants (``_prepare``), the start state
+    kept in ws.it (s_pos, s_rot, s_vel, s_omg) and the tip node's rate history for contact."""
+    _prepare(br, model, chain, sub, base, ws.hist, ws.el)
+    it = ws.it
+    for k in range(br.n):
+        i = br.b0 + k
+        for a in range(3):
+            it.s_pos[k, a] = chain.pos[i, a]
+            it.s_vel[k, a] = chain.vel[i, a]
+            it.s_omg[k, a] = chain.omg[i, a]
+            for bb in range(3):
+                it.s_rot[k, a, bb] = chain.rot[i, a, bb]
+    # tip node history for the contact rate and the stiction deformation
+    il = br.il
+    tip_state = con.tip_state[br.b]
+    half = model.bp[il, B_HALF]
+    for a in range(3):
+        ptn = chain.pos[il, a] + half * chain.rot[il, a, 0]
+        ptp = chain.ppos[il, a] + half * chain.prot[il, a, 0]
+        tip_state[S_PN + a] = ptn
+        tip_state[S_HIST + a] = sub.c1 * ptn + sub.c2 * ptp
+
+
+# ------------------------------------------------------------------------------ predictors
+@njit(**HOT, inline="always")
+def _save_chain(br, pos, rot, t_pos, t_rot):
+    """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
+    for k in range(br.n):
+        for a in range(3):
+            t_pos[k, a] = pos[br.b0 + k, a]
+            for bb in range(3):
+                t_rot[k, a, bb] = rot[br.b0 + k, a, bb]
+
+
+@njit(**HOT, inline="always")
+def _load_chain(br, pos, rot, t_pos, t_rot):
+    """pos/rot of one bristle <- t_pos/t_rot (see ``_save_chain``)."""
+    for k in range(br.n):
+        for a in range(3):
+            pos[br.b0 + k, a] = t_pos[k, a]
+            for bb in range(3):
+                rot[br.b0 + k, a, bb] = t_rot[k, a, bb]
+
+
+@njit(**HOT)
+def _extrapolate(br, chain, order, base, it, mot):
+    """chain.pos/rot <- the state at t_n (it.s_pos, it.s_rot) moved on by polynomial
+    extrapolation in the base frame.
 
     With x = RA^T (c - pA) and Q = RA^T R at t_n, t_{n-1}, t_{n-2} (base poses (pAs, RAs),
     (pAp, RAp), (pAq, RAq)):  order 2: x = 2 x_n - x_{n-1}, Q = Q_n Q_{n-1}^T Q_n (constant rates);
@@ -620,15 +527,20 @@ def _extrapolate(
     phi_j = log(Q_{n-j} Q_n^T) (the quadratic through the three rotation vectors about Q_n).  Then
     back to the world with the base at the step's end (pAe, RAe).
     """
-    Qn = sw[8:11, 0:3]
-    Qp = sw[8:11, 3:6]
-    Qq = sw[8:11, 6:9]
-    Qr = sw[11:14, 0:3]
-    phi1 = sw[11, 3:6]
-    phi2 = sw[11, 6:9]
-    xp = sw[11, 9:12]
-    for k in range(n):
-        i = b0 + k
+    pos = chain.pos
+    rot = chain.rot
+    s_pos = it.s_pos
+    s_rot = it.s_rot
+    ppos = chain.ppos
+    prot = chain.prot
+    pppos = chain.pppos
+    pprot = chain.pprot
+    pAs, RAs, pAp, RAp = base.pAs, base.RAs, base.pAp, base.RAp
+    pAq, RAq, pAe, RAe = base.pAq, base.RAq, base.pAe, base.RAe
+    Qn, Qp, Qq, Qr = mot.Qn, mot.Qp, mot.Qq, mot.Qr
+    phi1, phi2, xp = mot.phi1, mot.phi2, mot.xp
+    for k in range(br.n):
+        i = br.b0 + k
         for a in range(3):
             xn = (
                 RAs[0, a] * (s_pos[k, 0] - pAs[0])
@@ -689,25 +601,28 @@ def _extrapolate(
 
 
 @njit(**HOT)
-def _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw):
-    """pos/rot <- the start configuration (s_pos, s_rot) carried rigidly by the base's motion over
-    the step, T = base_end o base_start^-1: a driven, nearly quasi-static chain starts Newton
-    close."""
-    Tr = sw[8:11, 0:3]
+def _rigid_predict(br, chain, base, it, mot):
+    """chain.pos/rot <- the start configuration (it.s_pos, it.s_rot) carried rigidly by the
+    base's motion over the step, T = base_end o base_start^-1: a driven, nearly quasi-static
+    chain starts Newton close."""
+    Tr = mot.Tr
+    pAs, RAs, pAe, RAe = base.pAs, base.RAs, base.pAe, base.RAe
+    s_pos = it.s_pos
+    s_rot = it.s_rot
     for a in range(3):
         for bb in range(3):
             Tr[a, bb] = RAe[a, 0] * RAs[bb, 0] + RAe[a, 1] * RAs[bb, 1] + RAe[a, 2] * RAs[bb, 2]
-    for k in range(n):
-        i = b0 + k
+    for k in range(br.n):
+        i = br.b0 + k
         for a in range(3):
-            pos[i, a] = (
+            chain.pos[i, a] = (
                 pAe[a]
                 + Tr[a, 0] * (s_pos[k, 0] - pAs[0])
                 + Tr[a, 1] * (s_pos[k, 1] - pAs[1])
                 + Tr[a, 2] * (s_pos[k, 2] - pAs[2])
             )
             for bb in range(3):
-                rot[i, a, bb] = (
+                chain.rot[i, a, bb] = (
                     Tr[a, 0] * s_rot[k, 0, bb]
                     + Tr[a, 1] * s_rot[k, 1, bb]
                     + Tr[a, 2] * s_rot[k, 2, bb]
@@ -715,8 +630,39 @@ def _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw):
 
 
 @njit(**HOT)
-def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
-    """Apply the Newton correction alpha*dq to one bristle, rebuilding the chain from the root.
+def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
+    """Start Newton from the better of two predictors; returns the residual norm there.
+
+    (1) The start configuration carried rigidly by the base's motion over the step.  (2) With
+    whole steps of history, the recent motion extrapolated in the base frame (third order with
+    two steps, second with one): a bristle that slides or bends steadily starts Newton O(h^3)
+    close instead of O(h).  The one with the smaller residual starts Newton (the rigid one wins at
+    contact onset, where extrapolation can overshoot into the plate).  Evaluated in this order,
+    the usual winner (2) costs two residuals, not three.  Third order only for a tip in contact: a
+    free bristle gains too few iterations (1.04 -> 0.95 per step at 3 ms) to pay for the extra
+    rotation logs (~8 % slower in bench engine)."""
+    it = ws.it
+    if extrap == 3 and not in_contact(con.tip_state[br.b]):
+        extrap = 2
+    _rigid_predict(br, chain, base, it, ws.mot)
+    nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
+    if extrap >= 2 and nrm > sub.rtol:
+        _save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+        _extrapolate(br, chain, extrap, base, it, ws.mot)
+        nx = _residual(br, model, chain, sub, base, con, ws, rootw)
+        if nx < nrm:
+            nrm = nx
+        else:
+            _load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+            nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
+    return nrm
+
+
+# ------------------------------------------------------------------------------ Newton iteration
+@njit(**HOT)
+def _chain_update(br, model, chain, it, alpha, base, mot):
+    """Apply the Newton correction alpha*it.dq to one bristle (from the trial point it.t_pos,
+    it.t_rot), rebuilding the chain from the root.
 
     Rotations: R <- exp(alpha dtheta) R.  Positions: each element's translational strain d gets
     its linearised increment, d <- d + alpha dd, and nodes are rebuilt from the root with the new
@@ -725,17 +671,20 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
     spurious axial/shear strain ~ l theta^2/2, which the stiff axial terms would turn into huge
     residuals.
     """
-    pAo = sw[14, 0:3]
-    pBo = sw[14, 3:6]
-    dpA = sw[14, 6:9]
-    dpB = sw[14, 9:12]
-    pAn = sw[15, 0:3]
-    dd = sw[15, 3:6]
+    bp = model.bp
+    pos = chain.pos
+    rot = chain.rot
+    t_pos = it.t_pos
+    t_rot = it.t_rot
+    dq = it.dq
+    pAb = base.pAe
+    RAb = base.RAe
+    pAo, pBo, dpA, dpB, pAn, dd = mot.pAo, mot.pBo, mot.dpA, mot.dpB, mot.pAn, mot.dd
     for a in range(3):
         pAn[a] = pAb[a]
-    for k in range(n):
-        i = b0 + k
-        hB = bp[i, 4]
+    for k in range(br.n):
+        i = br.b0 + k
+        hB = bp[i, B_HALF]
         _rotate_left(alpha * dq[k, 3], alpha * dq[k, 4], alpha * dq[k, 5], t_rot[k], rot[i])
         # old nodes and node increments: dp = dc + dtheta x (R r)
         for a in range(3):
@@ -756,7 +705,7 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
             RAo = RAb
             RAn = RAb
         else:
-            hA = bp[i - 1, 4]
+            hA = bp[i - 1, B_HALF]
             RAo = t_rot[k - 1]
             RAn = rot[i - 1]
             rA0 = hA * RAo[0, 0]
@@ -790,435 +739,235 @@ def _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAb, RAb, sw):
 
 
 @njit(**HOT)
-def _newton(
-    b,
-    b0,
-    n,
-    bp,
-    K,
-    pos,
-    rot,
-    vel,
-    omg,
-    ppos,
-    prot,
-    pvel,
-    pomg,
-    pppos,
-    pprot,
-    prm,
-    c0,
-    c1,
-    c2,
-    h,
-    pAs,
-    RAs,
-    pAe,
-    RAe,
-    pAp,
-    RAp,
-    pAq,
-    RAq,
-    tip_args,
-    tip_state,
-    ctx,
-    rootw,
-    jac,
-    ws,
-    extrap,
-):
+def _direction(br, jc, ws):
+    """it.dq <- the Newton correction -A^-1 r on the current factors (it.r0 keeps r).  Returns
+    g0 = dq . r, the line search's slope at alpha = 0."""
+    it = ws.it
+    b0 = br.b0
+    n = br.n
+    for k in range(n):
+        for a in range(6):
+            it.r0[k, a] = it.res[k, a]
+            it.res[k, a] = -it.res[k, a]
+    block_solve(
+        n,
+        jc.D[b0 : b0 + n],
+        jc.L[b0 : b0 + n],
+        jc.G[b0 : b0 + n],
+        jc.piv[b0 : b0 + n],
+        it.res,
+        it.dq,
+    )
+    g0 = 0.0
+    for k in range(n):
+        for a in range(6):
+            g0 += it.dq[k, a] * it.r0[k, a]
+    return g0
+
+
+@njit(**HOT)
+def _step_cap(br, model, chain, sub, con, ws):
+    """Largest safe fraction alpha of the Newton correction: the rotation increment (keeps the
+    log map far from pi), a trust region on the tip's displacement while in contact (the contact
+    laws are ~10^3 times stiffer than the bristle, and an unbounded step can throw the tip deep
+    into the plate or a neighbour), the penetration limit and the slip turning point
+    (contact.py)."""
+    it = ws.it
+    dq = it.dq
+    n = br.n
+    dmax = 0.0
+    for k in range(n):
+        for a in range(3):
+            if abs(dq[k, 3 + a]) > dmax:
+                dmax = abs(dq[k, 3 + a])
+    alpha = 1.0 if dmax <= MAX_ROT_STEP else MAX_ROT_STEP / dmax
+    kl = n - 1
+    il = br.il
+    rot = chain.rot
+    hl = model.bp[il, B_HALF]
+    r0x = hl * rot[il, 0, 0]
+    r0y = hl * rot[il, 1, 0]
+    r0z = hl * rot[il, 2, 0]
+    dp = it.dtip
+    dp[0] = dq[kl, 0] + dq[kl, 4] * r0z - dq[kl, 5] * r0y
+    dp[1] = dq[kl, 1] + dq[kl, 5] * r0x - dq[kl, 3] * r0z
+    dp[2] = dq[kl, 2] + dq[kl, 3] * r0y - dq[kl, 4] * r0x
+    dtip = np.sqrt(dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2])
+    radius = con.tip_args[br.b, A_RADIUS]
+    tip_state = con.tip_state[br.b]
+    tipcap = MAX_TIP_STEP * radius
+    if in_contact(tip_state) and alpha * dtip > tipcap:
+        alpha = tipcap / dtip
+    pt = it.tip
+    for a in range(3):
+        pt[a] = chain.pos[il, a] + hl * rot[il, a, 0]
+    apen = penetration_step_limit(br.b, pt, dp, radius, con, ws.tipw)
+    if apen < alpha:
+        alpha = max(apen, 1e-3)
+    if not sub.static:
+        aslip = slip_step_limit(pt, dp, tip_state, sub.c0, sub.inv_h, con.cp[C_VD])
+        if aslip < alpha:
+            alpha = max(aslip, 1e-4)
+    return alpha
+
+
+@njit(**HOT)
+def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
+    """Move along the correction from the saved trial point (``ws.it.t_pos``/``t_rot``); returns
+    (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm)``, the capped
+    step, the slope dq . r at alpha = 0 and the residual norm there.
+
+    The merit is the directional derivative g(alpha) = dq . r(q + alpha dq) (the energy-like
+    measure of structural Newton solvers): the residual norm itself is a poor merit here, because
+    the stiff axial/shear terms react to second-order geometry.  On overshoot (g changed sign) the
+    next alpha is the secant estimate of the zero of g, safeguarded."""
+    it = ws.it
+    alpha = trial.alpha
+    g0 = trial.g0
+    new = np.inf
+    for _ls in range(8):
+        _chain_update(br, model, chain, it, alpha, base, ws.mot)
+        new = _residual(br, model, chain, sub, base, con, ws, rootw)
+        if not np.isfinite(new):
+            alpha *= 0.25
+            continue
+        ga = 0.0
+        for k in range(br.n):
+            for a in range(6):
+                ga += it.dq[k, a] * it.res[k, a]
+        if new <= sub.rtol or g0 >= 0.0 or ga <= 0.5 * abs(g0) or new < 0.9 * trial.nrm:
+            return True, new, alpha
+        alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
+    return False, new, alpha
+
+
+@njit(**HOT)
+def _stale(fresh, alpha, new, nrm, rtol):
+    """True if the factors should be rebuilt before the next iteration: the step was cut (the
+    factors no longer describe the way down), or old factors converge so slowly that finishing
+    at this rate costs more than a rebuild."""
+    if alpha < 1.0:
+        return True
+    if not fresh and new > SLOW * nrm and new > rtol:
+        rho = new / nrm
+        return rho >= 1.0 or np.log(rtol / new) / np.log(rho) > REBUILD_ITERS
+    return False
+
+
+@njit(**HOT)
+def _update_negligible(br, model, chain, it, alpha):
+    """True if |alpha dq| is at the level of the coordinates' last bits (a round-off floor)."""
+    stepmax = 0.0
+    for k in range(br.n):
+        for a in range(3):
+            v = abs(alpha * it.dq[k, a]) / (
+                abs(chain.pos[br.b0 + k, a]) + model.bp[br.b0 + k, B_LEN]
+            )
+            if v > stepmax:
+                stepmax = v
+            v = abs(alpha * it.dq[k, 3 + a])
+            if v > stepmax:
+                stepmax = v
+    return stepmax < 1e-13
+
+
+@njit(**HOT)
+def _restore_start(br, chain, it):
+    """The bristle back at its start-of-step state (Newton failed)."""
+    for k in range(br.n):
+        i = br.b0 + k
+        for a in range(3):
+            chain.pos[i, a] = it.s_pos[k, a]
+            chain.vel[i, a] = it.s_vel[k, a]
+            chain.omg[i, a] = it.s_omg[k, a]
+            for bb in range(3):
+                chain.rot[i, a, bb] = it.s_rot[k, a, bb]
+
+
+@njit(**HOT)
+def _commit(br, chain, sub, con, ws):
+    """Accept the step: commit the stiction deformation and beta (eq 7-10), rates from the
+    discrete formula, shift the history (t_n -> t_{n-1} -> t_{n-2})."""
+    it = ws.it
+    hist = ws.hist
+    th = ws.el.th
+    tip_state = con.tip_state[br.b]
+    for a in range(3):
+        tip_state[S_DELTA + a] = tip_state[S_DNEW + a]
+    tip_state[S_BETA] = tip_state[S_BNEW]
+    pos, rot = chain.pos, chain.rot
+    for k in range(br.n):
+        i = br.b0 + k
+        reorthonormalize(rot[i])  # see the kernel: keeps the chain update free of drift
+        if sub.static:
+            for a in range(3):
+                chain.vel[i, a] = 0.0
+                chain.omg[i, a] = 0.0
+        else:
+            _local_rot_into(rot[i], hist.Rn[k], th)
+            for a in range(3):
+                chain.vel[i, a] = (sub.c0 * pos[i, a] + hist.cm[k, a]) * sub.inv_h
+                chain.omg[i, a] = (sub.c0 * th[a] + hist.thp[k, a]) * sub.inv_h
+        for a in range(3):
+            chain.pppos[i, a] = chain.ppos[i, a]
+            chain.ppos[i, a] = it.s_pos[k, a]
+            chain.pvel[i, a] = it.s_vel[k, a]
+            chain.pomg[i, a] = it.s_omg[k, a]
+            for bb in range(3):
+                chain.pprot[i, a, bb] = chain.prot[i, a, bb]
+                chain.prot[i, a, bb] = it.s_rot[k, a, bb]
+
+
+@njit(**HOT)
+def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
-    Start-of-step values are in pos/rot/vel/omg (t_n) and ppos/... (t_{n-1}); the base node moves
-    from (pAs, RAs) to (pAe, RAe); (pAp, RAp) is the base at t_{n-1} (BDF2 damping history).
-    On failure the bristle's arrays are left at their start-of-step values.
-
-    jac = (jD, jG, jL, jpiv, jkey, jage): factored Newton matrices kept per bristle across steps
-    (simplified Newton).  They are rebuilt when the step size or scheme changes (key c0/h), when
-    they are older than prm[P_JAGE] steps, and whenever an iteration with old factors converges
-    slowly (residual ratio > 0.25) or fails its line search: the converged state is always set by
-    the residual, the Jacobian's age only changes the iteration count.
-    ws: scratch memory, see ``make_workspace``.
+    Start-of-step values are in chain.pos/rot/vel/omg (t_n) and chain.ppos/... (t_{n-1}); the
+    base node moves from (pAs, RAs) to (pAe, RAe) of ``base``.  On failure the bristle's arrays
+    are left at their start-of-step values.  ``jc``: factored Newton matrices kept per bristle
+    across steps (simplified Newton), rebuilt when the step size or scheme changes (key c0/h),
+    when older than sub.jage steps, and whenever old factors converge slowly or fail their line
+    search: the converged state is always set by the residual, the factors' age only changes the
+    iteration count.  Stages: start -> predict -> [factors -> direction -> cap -> line search]*
+    -> commit (or restore).
     """
-    static = prm[P_STATIC] != 0.0
-    inv_h = 1.0 / h
-    gvec = prm[P_G : P_G + 3]
-    jD, jG, jL, jpiv, jkey, jage, jS = jac
-    S = jS[b]
-    D = jD[b0 : b0 + n]
-    G = jG[b0 : b0 + n]
-    L = jL[b0 : b0 + n]
-    piv = jpiv[b0 : b0 + n]
-    w3, w6, wU, sw, small, bk3, bkR, bktip = ws
-    U = wU[:n]
-    Rn = w3[0, :n]
-    s_rot = w3[1, :n]
-    t_rot = w3[2, :n]
-    res = w6[0, :n]
-    r0 = w6[1, :n]
-    dq = w6[2, :n]
-    ehist = w6[3, :n]
-    cm = w3[3, :n, 0]
-    vm = w3[3, :n, 1]
-    Lm = w3[3, :n, 2]
-    thp = w3[4, :n, 0]
-    s_pos = w3[4, :n, 1]
-    s_vel = w3[4, :n, 2]
-    s_omg = w3[5, :n, 0]
-    t_pos = w3[5, :n, 1]
-    gs = w6[4, :n, 0]
-    hs = w6[4, :n, 1]
-    tipF = small[0:3]
-    th = small[3:6]
-    tipK = w3[6, 0]
-    if static:
-        c1u = 0.0
-        c2u = 0.0
-    else:
-        c1u = c1
-        c2u = c2
-    _prepare(
-        b0,
-        n,
-        bp,
-        K,
-        pos,
-        rot,
-        vel,
-        omg,
-        ppos,
-        prot,
-        pvel,
-        pomg,
-        c1u,
-        c2u,
-        pAs,
-        RAs,
-        pAp,
-        RAp,
-        cm,
-        vm,
-        Lm,
-        thp,
-        Rn,
-        ehist,
-        sw,
-    )
-    for k in range(n):
-        i = b0 + k
-        beta = 0.0 if static else bp[i, 6]
-        gs[k] = 1.0 + beta * c0 * inv_h
-        hs[k] = beta * inv_h
-        for a in range(3):
-            s_pos[k, a] = pos[i, a]
-            s_vel[k, a] = vel[i, a]
-            s_omg[k, a] = omg[i, a]
-            for bb in range(3):
-                s_rot[k, a, bb] = rot[i, a, bb]
-    # tip node history for the contact rate and the stiction deformation
-    il = b0 + n - 1
-    for a in range(3):
-        ptn = pos[il, a] + bp[il, 4] * rot[il, a, 0]
-        ptp = ppos[il, a] + bp[il, 4] * prot[il, a, 0]
-        tip_state[S_PN + a] = ptn
-        tip_state[S_HIST + a] = c1u * ptn + c2u * ptp
-    rtol = prm[P_RTOL]
-    maxit = int(prm[P_MAXIT])
-    # Predictors.  (1) The start configuration carried rigidly by the base's motion over the
-    # step.  (2) With whole steps of history, the recent motion extrapolated in the base frame
-    # (third order with two steps, second with one): a bristle that slides or bends steadily starts
-    # Newton O(h^3) close instead of O(h).  The one with the smaller residual starts Newton (the
-    # rigid one wins at contact onset, where extrapolation can overshoot into the plate).
-    # Evaluated in this order, the usual winner (2) costs two residuals, not three.  Third order
-    # only for a tip in contact: a free bristle gains too few iterations (1.04 -> 0.95 per step
-    # at 3 ms) to pay for the extra rotation logs (~8 % slower in bench engine).
-    if extrap == 3 and not in_contact(tip_state):
-        extrap = 2
-    _rigid_predict(b0, n, pos, rot, s_pos, s_rot, pAs, RAs, pAe, RAe, sw)
-    nrm = _residual(
-        b,
-        b0,
-        n,
-        bp,
-        K,
-        pos,
-        rot,
-        gvec,
-        static,
-        c0,
-        inv_h,
-        cm,
-        vm,
-        Lm,
-        thp,
-        Rn,
-        ehist,
-        gs,
-        hs,
-        pAe,
-        RAe,
-        tip_args,
-        tip_state,
-        ctx,
-        res,
-        rootw,
-        tipF,
-        tipK,
-        sw,
-    )
-    if extrap >= 2 and nrm > rtol:
-        _save_chain(b0, n, pos, rot, t_pos, t_rot)
-        _extrapolate(
-            b0,
-            n,
-            pos,
-            rot,
-            s_pos,
-            s_rot,
-            ppos,
-            prot,
-            pppos,
-            pprot,
-            extrap,
-            pAs,
-            RAs,
-            pAp,
-            RAp,
-            pAq,
-            RAq,
-            pAe,
-            RAe,
-            sw,
-        )
-        nx = _residual(
-            b,
-            b0,
-            n,
-            bp,
-            K,
-            pos,
-            rot,
-            gvec,
-            static,
-            c0,
-            inv_h,
-            cm,
-            vm,
-            Lm,
-            thp,
-            Rn,
-            ehist,
-            gs,
-            hs,
-            pAe,
-            RAe,
-            tip_args,
-            tip_state,
-            ctx,
-            res,
-            rootw,
-            tipF,
-            tipK,
-            sw,
-        )
-        if nx < nrm:
-            nrm = nx
-        else:
-            _load_chain(b0, n, pos, rot, t_pos, t_rot)
-            nrm = _residual(
-                b,
-                b0,
-                n,
-                bp,
-                K,
-                pos,
-                rot,
-                gvec,
-                static,
-                c0,
-                inv_h,
-                cm,
-                vm,
-                Lm,
-                thp,
-                Rn,
-                ehist,
-                gs,
-                hs,
-                pAe,
-                RAe,
-                tip_args,
-                tip_state,
-                ctx,
-                res,
-                rootw,
-                tipF,
-                tipK,
-                sw,
-            )
+    b = br.b
+    _start(br, model, chain, sub, base, con, ws)
+    nrm = _predict(br, model, chain, sub, base, con, ws, rootw, extrap)
+    rtol = sub.rtol
     it = 0
     ok = nrm <= rtol
-    key = -1.0 if static else c0 * inv_h
-    jage[b] += 1
-    need = jkey[b] != key or jage[b] > prm[P_JAGE]
-    while not ok and it < maxit and np.isfinite(nrm):
+    key = -1.0 if sub.static else sub.c0 * sub.inv_h
+    jc.age[b] += 1
+    need = jc.key[b] != key or jc.age[b] > sub.jage
+    while not ok and it < sub.maxit and np.isfinite(nrm):
         it += 1
         fresh = need
         if need:
-            _jacobian_chain(
-                b0, n, bp, K, pos, rot, static, c0, inv_h, ehist, gs, hs, pAe, RAe, D, U, L, sw
-            )
-            need = False
-            jage[b] = 0
-            good = block_factor_head(n, D, U, L, G, piv)
-            if good:
-                for a in range(6):
-                    for c in range(6):
-                        S[a, c] = D[n - 1, a, c]
-                good = _tip_refactor(n, D, piv, S, bp, rot, b0 + n - 1, tipF, tipK, sw)
-            if good:
-                jkey[b] = key
-            else:
-                jkey[b] = 0.0
+            if not _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
                 break
-        elif in_contact(tip_state):
+            need = False
+        elif in_contact(con.tip_state[b]):
             # contact: the tip block at the current load, on the reused chain factors
-            if not _tip_refactor(n, D, piv, S, bp, rot, b0 + n - 1, tipF, tipK, sw):
+            D = jc.D[br.b0 : br.b0 + br.n]
+            if not _tip_refactor(
+                br, D, jc.piv[br.b0 : br.b0 + br.n], jc.S[b], model.bp, chain.rot, ws
+            ):
                 need = True
                 it -= 1
                 continue
-        for k in range(n):
-            for a in range(6):
-                r0[k, a] = res[k, a]
-                res[k, a] = -res[k, a]
-        block_solve(n, D, L, G, piv, res, dq)
-        # Line search on the directional derivative g(alpha) = dq . r(q + alpha dq) (the
-        # energy-like measure of structural Newton solvers): the residual norm itself is a poor
-        # merit here, because the stiff axial/shear terms react to second-order geometry.
-        g0 = 0.0
-        dmax = 0.0
-        _save_chain(b0, n, pos, rot, t_pos, t_rot)
-        for k in range(n):
-            for a in range(6):
-                g0 += dq[k, a] * r0[k, a]
-            for a in range(3):
-                if abs(dq[k, 3 + a]) > dmax:
-                    dmax = abs(dq[k, 3 + a])
-        # cap the rotation increment of one iteration (keeps the log map far from pi) and the
-        # tip's displacement (a trust region: the contact laws are ~10^3 times stiffer than the
-        # bristle, and an unbounded step can throw the tip deep into the plate or a neighbour)
-        alpha = 1.0 if dmax <= MAX_ROT_STEP else MAX_ROT_STEP / dmax
-        kl = n - 1
-        il = b0 + kl
-        hl = bp[il, 4]
-        r0x = hl * rot[il, 0, 0]
-        r0y = hl * rot[il, 1, 0]
-        r0z = hl * rot[il, 2, 0]
-        dpx = dq[kl, 0] + dq[kl, 4] * r0z - dq[kl, 5] * r0y
-        dpy = dq[kl, 1] + dq[kl, 5] * r0x - dq[kl, 3] * r0z
-        dpz = dq[kl, 2] + dq[kl, 3] * r0y - dq[kl, 4] * r0x
-        dtip = np.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
-        tipcap = MAX_TIP_STEP * tip_args[3]
-        touching = in_contact(tip_state)
-        if touching and alpha * dtip > tipcap:
-            alpha = tipcap / dtip
-        small[6] = dpx
-        small[7] = dpy
-        small[8] = dpz
-        for a in range(3):
-            small[9 + a] = pos[il, a] + hl * rot[il, a, 0]
-        apen = penetration_step_limit(
-            b, small[9:12], small[6:9], tip_args[3], ctx[0], ctx[2], ctx[3], ctx[4], ctx[5], sw[4]
-        )
-        if apen < alpha:
-            alpha = max(apen, 1e-3)
-        if not static:
-            aslip = slip_step_limit(small[9:12], small[6:9], tip_state, c0, inv_h, ctx[1][C_VD])
-            if aslip < alpha:
-                alpha = max(aslip, 1e-4)
-        accepted = False
-        for _ls in range(8):
-            _chain_update(b0, n, bp, pos, rot, t_pos, t_rot, dq, alpha, pAe, RAe, sw)
-            new = _residual(
-                b,
-                b0,
-                n,
-                bp,
-                K,
-                pos,
-                rot,
-                gvec,
-                static,
-                c0,
-                inv_h,
-                cm,
-                vm,
-                Lm,
-                thp,
-                Rn,
-                ehist,
-                gs,
-                hs,
-                pAe,
-                RAe,
-                tip_args,
-                tip_state,
-                ctx,
-                res,
-                rootw,
-                tipF,
-                tipK,
-                sw,
-            )
-            if not np.isfinite(new):
-                alpha *= 0.25
-                continue
-            ga = 0.0
-            for k in range(n):
-                for a in range(6):
-                    ga += dq[k, a] * res[k, a]
-            if new <= rtol or g0 >= 0.0 or ga <= 0.5 * abs(g0) or new < 0.9 * nrm:
-                accepted = True
-                break
-            # overshoot (g changed sign): secant estimate of the zero of g, safeguarded
-            alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
+        g0 = _direction(br, jc, ws)
+        _save_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
+        alpha = _step_cap(br, model, chain, sub, con, ws)
+        trial = Trial(alpha, g0, nrm)
+        accepted, new, alpha = _line_search(br, model, chain, sub, base, con, ws, rootw, trial)
         if not accepted:
             # restore the iterate; retry with fresh factors unless they were fresh already
-            _load_chain(b0, n, pos, rot, t_pos, t_rot)
+            _load_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
             if fresh:
                 break
             need = True
-            nrm = _residual(
-                b,
-                b0,
-                n,
-                bp,
-                K,
-                pos,
-                rot,
-                gvec,
-                static,
-                c0,
-                inv_h,
-                cm,
-                vm,
-                Lm,
-                thp,
-                Rn,
-                ehist,
-                gs,
-                hs,
-                pAe,
-                RAe,
-                tip_args,
-                tip_state,
-                ctx,
-                res,
-                rootw,
-                tipF,
-                tipK,
-                sw,
-            )
+            nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
             continue
         if fresh and new > 0.5 * nrm and new <= STAGNATION * rtol:
             # stagnation: a fresh Newton step no longer reduces a residual already within
@@ -1227,67 +976,22 @@ def _newton(
             nrm = new
             ok = True
             break
-        if alpha < 1.0:
-            need = True  # the step was cut: the factors no longer describe the way down
-        elif not fresh and new > SLOW * nrm and new > rtol:
-            # old factors converge slowly: rebuild unless the rest is cheaper at this rate
-            rho = new / nrm
-            if rho >= 1.0 or np.log(rtol / new) / np.log(rho) > REBUILD_ITERS:
-                need = True
+        need = _stale(fresh, alpha, new, nrm, rtol)
         nrm = new
-        # round-off floor: the update no longer moves the state (|alpha dq| at the level of the
-        # coordinates' last bits) and the residual is within 100x of the tolerance: accept
-        if nrm <= 100.0 * rtol:
-            stepmax = 0.0
-            for k in range(n):
-                for a in range(3):
-                    v = abs(alpha * dq[k, a]) / (abs(pos[b0 + k, a]) + bp[b0 + k, 5])
-                    if v > stepmax:
-                        stepmax = v
-                    v = abs(alpha * dq[k, 3 + a])
-                    if v > stepmax:
-                        stepmax = v
-            if stepmax < 1e-13:
-                ok = True
-                break
+        # round-off floor: the update no longer moves the state and the residual is within 100x
+        # of the tolerance: accept
+        if nrm <= 100.0 * rtol and _update_negligible(br, model, chain, ws.it, alpha):
+            ok = True
+            break
         ok = nrm <= rtol
     if not ok:
-        for k in range(n):
-            i = b0 + k
-            for a in range(3):
-                pos[i, a] = s_pos[k, a]
-                vel[i, a] = s_vel[k, a]
-                omg[i, a] = s_omg[k, a]
-                for bb in range(3):
-                    rot[i, a, bb] = s_rot[k, a, bb]
+        _restore_start(br, chain, ws.it)
         return False, it
-    # accept: commit the stiction deformation, rates from the discrete formula, shift history
-    for a in range(3):
-        tip_state[S_DELTA + a] = tip_state[S_DNEW + a]
-    tip_state[S_BETA] = tip_state[S_BNEW]
-    for k in range(n):
-        i = b0 + k
-        reorthonormalize(rot[i])  # see the kernel: keeps the chain update free of drift
-        if static:
-            for a in range(3):
-                vel[i, a] = 0.0
-                omg[i, a] = 0.0
-        else:
-            _local_rot_into(rot[i], Rn[k], th)
-            for a in range(3):
-                vel[i, a] = (c0 * pos[i, a] + cm[k, a]) * inv_h
-                omg[i, a] = (c0 * th[a] + thp[k, a]) * inv_h
-        for a in range(3):
-            pppos[i, a] = ppos[i, a]
-            ppos[i, a] = s_pos[k, a]
-            pvel[i, a] = s_vel[k, a]
-            pomg[i, a] = s_omg[k, a]
-            for bb in range(3):
-                pprot[i, a, bb] = prot[i, a, bb]
-                prot[i, a, bb] = s_rot[k, a, bb]
+    _commit(br, chain, sub, con, ws)
     return True, it
 
 
+# ------------------------------------------------------------------------------ all bristles
 @njit(**HOT)
 def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
     """Root node pose in the world: p = p_tcp + R_tcp r, R = R_tcp R_root."""
@@ -1297,11 +1001,130 @@ def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
             Rout[a, b] = tR[a, 0] * rR[0, b] + tR[a, 1] * rR[1, b] + tR[a, 2] * rR[2, b]
 
 
+@njit(**HOT)
+def _base_of_substep(br, model, drive, s, ds, ws):
+    """ws.base <- the root node's poses of one bristle for the sub-step [s, s + ds] of the step
+    (fractions; the TCP pose interpolated by ``_base_pose``), and at t_{n-1}, t_{n-2}."""
+    base = ws.base
+    tp = ws.tp
+    tR = ws.tR
+    tmp = ws.mot.tmp
+    rp = model.root_p[br.b]
+    rR = model.root_R[br.b]
+    tcp_p = drive.tcp_p
+    tcp_R = drive.tcp_R
+    _tcp_to_base(tcp_p[0], tcp_R[0], rp, rR, base.pAp, base.RAp)
+    _tcp_to_base(tcp_p[3], tcp_R[3], rp, rR, base.pAq, base.RAq)
+    _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s, tp, tR, tmp)
+    _tcp_to_base(tp, tR, rp, rR, base.pAs, base.RAs)
+    _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
+    _tcp_to_base(tp, tR, rp, rR, base.pAe, base.RAe)
+
+
+@njit(**HOT)
+def _substep(prm, whole, hist_ok, h):
+    """The (sub)step's ``Substep``: BDF2 on a whole step with history, else backward Euler;
+    c1 = c2 = 0 for statics (no history)."""
+    static = prm[P_STATIC] != 0.0
+    if int(prm[P_METHOD]) == 1 and whole and hist_ok != 0:
+        c0, c1, c2 = 1.5, -2.0, 0.5
+    else:
+        c0, c1, c2 = 1.0, -1.0, 0.0
+    if static:
+        c1 = 0.0
+        c2 = 0.0
+    return Substep(
+        c0,
+        c1,
+        c2,
+        h,
+        1.0 / h,
+        static,
+        prm[P_G : P_G + 3],
+        prm[P_RTOL],
+        int(prm[P_MAXIT]),
+        prm[P_JAGE],
+    )
+
+
+@njit(**HOT)
+def _backup(br, chain, con, bk, save):
+    """save: bk <- the bristle's state at the start of the step; else the bristle <- bk (every
+    sub-step level failed)."""
+    b0 = br.b0
+    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
+    vR = (chain.rot, chain.prot, chain.pprot)
+    for k in range(br.n):
+        for a in range(3):
+            for q in range(7):
+                if save:
+                    bk.v3[q, k, a] = v3[q][b0 + k, a]
+                else:
+                    v3[q][b0 + k, a] = bk.v3[q, k, a]
+            for c in range(3):
+                for q in range(3):
+                    if save:
+                        bk.R[q, k, a, c] = vR[q][b0 + k, a, c]
+                    else:
+                        vR[q][b0 + k, a, c] = bk.R[q, k, a, c]
+    ts = con.tip_state[br.b]
+    for a in range(ts.shape[0]):
+        if save:
+            bk.tip_state[a] = ts[a]
+        else:
+            ts[a] = bk.tip_state[a]
+
+
+@njit(**HOT)
+def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out):
+    """One bristle over one step h = prm[P_H]: Newton on the whole step, halved recursively on
+    failure (down to h / 2**max_levels) and regrown when aligned; restored and flagged
+    NEWTON_FAILED if the smallest sub-step fails."""
+    b = br.b
+    h = prm[P_H]
+    maxlev = int(prm[P_MAXLEV])
+    hist_ok = drive.hist_ok[b]
+    _backup(br, chain, con, ws.backup, True)
+    s = 0.0
+    level = 0
+    tot = 0
+    nsteps = 0
+    out.status[b] = OK
+    while s < 1.0 - 1e-12:
+        ds = 0.5**level
+        if s + ds > 1.0:
+            ds = 1.0 - s
+        whole = level == 0 and s == 0.0
+        sub = _substep(prm, whole, hist_ok, h * ds)
+        _base_of_substep(br, model, drive, s, ds, ws)
+        # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
+        extrap = 0
+        if whole and not sub.static and hist_ok > 0:
+            extrap = 3 if hist_ok >= 2 else 2
+        ok, it = _newton(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap)
+        tot += it
+        if ok:
+            s += ds
+            nsteps += 1
+            # after a success, try a larger sub-step again when aligned
+            if level > 0 and abs(s / (2.0 * ds) - np.floor(s / (2.0 * ds) + 0.5)) < 1e-9:
+                level -= 1
+        else:
+            level += 1
+            if level > maxlev:
+                out.status[b] = NEWTON_FAILED
+                _backup(br, chain, con, ws.backup, False)  # restore
+                break
+    out.iters[b] = tot
+    out.nsub[b] = nsteps
+    drive.hist_ok[b] = min(hist_ok + 1, 2) if (nsteps == 1 and out.status[b] == OK) else 0
+
+
 @njit(**HOT, inline="always")
 def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
     """out[b, 0:3] <- tip node (sphere centre) [mm], out[b, 3:6] <- its velocity [mm/s] (world):
     p = c + r, v = v_c + omega x r with r = half R e_x of the last body ``il``."""
-    hl = bp[il, 4]
+    hl = bp[il, B_HALF]
     r0 = hl * rot[il, 0, 0]
     r1 = hl * rot[il, 1, 0]
     r2 = hl * rot[il, 2, 0]
@@ -1318,6 +1141,29 @@ def tip_states(bstart, bp, pos, rot, vel, omg, out):
     """Tip node position and velocity of every bristle into out (nb, >= 6), see _tip_node_state."""
     for b in range(bstart.shape[0] - 1):
         _tip_node_state(b, bstart[b + 1] - 1, bp, pos, rot, vel, omg, out)
+
+
+@njit(**HOT)
+def step_bristles(model, chain, drive, prm, con, jc, ws, out):
+    """Advance every bristle by one step h = prm[P_H] (in place).
+
+    drive: TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3) and hist_ok (whole steps
+    behind each bristle's history, 0, 1 or 2; after a sub-stepped step the history is not on the
+    step grid: 0).  con: surfaces, contact laws (Tables 2-3), every tip's node, velocity and radius,
+    the tip-tip partner lists (CSR), the scene's mesh, tip arguments and per-contact state.
+    Bristles are solved in order; each one sees its partners' latest tips (one Gauss-Seidel
+    sweep), and its own entry in ``con.tips`` is updated as soon as it has been advanced.
+    Outputs per bristle in ``out``: rootw (force, moment of the root element on the head, at the
+    root node, world), iters (Newton iterations), nsub (sub-steps used), status (OK /
+    NEWTON_FAILED).
+    """
+    bstart = model.bstart
+    for b in range(bstart.shape[0] - 1):
+        b0 = bstart[b]
+        n = bstart[b + 1] - b0
+        br = Bristle(b, b0, n, b0 + n - 1)
+        _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out)
+        _tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
 
 
 @njit(**HOT)
@@ -1351,172 +1197,3 @@ def all_finite(x):
             if not np.isfinite(x[i, j]):
                 return False
     return True
-
-
-@njit(cache=True)
-def step_bristles(
-    bstart,
-    bp,
-    K,
-    pos,
-    rot,
-    vel,
-    omg,
-    ppos,
-    prot,
-    pvel,
-    pomg,
-    pppos,
-    pprot,
-    hist_ok,
-    tcp_p,
-    tcp_R,
-    root_p,
-    root_R,
-    prm,
-    tip_args,
-    tip_state,
-    ctx,
-    jac,
-    ws,
-    rootw,
-    iters,
-    nsub,
-    status,
-):
-    """Advance every bristle by one step h = prm[P_H] (in place).
-
-    tcp_p (4, 3), tcp_R (4, 3, 3): TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3).
-    pppos/pprot: positions and rotations at t_{n-2} (the third-order predictor's history).
-    hist_ok (nb,): whole steps behind each bristle's history, 0, 1 or 2 (after a sub-stepped step
-    the history is not on the step grid: 0).
-    root_p (nb, 3), root_R (nb, 3, 3): root node pose of each bristle in the TCP frame.
-    tip_args (nb, na), tip_state (nb, ns): tip-load parameters and per-contact state (contact.py).
-    ctx = (surf, cp, tips, pair_ptr, pair_idx, mesh): surfaces, contact law parameters, every
-    tip's node position/velocity/radius (nb, 7), the tip-tip partner lists (CSR) and the scene's
-    triangle mesh with its grid index (contact.build_mesh).  Bristles are
-    solved in order; each one sees its partners' latest tips (one Gauss-Seidel sweep), and its
-    own entry in ``tips`` is updated as soon as it has been advanced.
-    Outputs per bristle: rootw (force, moment of the root element on the head, at the root node,
-    world), iters (Newton iterations), nsub (sub-steps used), status (OK / NEWTON_FAILED).
-    """
-    nb = bstart.shape[0] - 1
-    h = prm[P_H]
-    method = int(prm[P_METHOD])
-    maxlev = int(prm[P_MAXLEV])
-    tp = np.empty(3)
-    tR = np.empty((3, 3))
-    tmp = np.empty(3)
-    pAs = np.empty(3)
-    RAs = np.empty((3, 3))
-    pAe = np.empty(3)
-    RAe = np.empty((3, 3))
-    pAp = np.empty(3)
-    RAp = np.empty((3, 3))
-    pAq = np.empty(3)
-    RAq = np.empty((3, 3))
-    for b in range(nb):
-        b0 = bstart[b]
-        n = bstart[b + 1] - b0
-        bk3 = ws[5]
-        bkR = ws[6]
-        bktip = ws[7]
-        bk3[0, :n] = pos[b0 : b0 + n]
-        bk3[1, :n] = vel[b0 : b0 + n]
-        bk3[2, :n] = omg[b0 : b0 + n]
-        bk3[3, :n] = ppos[b0 : b0 + n]
-        bk3[4, :n] = pvel[b0 : b0 + n]
-        bk3[5, :n] = pomg[b0 : b0 + n]
-        bk3[6, :n] = pppos[b0 : b0 + n]
-        bkR[0, :n] = rot[b0 : b0 + n]
-        bkR[1, :n] = prot[b0 : b0 + n]
-        bkR[2, :n] = pprot[b0 : b0 + n]
-        bktip[:] = tip_state[b]
-        s = 0.0
-        level = 0
-        tot = 0
-        nsteps = 0
-        status[b] = OK
-        _tcp_to_base(tcp_p[0], tcp_R[0], root_p[b], root_R[b], pAp, RAp)
-        _tcp_to_base(tcp_p[3], tcp_R[3], root_p[b], root_R[b], pAq, RAq)
-        while s < 1.0 - 1e-12:
-            ds = 0.5**level
-            if s + ds > 1.0:
-                ds = 1.0 - s
-            whole = level == 0 and s == 0.0
-            if method == 1 and whole and hist_ok[b] != 0:
-                c0, c1, c2 = 1.5, -2.0, 0.5
-            else:
-                c0, c1, c2 = 1.0, -1.0, 0.0
-            _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s, tp, tR, tmp)
-            _tcp_to_base(tp, tR, root_p[b], root_R[b], pAs, RAs)
-            _base_pose(tcp_p[1], tcp_R[1], tcp_p[2], tcp_R[2], s + ds, tp, tR, tmp)
-            _tcp_to_base(tp, tR, root_p[b], root_R[b], pAe, RAe)
-            # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
-            extrap = 0
-            if whole and prm[P_STATIC] == 0.0 and hist_ok[b] > 0:
-                extrap = 3 if hist_ok[b] >= 2 else 2
-            ok, it = _newton(
-                b,
-                b0,
-                n,
-                bp,
-                K,
-                pos,
-                rot,
-                vel,
-                omg,
-                ppos,
-                prot,
-                pvel,
-                pomg,
-                pppos,
-                pprot,
-                prm,
-                c0,
-                c1,
-                c2,
-                h * ds,
-                pAs,
-                RAs,
-                pAe,
-                RAe,
-                pAp,
-                RAp,
-                pAq,
-                RAq,
-                tip_args[b],
-                tip_state[b],
-                ctx,
-                rootw[b],
-                jac,
-                ws,
-                extrap,
-            )
-            tot += it
-            if ok:
-                s += ds
-                nsteps += 1
-                # after a success, try a larger sub-step again when aligned
-                if level > 0 and abs(s / (2.0 * ds) - np.floor(s / (2.0 * ds) + 0.5)) < 1e-9:
-                    level -= 1
-            else:
-                level += 1
-                if level > maxlev:
-                    status[b] = NEWTON_FAILED
-                    pos[b0 : b0 + n] = bk3[0, :n]
-                    vel[b0 : b0 + n] = bk3[1, :n]
-                    omg[b0 : b0 + n] = bk3[2, :n]
-                    ppos[b0 : b0 + n] = bk3[3, :n]
-                    pvel[b0 : b0 + n] = bk3[4, :n]
-                    pomg[b0 : b0 + n] = bk3[5, :n]
-                    pppos[b0 : b0 + n] = bk3[6, :n]
-                    rot[b0 : b0 + n] = bkR[0, :n]
-                    prot[b0 : b0 + n] = bkR[1, :n]
-                    pprot[b0 : b0 + n] = bkR[2, :n]
-                    tip_state[b] = bktip
-                    break
-        iters[b] = tot
-        nsub[b] = nsteps
-        _tip_node_state(b, b0 + n - 1, bp, pos, rot, vel, omg, ctx[2])
-        hist_ok[b] = min(hist_ok[b] + 1, 2) if (nsteps == 1 and status[b] == OK) else 0

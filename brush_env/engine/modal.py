@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import integrator as itg
+from . import records as rec
+from .records import B_HALF, B_JX, B_LEN, B_MASS
 from .rotation import logmap
 
 
@@ -21,31 +23,16 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[bristle]
     RA = st.tcp_R[1] @ m.root_R[bristle]
     D, U, L = (np.zeros((n, 6, 6)) for _ in range(3))
-    zero6 = np.zeros((n, 6))
-    tipF = np.zeros(3)
-    tipK = np.zeros((3, 3))
-    itg._jacobian(
-        b0,
-        n,
-        m.bp,
-        m.K,
-        st.pos,
-        st.rot,
-        True,
-        1.0,
-        1.0,
-        zero6,
-        np.ones(n),
-        np.zeros(n),
-        pA,
-        RA,
-        tipF,
-        tipK,
-        D,
-        U,
-        L,
-        np.zeros((itg.N_SW, 12)),
+    ws = rec.make_work(n, 1)
+    ws.hist.gs[:n] = 1.0  # statics: no damping, no rate history
+    base = ws.base
+    base.pAe[:], base.RAe[:] = pA, RA
+    chain = rec.Chain(
+        st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
     )
+    sub = rec.Substep(1.0, 0.0, 0.0, 1.0, 1.0, True, np.zeros(3), 0.0, 0, 0.0)
+    br = rec.Bristle(bristle, b0, n, b1 - 1)
+    itg._jacobian(br, m.arrays(), chain, sub, base, ws.hist, D, U, L, ws)
     K = np.zeros((6 * n, 6 * n))
     M = np.zeros((6 * n, 6 * n))
     for k in range(n):
@@ -56,8 +43,10 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
         if k > 0:
             K[6 * k : 6 * k + 6, 6 * k - 6 : 6 * k] = L[k]
         R = st.rot[i]
-        M[6 * k : 6 * k + 3, 6 * k : 6 * k + 3] = m.bp[i, 0] * np.eye(3)
-        M[6 * k + 3 : 6 * k + 6, 6 * k + 3 : 6 * k + 6] = R @ np.diag(m.bp[i, 1:4]) @ R.T
+        M[6 * k : 6 * k + 3, 6 * k : 6 * k + 3] = m.bp[i, B_MASS] * np.eye(3)
+        M[6 * k + 3 : 6 * k + 6, 6 * k + 3 : 6 * k + 6] = (
+            R @ np.diag(m.bp[i, B_JX : B_JX + 3]) @ R.T
+        )
     return K, M
 
 
@@ -80,8 +69,8 @@ def element_strains(sim) -> np.ndarray:
         pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[j]
         RA = st.tcp_R[1] @ m.root_R[j]
         for i in range(m.bstart[j], m.bstart[j + 1]):
-            pB = st.pos[i] + m.bp[i, 4] * st.rot[i][:, 0]
-            out[i, :3] = RA.T @ (pB - pA) - np.array([m.bp[i, 5], 0.0, 0.0])
+            pB = st.pos[i] + m.bp[i, B_HALF] * st.rot[i][:, 0]
+            out[i, :3] = RA.T @ (pB - pA) - np.array([m.bp[i, B_LEN], 0.0, 0.0])
             out[i, 3:] = logmap(RA.T @ st.rot[i])
             pA, RA = pB, st.rot[i]
     return out

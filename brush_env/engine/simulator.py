@@ -19,6 +19,7 @@ import numpy as np
 
 from . import contact as ct
 from . import integrator as itg
+from . import records as rec
 from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
 from .checks import ConfigError, Limit, check_choice, check_int, check_real
 from .config import BrushConfig
@@ -89,6 +90,13 @@ class Model:
     seg_len: np.ndarray  # (N,) [mm]
     tip_radius: np.ndarray  # (nb,) [mm]
     length: np.ndarray  # (nb,) [mm]
+    elem: np.ndarray = None  # (N,) int64 element formulation of each body's element (ELEM_*)
+
+    def arrays(self) -> rec.ModelArrays:
+        """The kernels' view of the model (``records.ModelArrays``)."""
+        if self.elem is None:
+            self.elem = np.zeros(self.n_bodies, np.int64)
+        return rec.ModelArrays(self.bstart, self.bp, self.K, self.root_p, self.root_R, self.elem)
 
     @property
     def n_bristles(self) -> int:
@@ -105,7 +113,7 @@ def build_model(brush: BrushConfig) -> Model:
     bstart = np.zeros(len(nbod) + 1, np.int64)
     bstart[1:] = np.cumsum(nbod)
     N = int(bstart[-1])
-    bp = np.zeros((N, 8))
+    bp = np.zeros((N, rec.N_BP))
     K = np.zeros((N, 6, 6))
     seg = np.zeros(N)
     R_head = brush.head_rotation()
@@ -124,12 +132,12 @@ def build_model(brush: BrushConfig) -> Model:
         fscale = mat.E * Imin / br.length**2
         sl = slice(bstart[j], bstart[j + 1])
         K[sl] = Kel
-        bp[sl, 0] = m
-        bp[sl, 1:4] = Jb
-        bp[sl, 4] = 0.5 * l
-        bp[sl, 5] = l
-        bp[sl, 6] = beta
-        bp[sl, 7] = fscale
+        bp[sl, rec.B_MASS] = m
+        bp[sl, rec.B_JX : rec.B_JX + 3] = Jb
+        bp[sl, rec.B_HALF] = 0.5 * l
+        bp[sl, rec.B_LEN] = l
+        bp[sl, rec.B_BETA] = beta
+        bp[sl, rec.B_FSCALE] = fscale
         seg[sl] = l
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
         # lean: rotate about the width axis so the tip moves toward the thickness direction
@@ -174,7 +182,7 @@ class State:
     tip_state: np.ndarray
     time: float = 0.0
     steps: int = 0
-    jac: tuple = ()
+    jac: rec.NewtonCache = None
     pppos: np.ndarray = None
     pprot: np.ndarray = None
 
@@ -182,7 +190,7 @@ class State:
         """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
         state so that a restored state continues bit for bit like the original."""
         d = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
-        d["jac"] = tuple(a.copy() for a in self.jac) if with_jacobian else self.jac
+        d["jac"] = rec.NewtonCache(*(a.copy() for a in self.jac)) if with_jacobian else self.jac
         return State(**d)
 
 
@@ -244,13 +252,17 @@ class Simulator:
             if scene.tip_tip
             else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
         )
-        self._ws = itg.make_workspace(int(np.diff(self.model.bstart).max()), N_TIP_STATE)
+        self._ws = rec.make_work(int(np.diff(self.model.bstart).max()), N_TIP_STATE)
+        self._kmodel = self.model.arrays()
         self._tips = np.zeros((nb, 7))
         self._tips[:, 6] = self.model.tip_radius
-        self._rootw = np.zeros((nb, 6))
-        self._iters = np.zeros(nb, np.int64)
-        self._nsub = np.zeros(nb, np.int64)
-        self._status = np.zeros(nb, np.int64)
+        self._out = rec.StepOut(
+            np.zeros((nb, 6)),
+            np.zeros(nb, np.int64),
+            np.zeros(nb, np.int64),
+            np.zeros(nb, np.int64),
+        )
+        self._rootw = self._out.rootw
         self.state: State | None = None
         self._snap: State | None = None  # rollback buffers (see _snapshot)
         self._prm = self._make_prm(static=False)
@@ -300,7 +312,7 @@ class Simulator:
             np.zeros((nb, N_TIP_STATE)),
             time,
             0,
-            itg.make_jacobian_store(N, nb),
+            rec.make_newton_cache(N, nb),
             pos.copy(),
             rot.copy(),
         )
@@ -372,55 +384,59 @@ class Simulator:
         return res
 
     def _advance(self, tcp_p, tcp_R, prm, t_new) -> StepResult:
+        """One step as named stages: base motion -> per-bristle implicit solve (contact search,
+        beam, contact, friction, tip-tip inside Newton) -> acceptance or rollback -> outputs."""
+        snapshot = self._snapshot(self.state)  # rollback target
+        self._base_motion(tcp_p, tcp_R)
+        self._solve_bristles(prm)
+        self._accept_or_rollback(snapshot, prm, t_new)
+        self._shift_drive(tcp_p, tcp_R, t_new)
+        out = self._out
+        return self._result(int(out.iters.sum()), int(out.nsub.sum()))
+
+    def _base_motion(self, tcp_p, tcp_R) -> None:
+        """Stage 1: the prescribed TCP pose at t + dt (row 2 of the drive); the kernels
+        interpolate it over sub-steps (linear position, geodesic rotation)."""
         st = self.state
-        snapshot = self._snapshot(st)  # rollback target
         st.tcp_p[2] = tcp_p
         st.tcp_R[2] = tcp_R
-        m = self.model
-        itg.step_bristles(
-            m.bstart,
-            m.bp,
-            m.K,
-            st.pos,
-            st.rot,
-            st.vel,
-            st.omg,
-            st.ppos,
-            st.prot,
-            st.pvel,
-            st.pomg,
-            st.pppos,
-            st.pprot,
-            st.hist_ok,
-            st.tcp_p,
-            st.tcp_R,
-            m.root_p,
-            m.root_R,
-            prm,
-            self.tip_args,
-            st.tip_state,
-            self._ctx(),
-            st.jac,
-            self._ws,
-            self._rootw,
-            self._iters,
-            self._nsub,
-            self._status,
+
+    def _solve_bristles(self, prm) -> None:
+        """Stage 2: every bristle's implicit step (integrator.step_bristles): per bristle, the
+        momentum balance (eq 11) with the beam elements (eq 1-5), the tip's contact search over
+        the surfaces and its pre-searched tip-tip partners (§2.2, ``tip_pairs``), the normal law
+        (eq 6), friction (eq 7-10) and tip-tip contact (Table 3), solved by Newton."""
+        st = self.state
+        chain = rec.Chain(
+            st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
         )
-        bad = np.flatnonzero(self._status)
+        drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
+        itg.step_bristles(
+            self._kmodel, chain, drive, prm, self._contact(), st.jac, self._ws, self._out
+        )
+
+    def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
+        """Stage 3: a bristle that failed on its smallest sub-step, or a non-finite state,
+        restores the whole state and raises ``SimulationDivergence`` (never NaN)."""
+        st, m = self.state, self.model
+        bad = np.flatnonzero(self._out.status)
         if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self._rootw)):
             bad = np.arange(m.n_bristles)
         if bad.size:
             self.set_state(snapshot)
             # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
             # them all stale, so that what follows depends on the restored state alone
-            self.state.jac[4][:] = 0.0
+            self.state.jac.key[:] = 0.0
             raise SimulationDivergence(
                 t_new,
                 bad,
                 "Newton did not converge on the smallest "
                 f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})",
             )
+
+    def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
+        """Stage 4: the TCP history moves on (t_{n-2} <- t_{n-1} <- t_n <- t_{n+1}), time too."""
+        st = self.state
         st.tcp_p[3] = st.tcp_p[0]
         st.tcp_R[3] = st.tcp_R[0]
         st.tcp_p[0] = st.tcp_p[1]
@@ -429,7 +445,6 @@ class Simulator:
         st.tcp_R[1] = tcp_R
         st.time = t_new
         st.steps += 1
-        return self._result(int(self._iters.sum()), int(self._nsub.sum()))
 
     def _snapshot(self, st: State) -> State:
         """Copy of ``st`` into buffers kept across steps (no allocation per step).  The Newton
@@ -444,14 +459,17 @@ class Simulator:
             snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
         return snap
 
-    def _ctx(self):
-        return (
+    def _contact(self) -> rec.ContactScene:
+        """The kernels' view of the contact scene and the per-tip state."""
+        return rec.ContactScene(
             self.surfaces,
             self.contact_params,
             self._tips,
             self.pair_ptr,
             self.pair_idx,
             self.mesh,
+            self.tip_args,
+            self.state.tip_state,
         )
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:

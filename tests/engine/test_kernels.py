@@ -5,11 +5,14 @@ kernels against the textbook formulas written with ``np.cross``; a failing step 
 before it (the simulator must raise and leave the state untouched, bit for bit).
 """
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 
 from brush_env.engine import SimSettings, SimulationDivergence, Simulator, load_brush
 from brush_env.engine import integrator as itg
+from brush_env.engine import records as rec
 from brush_env.engine._kernels import _lu6, block_factor, block_factor_head, block_solve
 from brush_env.engine.rotation import pose_ok
 
@@ -118,22 +121,7 @@ def test_a_failed_step_raises_and_leaves_the_state_untouched():
         assert err.value.time == pytest.approx(before.time + 1e-3)
         assert len(err.value.bristles) > 0
         now = sim.state
-        for name in (
-            "pos",
-            "rot",
-            "vel",
-            "omg",
-            "ppos",
-            "prot",
-            "pvel",
-            "pomg",
-            "pppos",
-            "pprot",
-            "hist_ok",
-            "tcp_p",
-            "tcp_R",
-            "tip_state",
-        ):
+        for name in [f.name for f in fields(now) if isinstance(getattr(now, f.name), np.ndarray)]:
             assert np.array_equal(getattr(now, name), getattr(before, name)), name
         assert now.time == before.time and now.steps == before.steps
         assert np.array_equal(sim.tip_positions(), tips_before)
@@ -189,27 +177,11 @@ def test_predictor_is_exact_for_polynomial_motion(order):
     (pq, Rq), (pp, Rp), (ps, Rs), (pe, Re) = (world(k * h) for k in (-2, -1, 0, 1))
     (bq, BQ), (bp, BP), (bs, BS), (be, BE) = (base(k * h) for k in (-2, -1, 0, 1))
     pos, rot = np.zeros((n, 3)), np.zeros((n, 3, 3))
-    itg._extrapolate(
-        0,
-        n,
-        pos,
-        rot,
-        ps,
-        Rs,
-        pp,
-        Rp,
-        pq,
-        Rq,
-        order,
-        bs,
-        BS,
-        bp,
-        BP,
-        bq,
-        BQ,
-        be,
-        BE,
-        np.zeros((itg.N_SW, 12)),
-    )
+    ws = rec.make_work(n, 1)
+    ws.it.s_pos[:], ws.it.s_rot[:] = ps, Rs
+    z = np.zeros((n, 3))
+    chain = rec.Chain(pos, rot, z, z, pp, Rp, z, z, pq, Rq)
+    base = rec.Base(bs, BS, be, BE, bp, BP, bq, BQ)
+    itg._extrapolate(rec.Bristle(0, 0, n, n - 1), chain, order, base, ws.it, ws.mot)
     np.testing.assert_allclose(pos, pe, rtol=0, atol=1e-11)
     np.testing.assert_allclose(rot, Re, rtol=0, atol=1e-11)

@@ -1,0 +1,177 @@
+"""Named records of the kernels' data: what the numba kernels take instead of long argument lists.
+
+Every record is a ``collections.namedtuple`` (numba-native: passed to and built inside nopython
+code, read by field name, no allocation).  Arrays in a record are views owned by the Python side
+(``Simulator``); the kernels write into them in place.
+
+==================  ========================================================================
+record              fields [unit]
+==================  ========================================================================
+``ModelArrays``     bstart (nb+1,) body ranges; bp (N, 8) body parameters, columns ``B_*``;
+                    K (N, 6, 6) element stiffness (eq 1-3); root_p (nb, 3) [mm], root_R (nb, 3, 3)
+                    root pose in the TCP frame; elem (N,) element formulation of each body's
+                    element (``ELEM_*``)
+``Chain``           pos, rot, vel, omg: body poses [mm] and rates [mm/s, rad/s] at t_n; ppos,
+                    prot, pvel, pomg at t_{n-1}; pppos, pprot at t_{n-2} (all bodies)
+``Drive``           hist_ok (nb,) whole steps of history; tcp_p (4, 3) [mm], tcp_R (4, 3, 3): TCP
+                    at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0-3)
+``ContactScene``    surf (ns, 8) surface rows; cp (15,) contact laws (Tables 2-3, ``C_*``); tips
+                    (nb, 7) every tip's node, velocity and radius; pair_ptr, pair_idx tip-tip pairs
+                    (CSR); mesh (the scene's triangle mesh); tip_args (nb, 4) and tip_state
+                    (nb, 24) per tip (``A_*``, ``S_*`` in contact.py)
+``NewtonCache``     per-bristle factored Newton matrices kept across steps: D, G, L (N, 6, 6),
+                    piv (N, 6), key (nb,) the c0/h they were built for, age (nb,) steps,
+                    S (nb, 6, 6) the tip body's Schur complement without the tip load
+``StepOut``         per bristle: rootw (nb, 6) [N, N mm] root element's load on the head; iters,
+                    nsub, status (nb,)
+``Bristle``         b (index), b0 (first body), n (bodies), il (tip body)
+``Substep``         one (sub)step: two-step formula c0, c1, c2 (c1 = c2 = 0 for statics); h [s],
+                    inv_h [1/s]; static; g (3,) gravity [mm/s^2]; Newton rtol, maxit and the
+                    factors' largest age jage [steps]
+``Base``            base (root node) poses: start pAs/RAs, end pAe/RAe, t_{n-1} pAp/RAp, t_{n-2}
+                    pAq/RAq of the (sub)step
+``Node``            one element end: c (3,) body centre [mm], R (3, 3), half (body half length)
+``Trial``           a Newton correction to search along: capped step alpha, slope g0 = dq . r,
+                    residual norm nrm at its start
+``Damp``            element rate terms: ehist (6,), gs, hs (see ``_kernels.element_force``)
+``History``         constants of a (sub)step (``integrator._prepare``): cm, vm, Lm, thp (n, 3),
+                    Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
+``Work``            the scratch of ``step_bristles`` (allocated once per Simulator)
+==================  ========================================================================
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+# columns of the body parameter table ``bp`` (N, N_BP)
+B_MASS = 0  # [t]
+B_JX = 1  # 1, 2, 3: principal inertia Jx, Jy, Jz [t mm^2]
+B_HALF = 4  # half body length: centre to node [mm]
+B_LEN = 5  # element length l [mm]
+B_BETA = 6  # stiffness-proportional damping beta [s]
+B_FSCALE = 7  # bristle force scale E I / L^2 [N] (Newton tolerance)
+N_BP = 8
+
+ModelArrays = namedtuple("ModelArrays", ["bstart", "bp", "K", "root_p", "root_R", "elem"])
+Chain = namedtuple(
+    "Chain", ["pos", "rot", "vel", "omg", "ppos", "prot", "pvel", "pomg", "pppos", "pprot"]
+)
+Drive = namedtuple("Drive", ["hist_ok", "tcp_p", "tcp_R"])
+ContactScene = namedtuple(
+    "ContactScene",
+    ["surf", "cp", "tips", "pair_ptr", "pair_idx", "mesh", "tip_args", "tip_state"],
+)
+NewtonCache = namedtuple("NewtonCache", ["D", "G", "L", "piv", "key", "age", "S"])
+StepOut = namedtuple("StepOut", ["rootw", "iters", "nsub", "status"])
+Bristle = namedtuple("Bristle", ["b", "b0", "n", "il"])
+Substep = namedtuple(
+    "Substep", ["c0", "c1", "c2", "h", "inv_h", "static", "g", "rtol", "maxit", "jage"]
+)
+Base = namedtuple("Base", ["pAs", "RAs", "pAe", "RAe", "pAp", "RAp", "pAq", "RAq"])
+Node = namedtuple("Node", ["c", "R", "half"])
+Trial = namedtuple("Trial", ["alpha", "g0", "nrm"])
+Damp = namedtuple("Damp", ["ehist", "gs", "hs"])
+History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "hs"])
+
+#: scratch of the element kernels (strain, generalised forces, finite-difference perturbations)
+ElementScratch = namedtuple(
+    "ElementScratch", ["e", "out12", "base12", "pert12", "cP", "RP", "zero6", "th", "pt"]
+)
+#: scratch of the tip load (eq 6-10, Table 3) and the penetration limit
+TipScratch = namedtuple("TipScratch", ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt"])
+#: scratch of the tip block of the Newton matrix (3x3 products)
+BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFSr"])
+#: scratch of the predictors and the chain update
+MotionScratch = namedtuple(
+    "MotionScratch",
+    [
+        "Qn",
+        "Qp",
+        "Qq",
+        "Qr",
+        "Tr",
+        "phi1",
+        "phi2",
+        "xp",
+        "pAo",
+        "pBo",
+        "dpA",
+        "dpB",
+        "pAn",
+        "dd",
+        "tmp",
+    ],
+)
+#: one bristle's iterate and its saved copies: residual, correction, start and trial states
+Iterate = namedtuple(
+    "Iterate",
+    [
+        "U",
+        "res",
+        "r0",
+        "dq",
+        "s_pos",
+        "s_rot",
+        "s_vel",
+        "s_omg",
+        "t_pos",
+        "t_rot",
+        "tipF",
+        "tipK",
+        "tip",
+        "dtip",
+    ],
+)
+#: a bristle's state at the start of the step (restored when every sub-step level fails)
+Backup = namedtuple("Backup", ["v3", "R", "tip_state"])
+Work = namedtuple("Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup"])
+
+
+def make_work(nmax: int, n_tip_state: int) -> Work:
+    """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
+
+    def v(*shape):
+        return np.zeros(shape)
+
+    it = Iterate(
+        v(nmax, 6, 6),
+        v(nmax, 6),
+        v(nmax, 6),
+        v(nmax, 6),
+        v(nmax, 3),
+        v(nmax, 3, 3),
+        v(nmax, 3),
+        v(nmax, 3),
+        v(nmax, 3),
+        v(nmax, 3, 3),
+        v(3),
+        v(3, 3),
+        v(3),
+        v(3),
+    )
+    hist = History(
+        v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3, 3), v(nmax, 6), v(nmax), v(nmax)
+    )
+    base = Base(v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3))
+    el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(6), v(3), v(3))
+    tipw = TipScratch(*(v(3) for _ in TipScratch._fields))
+    blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
+    mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
+    backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), v(n_tip_state))
+    return Work(it, hist, base, v(3), v(3, 3), el, tipw, blk, mot, backup)
+
+
+def make_newton_cache(n_bodies: int, n_bristles: int) -> NewtonCache:
+    """Empty per-bristle Newton factors (every key 0: built at the first step)."""
+    return NewtonCache(
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6, 6)),
+        np.zeros((n_bodies, 6), np.int64),
+        np.zeros(n_bristles),
+        np.zeros(n_bristles, np.int64),
+        np.zeros((n_bristles, 6, 6)),
+    )
