@@ -201,8 +201,25 @@ def _node(c, R, half, out):
     out[2] = c[2] + half * R[2, 0]
 
 
+#: element formulations (``records.ModelArrays.elem``, ``SimSettings.element``)
+ELEM_PAPER = 0  # the paper's (Adams FIELD): strain in the proximal body's frame
+ELEM_MID = 1  # co-rotational Timoshenko element in the mid-frame between its nodes (issue 11)
+ELEMENTS = {"paper": ELEM_PAPER, "mid": ELEM_MID}
+
+
 @njit(**HOT)
-def _element_gen(aIsBase, A, pAbase, B, K, length, damp, out12, e):
+def _element_gen(kind, aIsBase, A, pAbase, B, K, length, damp, out12, e):
+    """Generalised forces of one beam element on the centres of its bodies A and B, by
+    formulation ``kind``: ``ELEM_PAPER`` (``_element_paper``, eq 5) or ``ELEM_MID``
+    (``_element_mid``).  Arguments as ``_element_paper``."""
+    if kind == ELEM_MID:
+        _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e)
+    else:
+        _element_paper(aIsBase, A, pAbase, B, K, length, damp, out12, e)
+
+
+@njit(**HOT)
+def _element_paper(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """Generalised forces of one Timoshenko element (eq 5) on the centres of its bodies A and B.
 
     Nodes: p_A = c_A + halfA R_A e_x (or ``pAbase`` for the root element, whose A is the head) and
@@ -300,6 +317,188 @@ def _element_gen(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     out12[9] = MB0 + rB1 * FB2 - rB2 * FB1
     out12[10] = MB1 + rB2 * FB0 - rB0 * FB2
     out12[11] = MB2 + rB0 * FB1 - rB1 * FB0
+
+
+@njit(**HOT)
+def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
+    """Co-rotational Timoshenko element in the mid-frame between its two nodes (issue 11).
+
+    Nodes as ``_element_paper``: p_A (distal node of A, or the base point) and p_B, with the
+    nodes' rotations R_A and R_B.  Strain in the mid-frame R_m = R_A exp(psi / 2),
+    psi = log(R_A^T R_B):  e = [R_m^T (p_B - p_A) - l c(psi_b) e_x ; psi], with psi_b the bending
+    part (psi_y, psi_z) and c = sinc(|psi_b| / 2): the element is read as a circular arc of length
+    l, whose chord is l c along the mid-frame's axis.  So the axial and shear forces act along and
+    across the chord's mean direction, not the proximal axis, and an inextensible arc carries no
+    axial strain: the chain of chords no longer stiffens bending by N l / 12 (the polygon's error,
+    (k l)^2 / 12 on a buckling load); e is invariant under rigid motions of both nodes.  K is the
+    paper's Timoshenko matrix carried to mid-frame strains (``beam.mid_frame_stiffness``): for a
+    straight element it is diagonal, and one element reproduces the linear Timoshenko cantilever
+    under end loads exactly.  f = K (gs e + hs ehist) as in eq 5 (damping C = beta K).
+
+    Node loads are the exact gradient of the strain energy (so the element is conservative and
+    balances force and moment to round-off): with F = R_m f_t (world), v = F x d, d = p_B - p_A,
+    f_r' = f_r + f_x d e_x / d psi, w = J_l(psi)^-T f_r' and T = R_A (I + exp(psi/2))^-1 R_A^T (the mid-frame's share of each
+    node's rotation, delta phi_m = (I - T) delta phi_A + T delta phi_B):
+    F_A = F, F_B = -F;  M_A = -v + T^T v + R_A w,  M_B = -T^T v - R_A w;  then carried to the
+    bodies' centres, M_c = M_node + (p - c) x F.
+    """
+    cA = A.c
+    RA = A.R
+    halfA = A.half
+    cB = B.c
+    RB = B.R
+    halfB = B.half
+    ehist = damp.ehist
+    gs = damp.gs
+    hs = damp.hs
+    if aIsBase:
+        pA0 = pAbase[0]
+        pA1 = pAbase[1]
+        pA2 = pAbase[2]
+    else:
+        pA0 = cA[0] + halfA * RA[0, 0]
+        pA1 = cA[1] + halfA * RA[1, 0]
+        pA2 = cA[2] + halfA * RA[2, 0]
+    rB0 = halfB * RB[0, 0]
+    rB1 = halfB * RB[1, 0]
+    rB2 = halfB * RB[2, 0]
+    dx = cB[0] + rB0 - pA0
+    dy = cB[1] + rB1 - pA1
+    dz = cB[2] + rB2 - pA2
+    # relative rotation psi = log(R_A^T R_B) (the same components in the A, mid and B frames)
+    _log3s(
+        RA[0, 0] * RB[0, 0] + RA[1, 0] * RB[1, 0] + RA[2, 0] * RB[2, 0],
+        RA[0, 0] * RB[0, 1] + RA[1, 0] * RB[1, 1] + RA[2, 0] * RB[2, 1],
+        RA[0, 0] * RB[0, 2] + RA[1, 0] * RB[1, 2] + RA[2, 0] * RB[2, 2],
+        RA[0, 1] * RB[0, 0] + RA[1, 1] * RB[1, 0] + RA[2, 1] * RB[2, 0],
+        RA[0, 1] * RB[0, 1] + RA[1, 1] * RB[1, 1] + RA[2, 1] * RB[2, 1],
+        RA[0, 1] * RB[0, 2] + RA[1, 1] * RB[1, 2] + RA[2, 1] * RB[2, 2],
+        RA[0, 2] * RB[0, 0] + RA[1, 2] * RB[1, 0] + RA[2, 2] * RB[2, 0],
+        RA[0, 2] * RB[0, 1] + RA[1, 2] * RB[1, 1] + RA[2, 2] * RB[2, 1],
+        RA[0, 2] * RB[0, 2] + RA[1, 2] * RB[1, 2] + RA[2, 2] * RB[2, 2],
+        e[3:6],
+    )
+    s0 = e[3]
+    s1 = e[4]
+    s2 = e[5]
+    th2 = s0 * s0 + s1 * s1 + s2 * s2
+    # E = exp(psi / 2) (Rodrigues), the mid-frame relative to A: R_m = R_A E
+    h0 = 0.5 * s0
+    h1 = 0.5 * s1
+    h2 = 0.5 * s2
+    hh2 = 0.25 * th2
+    if hh2 < 1e-12:
+        sa = 1.0 - hh2 / 6.0
+        sb = 0.5 - hh2 / 24.0
+    else:
+        hn = np.sqrt(hh2)
+        sa = np.sin(hn) / hn
+        sb = (1.0 - np.cos(hn)) / hh2
+    E00 = 1.0 - sb * (h1 * h1 + h2 * h2)
+    E11 = 1.0 - sb * (h0 * h0 + h2 * h2)
+    E22 = 1.0 - sb * (h0 * h0 + h1 * h1)
+    E01 = -sa * h2 + sb * h0 * h1
+    E10 = sa * h2 + sb * h0 * h1
+    E02 = sa * h1 + sb * h0 * h2
+    E20 = -sa * h1 + sb * h0 * h2
+    E12 = -sa * h0 + sb * h1 * h2
+    E21 = sa * h0 + sb * h1 * h2
+    # chord in the A frame, then in the mid-frame
+    a0 = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz
+    a1 = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
+    a2 = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
+    # the chord of a circular arc of length l bent by psi_b (the bending part of psi) is
+    # l sinc(|psi_b| / 2), along the mid-frame's axis: measure the axial strain against it
+    xb2 = 0.25 * (s1 * s1 + s2 * s2)
+    if xb2 < 1e-6:
+        sinc = 1.0 - xb2 / 6.0 + xb2 * xb2 / 120.0
+        qarc = 1.0 / 12.0 - xb2 / 120.0
+    else:
+        xb = np.sqrt(xb2)
+        sinc = np.sin(xb) / xb
+        qarc = (np.sin(xb) - xb * np.cos(xb)) / (4.0 * xb2 * xb)
+    e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
+    e[1] = E01 * a0 + E11 * a1 + E21 * a2
+    e[2] = E02 * a0 + E12 * a1 + E22 * a2
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    for j in range(6):
+        gj = gs * e[j] + hs * ehist[j]
+        f0 += K[0, j] * gj
+        f1 += K[1, j] * gj
+        f2 += K[2, j] * gj
+        m0 += K[3, j] * gj
+        m1 += K[4, j] * gj
+        m2 += K[5, j] * gj
+    # the arc's chord: the axial force is conjugate to psi_b through e_x = ... - l sinc(|psi_b|/2),
+    # d e_x / d psi_b = l q psi_b (the element's own P-delta, see the docstring)
+    m1 += f0 * length * qarc * s1
+    m2 += f0 * length * qarc * s2
+    # F = R_m f_t: g = E f_t in the A frame
+    g0 = E00 * f0 + E01 * f1 + E02 * f2
+    g1 = E10 * f0 + E11 * f1 + E12 * f2
+    g2 = E20 * f0 + E21 * f1 + E22 * f2
+    # w = J_l(psi)^-T m = m + psi x m / 2 + c psi x (psi x m)
+    if th2 < 1e-8:
+        c = 1.0 / 12.0 + th2 / 720.0
+        t = 0.25 + th2 / 192.0
+    else:
+        th = np.sqrt(th2)
+        c = (1.0 - 0.5 * th / np.tan(0.5 * th)) / th2
+        t = np.tan(0.25 * th) / th
+    x0 = s1 * m2 - s2 * m1
+    x1 = s2 * m0 - s0 * m2
+    x2 = s0 * m1 - s1 * m0
+    w0 = m0 + 0.5 * x0 + c * (s1 * x2 - s2 * x1)
+    w1 = m1 + 0.5 * x1 + c * (s2 * x0 - s0 * x2)
+    w2 = m2 + 0.5 * x2 + c * (s0 * x1 - s1 * x0)
+    # u = R_A^T (F x d) = g x a; T^T v in the A frame: (u + t psi x u) / 2
+    u0 = g1 * a2 - g2 * a1
+    u1 = g2 * a0 - g0 * a2
+    u2 = g0 * a1 - g1 * a0
+    y0 = 0.5 * (u0 + t * (s1 * u2 - s2 * u1))
+    y1 = 0.5 * (u1 + t * (s2 * u0 - s0 * u2))
+    y2 = 0.5 * (u2 + t * (s0 * u1 - s1 * u0))
+    # node moments in the A frame: M_A = -u + y + w, M_B = -y - w
+    ma0 = -u0 + y0 + w0
+    ma1 = -u1 + y1 + w1
+    ma2 = -u2 + y2 + w2
+    mb0 = -y0 - w0
+    mb1 = -y1 - w1
+    mb2 = -y2 - w2
+    F0 = RA[0, 0] * g0 + RA[0, 1] * g1 + RA[0, 2] * g2
+    F1 = RA[1, 0] * g0 + RA[1, 1] * g1 + RA[1, 2] * g2
+    F2 = RA[2, 0] * g0 + RA[2, 1] * g1 + RA[2, 2] * g2
+    MA0 = RA[0, 0] * ma0 + RA[0, 1] * ma1 + RA[0, 2] * ma2
+    MA1 = RA[1, 0] * ma0 + RA[1, 1] * ma1 + RA[1, 2] * ma2
+    MA2 = RA[2, 0] * ma0 + RA[2, 1] * ma1 + RA[2, 2] * ma2
+    MB0 = RA[0, 0] * mb0 + RA[0, 1] * mb1 + RA[0, 2] * mb2
+    MB1 = RA[1, 0] * mb0 + RA[1, 1] * mb1 + RA[1, 2] * mb2
+    MB2 = RA[2, 0] * mb0 + RA[2, 1] * mb1 + RA[2, 2] * mb2
+    out12[0] = F0
+    out12[1] = F1
+    out12[2] = F2
+    if aIsBase:
+        out12[3] = MA0
+        out12[4] = MA1
+        out12[5] = MA2
+    else:  # + (p_A - c_A) x F_A with p_A - c_A = halfA R_A e_x
+        rA0 = halfA * RA[0, 0]
+        rA1 = halfA * RA[1, 0]
+        rA2 = halfA * RA[2, 0]
+        out12[3] = MA0 + rA1 * F2 - rA2 * F1
+        out12[4] = MA1 + rA2 * F0 - rA0 * F2
+        out12[5] = MA2 + rA0 * F1 - rA1 * F0
+    out12[6] = -F0
+    out12[7] = -F1
+    out12[8] = -F2
+    out12[9] = MB0 - (rB1 * F2 - rB2 * F1)
+    out12[10] = MB1 - (rB2 * F0 - rB0 * F2)
+    out12[11] = MB2 - (rB0 * F1 - rB1 * F0)
 
 
 @njit(**HOT)

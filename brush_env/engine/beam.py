@@ -53,6 +53,24 @@ def timoshenko_stiffness(E, G, A, I_y, I_z, J, kappa, l) -> np.ndarray:
     return K
 
 
+def mid_frame_stiffness(K: np.ndarray, l: float) -> np.ndarray:
+    """The element stiffness ``K`` (eq 1, strains in the proximal frame A) carried to the strains
+    of the mid-frame element (``_kernels._element_mid``): [R_m^T (p_B - p_A) - l e_x ; psi].
+
+    To first order R_m = R_A exp(psi/2) gives d_m = d_A + (l/2) e_x x psi, i.e. q_m = T q_A with
+    T = [[I, (l/2) [e_x]x], [0, I]]; equal strain energy then needs K_m = T^-T K T^-1.  For the
+    Timoshenko matrix of eq 1 this is diagonal (EA/l; the shear stiffnesses of the element with
+    the bending flexibility l^2/(12 E I) added; G J/l; E I/l), so one element still reproduces the
+    linear Timoshenko cantilever under end loads exactly.
+    """
+    T = np.eye(6)
+    T[1, 5] = -0.5 * l  # (e_x x psi)_y = -psi_z
+    T[2, 4] = 0.5 * l  # (e_x x psi)_z = psi_y
+    Ti = np.linalg.inv(T)
+    Km = Ti.T @ K @ Ti
+    return 0.5 * (Km + Km.T)
+
+
 def segment_inertia(density, A, I_y, I_z, l):
     """Mass [t] and principal inertia (Jx, Jy, Jz) [t*mm^2] of one segment about its centre (eq 11).
 

@@ -134,13 +134,14 @@ def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     and the base node (pAb, RAb): generalised forces into el.out12, strain into el.e."""
     bp = model.bp
     i = br.b0 + k
+    kind = model.elem[i]
     B = Node(P[i], Q[i], bp[i, B_HALF])
     if k == 0:
         A = Node(pAb, RAb, 0.0)
-        _element_gen(True, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
+        _element_gen(kind, True, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
     else:
         A = Node(P[i - 1], Q[i - 1], bp[i - 1, B_HALF])
-        _element_gen(False, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
+        _element_gen(kind, False, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
 
 
 @njit(**HOT)
@@ -326,7 +327,8 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
         A = Node(pAb, RAb, 0.0) if isroot else Node(pos[j], rot[j], bp[j, B_HALF])
         B = Node(pos[i], rot[i], hB)
         damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
-        _element_gen(isroot, A, pAb, B, model.K[i], ln, damp, basef, e)
+        kind = model.elem[i]
+        _element_gen(kind, isroot, A, pAb, B, model.K[i], ln, damp, basef, e)
         nside = 1 if isroot else 2
         for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
             src = i if side == 0 else j
@@ -334,10 +336,10 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                 eps = _perturbed(src, col, epsx, epsr, pos, rot, el.cP, el.RP)
                 if side == 0:
                     BP = Node(el.cP, el.RP, hB)
-                    _element_gen(isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
+                    _element_gen(kind, isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
                 else:
                     AP = Node(el.cP, el.RP, A.half)
-                    _element_gen(False, AP, pAb, B, model.K[i], ln, damp, pert, e)
+                    _element_gen(kind, False, AP, pAb, B, model.K[i], ln, damp, pert, e)
                 for a in range(6):
                     dA = (pert[a] - basef[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - basef[6 + a]) / eps  # d(force on B)

@@ -11,8 +11,9 @@ import numpy as np
 
 from . import integrator as itg
 from . import records as rec
+from ._kernels import ELEM_MID
 from .records import B_HALF, B_JX, B_LEN, B_MASS
-from .rotation import logmap
+from .rotation import expmap, logmap
 
 
 def bristle_stiffness_mass(sim, bristle: int = 0):
@@ -62,7 +63,8 @@ def natural_frequencies(sim, bristle: int = 0, n_modes: int = 6) -> np.ndarray:
 
 def element_strains(sim) -> np.ndarray:
     """Co-rotational strain [d (mm); phi (rad)] of every element (N, 6), as the kernels define it
-    (eq 5 with the strain in the proximal frame); 1/2 e^T K e is the element's elastic energy."""
+    (eq 5 with the strain in the proximal frame, or in the mid-frame R_A exp(phi/2) for the "mid"
+    element); 1/2 e^T K e is the element's elastic energy."""
     st, m = sim.state, sim.model
     out = np.zeros((m.n_bodies, 6))
     for j in range(m.n_bristles):
@@ -70,7 +72,8 @@ def element_strains(sim) -> np.ndarray:
         RA = st.tcp_R[1] @ m.root_R[j]
         for i in range(m.bstart[j], m.bstart[j + 1]):
             pB = st.pos[i] + m.bp[i, B_HALF] * st.rot[i][:, 0]
-            out[i, :3] = RA.T @ (pB - pA) - np.array([m.bp[i, B_LEN], 0.0, 0.0])
             out[i, 3:] = logmap(RA.T @ st.rot[i])
+            Rf = RA @ expmap(0.5 * out[i, 3:]) if m.elem[i] == ELEM_MID else RA
+            out[i, :3] = Rf.T @ (pB - pA) - np.array([m.bp[i, B_LEN], 0.0, 0.0])
             pA, RA = pB, st.rot[i]
     return out

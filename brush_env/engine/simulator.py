@@ -20,7 +20,14 @@ import numpy as np
 from . import contact as ct
 from . import integrator as itg
 from . import records as rec
-from .beam import bristle_frame, first_bending_omega, segment_inertia, timoshenko_stiffness
+from ._kernels import ELEMENTS
+from .beam import (
+    bristle_frame,
+    first_bending_omega,
+    mid_frame_stiffness,
+    segment_inertia,
+    timoshenko_stiffness,
+)
 from .checks import ConfigError, Limit, check_choice, check_int, check_real
 from .config import BrushConfig
 from .contact import N_TIP_ARGS, N_TIP_STATE
@@ -52,7 +59,10 @@ class SimSettings:
     attempt; max_substep_levels: a failing step is retried as halves down to dt / 2**levels;
     jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at every
     step; reuse changes iteration counts only, the converged state is set by the residual);
-    gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off).
+    gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off);
+    element: the beam element formulation, "paper" (the paper's Adams-FIELD element, strain in
+    the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
+    accurate with few bodies in buckled contact; docs/model.md).
     """
 
     dt: float = 1e-3
@@ -62,10 +72,12 @@ class SimSettings:
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)
     jacobian_max_age: int = 25
+    element: str = "paper"
 
     def __post_init__(self):
         check_real("settings.dt", self.dt, Limit("s", gt=0, le=0.1))
         check_choice("settings.integrator", self.integrator, sorted(INTEGRATORS), "integrator")
+        check_choice("settings.element", self.element, sorted(ELEMENTS), "element")
         check_real("settings.newton_rtol", self.newton_rtol, Limit("relative", gt=0, le=1e-2))
         check_int("settings.newton_max_iter", self.newton_max_iter, Limit("", ge=1, le=1000))
         check_int("settings.max_substep_levels", self.max_substep_levels, Limit("", ge=0, le=30))
@@ -90,12 +102,10 @@ class Model:
     seg_len: np.ndarray  # (N,) [mm]
     tip_radius: np.ndarray  # (nb,) [mm]
     length: np.ndarray  # (nb,) [mm]
-    elem: np.ndarray = None  # (N,) int64 element formulation of each body's element (ELEM_*)
+    elem: np.ndarray  # (N,) int64 element formulation of each body's element (_kernels.ELEM_*)
 
     def arrays(self) -> rec.ModelArrays:
         """The kernels' view of the model (``records.ModelArrays``)."""
-        if self.elem is None:
-            self.elem = np.zeros(self.n_bodies, np.int64)
         return rec.ModelArrays(self.bstart, self.bp, self.K, self.root_p, self.root_R, self.elem)
 
     @property
@@ -107,8 +117,9 @@ class Model:
         return int(self.bstart[-1])
 
 
-def build_model(brush: BrushConfig) -> Model:
-    """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping)."""
+def build_model(brush: BrushConfig, element: str = "paper") -> Model:
+    """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping) for
+    the beam element ``element`` ("paper" or "mid", see SimSettings)."""
     nbod = [b.bodies for b in brush.bristles]
     bstart = np.zeros(len(nbod) + 1, np.int64)
     bstart[1:] = np.cumsum(nbod)
@@ -126,6 +137,8 @@ def build_model(brush: BrushConfig) -> Model:
         A, Iy, Iz, J = sec.area, sec.I_y, sec.I_z, sec.J
         kappa = sec.shear_coeff(mat.nu)
         Kel = timoshenko_stiffness(mat.E, mat.G, A, Iy, Iz, J, kappa, l)
+        if element == "mid":
+            Kel = mid_frame_stiffness(Kel, l)
         m, Jb = segment_inertia(mat.density, A, Iy, Iz, l)
         Imin = min(Iy, Iz)
         beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A, br.length)
@@ -153,6 +166,7 @@ def build_model(brush: BrushConfig) -> Model:
         seg,
         np.array([b.tip_radius for b in brush.bristles]),
         np.array([b.length for b in brush.bristles]),
+        np.full(N, ELEMENTS[element], np.int64),
     )
 
 
@@ -235,7 +249,7 @@ class Simulator:
         brush = scene.brush
         self.brush = brush
         self.settings = settings or SimSettings()
-        self.model = build_model(brush)
+        self.model = build_model(brush, self.settings.element)
         nb = self.model.n_bristles
         self.tip_args = np.zeros((nb, N_TIP_ARGS))
         self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
