@@ -38,7 +38,7 @@ import tomllib
 import brush_env  # noqa: F401  (registers the ids)
 from agents.reference import RandomPolicy, ReferencePolicy
 from brush_env.engine.checks import ConfigError
-from brush_env.user_errors import OneLineParser, run_main
+from brush_env.user_errors import OneLineParser, add_env_kw, add_flag, run_main
 
 ENV_ID = "brush_env/FlatPlate-v0"
 REWARD_TERMS = ("coverage", "total_force", "tip_force", "termination")
@@ -308,15 +308,10 @@ def build_parser() -> OneLineParser:
     p.add_argument("--episodes", type=int, default=5, help="number of episodes (default 5)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
-    p.add_argument("--video", action="store_true", help="write episode_000.gif")
+    add_flag(p, "--video", "write episode_000.gif")
     p.add_argument("--config", default="flat_plate", help="env config name or TOML path")
-    p.add_argument(
-        "--env-kw",
-        action="append",
-        metavar="KEY=VALUE",
-        help='env setting override, repeatable (e.g. brush="tiny_env")',
-    )
-    p.add_argument("--stochastic", action="store_true", help="sample SB3 policy actions")
+    add_env_kw(p, 'e.g. brush="tiny_env"')
+    add_flag(p, "--stochastic", "sample SB3 policy actions")
     return p
 
 

@@ -34,7 +34,7 @@ from pathlib import Path
 import tomllib
 
 from brush_env.engine.checks import ConfigError, check_keys, did_you_mean
-from brush_env.user_errors import OneLineParser, run_main
+from brush_env.user_errors import OneLineParser, add_env_kw, add_flag, run_main
 
 AGENT_KEYS = {"algo", "policy", "env", "normalize", "hyperparameters", "train"}
 ENV_KEYS = {"id", "config", "kwargs"}
@@ -258,6 +258,32 @@ def _make_model(algo: str, run: dict, venv, seed: int, out: Path, verbose: int):
     return model, policy
 
 
+def _eval_and_checkpoint(algo, tr: dict, n_envs: int, eval_env, out: Path, ref_mean, normalize):
+    """The evaluation callback (``[train] eval_freq``, ``eval_episodes``; logs the gap to the
+    reference policy's mean return ``ref_mean``) and the checkpoint callback
+    (``checkpoint_freq``, with the VecNormalize statistics when ``normalize``); the frequencies
+    are in env steps over all ``n_envs`` envs."""
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+
+    eval_cb = EvalCallback(
+        eval_env,
+        n_eval_episodes=tr.get("eval_episodes", 3),
+        eval_freq=max(tr.get("eval_freq", 10_000) // n_envs, 1),
+        best_model_save_path=str(out / "best"),
+        log_path=str(out / "eval"),
+        deterministic=True,
+        verbose=0,
+        callback_after_eval=_reference_gap_callback(ref_mean),
+    )
+    ckpt_cb = CheckpointCallback(
+        save_freq=max(tr.get("checkpoint_freq", 50_000) // n_envs, 1),
+        save_path=str(out / "checkpoints"),
+        name_prefix=algo,
+        save_vecnormalize=normalize,
+    )
+    return eval_cb, ckpt_cb
+
+
 def train(
     algo: str,
     config: str | Path,
@@ -274,7 +300,7 @@ def train(
 
     Stages: check inputs -> envs -> reference evaluation -> model -> learn (evaluations and
     checkpoints) -> final evaluation/checkpoint if the run was too short for one -> save."""
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.vec_env import VecNormalize
 
     run = check_inputs(algo, config, timesteps, n_envs, env_kwargs)
@@ -294,22 +320,7 @@ def train(
     say(f"      reference mean return {ref_mean:.2f}")
     model, policy = _make_model(algo, run, venv, seed, out, verbose)
     normalize = isinstance(venv, VecNormalize)
-    eval_cb = EvalCallback(
-        eval_env,
-        n_eval_episodes=n_eval,
-        eval_freq=max(tr.get("eval_freq", 10_000) // n_envs, 1),
-        best_model_save_path=str(out / "best"),
-        log_path=str(out / "eval"),
-        deterministic=True,
-        verbose=0,
-        callback_after_eval=_reference_gap_callback(ref_mean),
-    )
-    ckpt_cb = CheckpointCallback(
-        save_freq=max(tr.get("checkpoint_freq", 50_000) // n_envs, 1),
-        save_path=str(out / "checkpoints"),
-        name_prefix=algo,
-        save_vecnormalize=normalize,
-    )
+    eval_cb, ckpt_cb = _eval_and_checkpoint(algo, tr, n_envs, eval_env, out, ref_mean, normalize)
     say(f"[3/4] training {algo.upper()} for {timesteps} env steps")
     t0 = time.perf_counter()
     model.learn(
@@ -368,13 +379,8 @@ def build_parser() -> OneLineParser:
     )
     p.add_argument("--out", required=True, help="output directory (model, logs, checkpoints)")
     p.add_argument("--seed", type=int, default=None, help="default: [train] seed of the config")
-    p.add_argument(
-        "--env-kw",
-        action="append",
-        metavar="KEY=VALUE",
-        help="env setting override, repeatable (TOML values)",
-    )
-    p.add_argument("--no-progress", action="store_true", help="no phase lines, bar or ETA")
+    add_env_kw(p, "TOML values")
+    add_flag(p, "--no-progress", "no phase lines, bar or ETA")
     p.add_argument(
         "--verbose",
         type=int,

@@ -14,7 +14,15 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-__all__ = ["UserError", "USER_ERRORS", "OneLineParser", "run_main", "one_line"]
+__all__ = [
+    "UserError",
+    "USER_ERRORS",
+    "OneLineParser",
+    "run_main",
+    "one_line",
+    "add_flag",
+    "add_env_kw",
+]
 
 
 class UserError(Exception):
@@ -45,6 +53,22 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: D401 - argparse's hook
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def add_flag(parser: argparse.ArgumentParser, name: str, help: str) -> None:
+    """An on/off option of a command: ``name`` given means True (argparse's ``store_true``)."""
+    parser.add_argument(name, action="store_true", help=help)
+
+
+def add_env_kw(parser: argparse.ArgumentParser, example: str) -> None:
+    """``--env-kw KEY=VALUE``, repeatable: an env setting override of the ``agents`` commands
+    (read with ``agents.evaluate.parse_env_kw``); ``example`` ends the help text."""
+    parser.add_argument(
+        "--env-kw",
+        action="append",
+        metavar="KEY=VALUE",
+        help=f"env setting override, repeatable ({example})",
+    )
 
 
 def run_main(

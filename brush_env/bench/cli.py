@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..user_errors import add_flag
 from . import contact, convergence, engine, env
 
 #: name -> (run function, one-line help)
@@ -34,12 +35,8 @@ TARGETS = {
 
 
 def _common(p: argparse.ArgumentParser, cold_start: bool = True) -> None:
-    p.add_argument(
-        "--json",
-        action="store_true",
-        help="one JSON object per row on stdout (machine info on stderr)",
-    )
-    p.add_argument("--quick", action="store_true", help="reduced grid (for tests)")
+    add_flag(p, "--json", "one JSON object per row on stdout (machine info on stderr)")
+    add_flag(p, "--quick", "reduced grid (for tests)")
     p.add_argument(
         "--repeats",
         type=int,
@@ -47,11 +44,7 @@ def _common(p: argparse.ArgumentParser, cold_start: bool = True) -> None:
         help="runs per row; the fastest wall time is reported (default 3)",
     )
     if cold_start:
-        p.add_argument(
-            "--no-cold-start",
-            action="store_true",
-            help="skip the cold-start measurement (fresh numba compile)",
-        )
+        add_flag(p, "--no-cold-start", "skip the cold-start measurement (fresh numba compile)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -97,24 +97,13 @@ def simulate_contact(
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
-    from ..experiments.plan import DEFAULTS, _plate_height, build_trajectory
+    from ..experiments.plan import _plate_height
 
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator))
     touch_z = sim.touch_height(R0, _plate_height(scene))
-    traj, starts, circ = build_trajectory(
-        start_xy=(0.0, 0.0),
-        touch_z=touch_z,
-        radius=DEFAULTS["radius"],
-        speed=DEFAULTS["speed"],
-        accel=DEFAULTS["accel"],
-        turns=1.0,
-        press_depth=DEFAULTS["press_depth"],
-        press_time=press,
-        hold_time=hold,
-        path="circle",
-    )
+    traj, starts = _press_and_circle(touch_z, press, hold)
     t_circle = starts[-1]
     n = int(round((t_circle + arc) / dt))
     times = np.arange(n + 1) * dt
@@ -150,17 +139,39 @@ def simulate_contact(
     )
 
 
+def _press_and_circle(touch_z: float, press: float, hold: float):
+    """(trajectory, phase start times): the experiment's press (``press`` s) from tips touching
+    at ``touch_z`` [mm], hold (``hold`` s) and one turn of the exact circle, its other numbers
+    the experiment's defaults."""
+    from ..experiments.plan import DEFAULTS, build_trajectory
+
+    traj, starts, _ = build_trajectory(
+        start_xy=(0.0, 0.0),
+        touch_z=touch_z,
+        radius=DEFAULTS["radius"],
+        speed=DEFAULTS["speed"],
+        accel=DEFAULTS["accel"],
+        turns=1.0,
+        press_depth=DEFAULTS["press_depth"],
+        press_time=press,
+        hold_time=hold,
+        path="circle",
+    )
+    return traj, starts
+
+
+def _on_grid(grid: np.ndarray, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """The three columns of ``Y`` (sampled at ``t``) interpolated onto ``grid``."""
+    return np.stack([np.interp(grid, t, Y[:, c]) for c in range(3)], axis=1)
+
+
 def _contact_errors(run: ContactRun, ref: ContactRun, grid: np.ndarray) -> tuple[float, float]:
     """(whole run, circle only): RMS_t |F - F_ref| / RMS_t |F_ref| on ``grid``; NaN if ``run``
     diverged (even after the end of the grid, when the reference itself stopped earlier)."""
     if run.status != "ok" or run.t[-1] < grid[-1] - 1e-9:
         return math.nan, math.nan
-
-    def on_grid(t, Y):
-        return np.stack([np.interp(grid, t, Y[:, c]) for c in range(3)], axis=1)
-
-    d2 = np.sum((on_grid(run.t, run.F) - on_grid(ref.t, ref.F)) ** 2, axis=1)
-    r2 = np.sum(on_grid(ref.t, ref.F) ** 2, axis=1)
+    d2 = np.sum((_on_grid(grid, run.t, run.F) - _on_grid(grid, ref.t, ref.F)) ** 2, axis=1)
+    r2 = np.sum(_on_grid(grid, ref.t, ref.F) ** 2, axis=1)
     arc = grid >= run.t_circle - 1e-12
     whole = math.sqrt(d2.mean() / r2.mean())
     circ = math.sqrt(d2[arc].mean() / r2[arc].mean()) if arc.any() else math.nan
@@ -193,39 +204,47 @@ def _arc_seconds(g: dict) -> float:
     of 4 ms, so that every dt of the grid ends on the same time."""
     if g["arc"] != "turn":
         return float(g["arc"])
-    from ..experiments.plan import DEFAULTS, build_trajectory
-
-    traj, starts, _ = build_trajectory(
-        start_xy=(0.0, 0.0),
-        touch_z=0.0,
-        radius=DEFAULTS["radius"],
-        speed=DEFAULTS["speed"],
-        accel=DEFAULTS["accel"],
-        turns=1.0,
-        press_depth=DEFAULTS["press_depth"],
-        press_time=g["press"],
-        hold_time=g["hold"],
-        path="circle",
-    )
+    traj, starts = _press_and_circle(0.0, g["press"], g["hold"])
     return math.ceil((traj.duration - starts[-1]) / 4e-3 - 1e-9) * 4e-3
 
 
 def bench_contact(args) -> int:
+    """``brush-env bench contact``: the references, then the grid against them (rows as JSON
+    lines with ``--json``, else a table); see the module docstring."""
     g = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
     g = dict(g, arc=_arc_seconds(g))
-    info = machine_info()
     log = sys.stderr if args.json else sys.stdout
+    cold = _warm_up(args, log)
+    motion = (g["press"], g["hold"], g["arc"])
+    refs = _references(g, motion)
+    _print_motion(g, refs, log)
+    rows = []
+    for tt, ref in refs.items():
+        rows += _tip_tip_rows(args, g, tt, ref, motion, log)
+    _print_cold_start(cold, log, " (flat_plate scene)")
+    if not args.json:
+        print(format_contact_table(rows))
+    return 0
+
+
+def _warm_up(args, log) -> dict:
+    """Machine line, a tiny run that compiles (or loads) the kernels, and the cold-start
+    measurements unless ``--quick`` or ``--no-cold-start`` (returned, printed at the end)."""
+    info = machine_info()
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
     simulate_contact(3, 4e-3, "bdf2", False, 0.02, 0.0, 0.0)  # warm-up: numba compile / cache
-    cold = {}
-    if not args.quick and not args.no_cold_start:
-        cold = {
-            "compile (empty numba cache)": cold_start(True, _COLD_CONTACT),
-            "cache load": cold_start(False, _COLD_CONTACT),
-        }
+    if args.quick or args.no_cold_start:
+        return {}
+    return {
+        "compile (empty numba cache)": cold_start(True, _COLD_CONTACT),
+        "cache load": cold_start(False, _COLD_CONTACT),
+    }
+
+
+def _references(g: dict, motion) -> dict:
+    """tip_tip -> the reference run (``g['ref']`` = bodies, dt; BDF2) of that setting."""
     rb, rdt = g["ref"]
-    motion = (g["press"], g["hold"], g["arc"])
-    refs, rows = {}, []
+    refs = {}
     for tt in g["tip_tip"]:
         print(
             f"reference: {rb} bodies, dt={rdt:g} s, bdf2, tip_tip={tt} ...",
@@ -233,6 +252,11 @@ def bench_contact(args) -> int:
             flush=True,
         )
         refs[tt] = simulate_contact(rb, rdt, "bdf2", tt, *motion)
+    return refs
+
+
+def _print_motion(g: dict, refs: dict, log) -> None:
+    """One line: the scene, the motion and how far the circle gets."""
     ref0 = refs[g["tip_tip"][0]]
     deg = math.degrees(ref0.theta_end)
     print(
@@ -243,67 +267,66 @@ def bench_contact(args) -> int:
         f"{g['sample']:g} s grid relative to the reference's RMS |F|",
         file=log,
     )
-    for tt, ref in refs.items():
-        T_ref = float(ref.t[-1])
-        row = _contact_row(ref, rb, rdt, "bdf2", tt, (0.0, 0.0), reference=True)
-        rows.append(row)
-        if args.json:
-            print(json.dumps(row), flush=True)
-        grid = np.arange(0.0, T_ref + 1e-12, g["sample"])
-        rms = math.sqrt(
-            np.mean(
-                np.sum(
-                    np.stack([np.interp(grid, ref.t, ref.F[:, c]) for c in range(3)], axis=1) ** 2,
-                    axis=1,
-                )
-            )
-        )
+
+
+def _emit(args, row: dict) -> dict:
+    """``row`` as a JSON line on stdout with ``--json``; returns it."""
+    if args.json:
+        print(json.dumps(row), flush=True)
+    return row
+
+
+def _tip_tip_rows(args, g: dict, tt: bool, ref: ContactRun, motion, log) -> list[dict]:
+    """The rows of one tip_tip setting: its reference, then bodies x dt x integrator against it
+    on the ``g['sample']`` grid (up to where the reference got)."""
+    rb, rdt = g["ref"]
+    T_ref = float(ref.t[-1])
+    rows = [_emit(args, _contact_row(ref, rb, rdt, "bdf2", tt, (0.0, 0.0), reference=True))]
+    grid = np.arange(0.0, T_ref + 1e-12, g["sample"])
+    rms = math.sqrt(np.mean(np.sum(_on_grid(grid, ref.t, ref.F) ** 2, axis=1)))
+    print(
+        f"reference tip_tip={'on' if tt else 'off'} ({rb} bodies, dt={rdt:g} s, bdf2): "
+        f"{ref.status}, wall {ref.wall:.1f} s, RMS |F_ref| = {rms:.3g} N"
+        + (
+            ""
+            if ref.status == "ok"
+            else f"; rows of this tip_tip setting are compared over [0, {T_ref:.4g}] s only"
+        ),
+        file=log,
+        flush=True,
+    )
+    for bodies in g["bodies"]:
+        # the same discretisation, time-converged: separates the solver's error (dt,
+        # integrator, coupling) from the discretisation's (bodies); the paper's model is 6
+        # bodies, so this is the error of a fast setting against the paper's model itself
         print(
-            f"reference tip_tip={'on' if tt else 'off'} ({rb} bodies, dt={rdt:g} s, bdf2): "
-            f"{ref.status}, wall {ref.wall:.1f} s, RMS |F_ref| = {rms:.3g} N"
-            + (
-                ""
-                if ref.status == "ok"
-                else f"; rows of this tip_tip setting are compared over [0, {T_ref:.4g}] s only"
-            ),
-            file=log,
+            f"  same-bodies reference: {bodies} bodies, dt={rdt:g}, bdf2, tip_tip={tt} ...",
+            file=sys.stderr,
             flush=True,
         )
-        for bodies in g["bodies"]:
-            # the same discretisation, time-converged: separates the solver's error (dt,
-            # integrator, coupling) from the discretisation's (bodies); the paper's model is 6
-            # bodies, so this is the error of a fast setting against the paper's model itself
-            print(
-                f"  same-bodies reference: {bodies} bodies, dt={rdt:g}, bdf2, tip_tip={tt} ...",
-                file=sys.stderr,
-                flush=True,
-            )
-            same = ref if bodies == rb else simulate_contact(bodies, rdt, "bdf2", tt, *motion)
-            for dt in g["dts"]:
-                for integ in g["integrators"]:
-                    print(
-                        f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...",
-                        file=sys.stderr,
-                        flush=True,
-                    )
-                    run = _best_of(
-                        args,
-                        lambda b=bodies, d=dt, i=integ, t=tt: simulate_contact(b, d, i, t, *motion),
-                    )
-                    row = _contact_row(run, bodies, dt, integ, tt, _contact_errors(run, ref, grid))
-                    ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
-                    row["rms_force_error_same_bodies"] = (
-                        _contact_errors(run, same, grid)[0] if ok_same else math.nan
-                    )
-                    if ref.status != "ok":
-                        row["error_window_s"] = T_ref
-                    rows.append(row)
-                    if args.json:
-                        print(json.dumps(row), flush=True)
-    _print_cold_start(cold, log, " (flat_plate scene)")
-    if not args.json:
-        print(format_contact_table(rows))
-    return 0
+        same = ref if bodies == rb else simulate_contact(bodies, rdt, "bdf2", tt, *motion)
+        for dt in g["dts"]:
+            for integ in g["integrators"]:
+                row = _grid_row(args, (bodies, dt, integ, tt), motion, (ref, same), grid)
+                rows.append(_emit(args, row))
+    return rows
+
+
+def _grid_row(args, setting, motion, refs, grid: np.ndarray) -> dict:
+    """One grid row (``setting`` = bodies, dt, integrator, tip_tip), fastest of ``--repeats``:
+    its errors against the reference and the same-bodies reference (``refs``) on ``grid``."""
+    bodies, dt, integ, tt = setting
+    ref, same = refs
+    print(f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...", file=sys.stderr, flush=True)
+    run = _best_of(args, lambda: simulate_contact(bodies, dt, integ, tt, *motion))
+    row = _contact_row(run, bodies, dt, integ, tt, _contact_errors(run, ref, grid))
+    ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
+    row["rms_force_error_same_bodies"] = (
+        _contact_errors(run, same, grid)[0] if ok_same else math.nan
+    )
+    if ref.status != "ok":
+        row["error_window_s"] = float(ref.t[-1])
+    return row
 
 
 def format_contact_table(rows: list[dict]) -> str:

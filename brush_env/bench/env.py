@@ -4,6 +4,8 @@ measurement itself lives in ``brush_env.envs.bench_env``, beside the env).
 
 from __future__ import annotations
 
+from ..user_errors import add_flag
+
 
 def bench_env_target(args) -> int:
     """Run the env benchmark (brush_env.envs.bench_env) with the parsed options."""
@@ -16,5 +18,5 @@ def add_arguments(p) -> None:
     """The env benchmark's options (they live beside the env, in brush_env.envs.bench_env)."""
     from brush_env.envs import bench_env
 
-    p.add_argument("--json", action="store_true", help="one JSON object per row on stdout")
+    add_flag(p, "--json", "one JSON object per row on stdout")
     bench_env.add_arguments(p)

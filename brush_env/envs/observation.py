@@ -45,6 +45,114 @@ class Block:
         return int(np.prod(self.shape))
 
 
+def _tip_blocks(cfg: EnvConfig, nb: int, L: float) -> tuple[Block, ...]:
+    """The ``nb`` tips: deflection (scaled by the longest bristle ``L`` [mm]), velocity, plate
+    normal force and contact flag."""
+    return (
+        Block(
+            "tip_deflection",
+            (nb, 3),
+            -2.0,
+            2.0,
+            "mm / L",
+            f"tip minus its rest position, TCP frame, / L = {L:g} mm",
+        ),
+        Block(
+            "tip_velocity",
+            (nb, 3),
+            -10.0,
+            10.0,
+            "mm/s / v_tip",
+            "tip velocity relative to the rigidly moving head, TCP frame, "
+            f"/ tip_velocity_scale = {cfg.tip_velocity_scale:g} mm/s",
+        ),
+        Block(
+            "tip_normal_force",
+            (nb,),
+            0.0,
+            10.0,
+            "N / f_tip",
+            f"plate normal force on each tip / tip_force_limit = {cfg.tip_force_limit:g} N",
+        ),
+        Block("tip_contact", (nb,), 0.0, 1.0, "flag", "1 if the tip touches the plate"),
+    )
+
+
+def _tcp_blocks(cfg: EnvConfig, h: float) -> tuple[Block, ...]:
+    """The TCP: force and moment on the brush, position (height scale ``h`` [mm]), orientation
+    and the last commanded twist."""
+    return (
+        Block(
+            "tcp_force",
+            (3,),
+            -5.0,
+            5.0,
+            "N / F_s",
+            f"force the TCP applies to the brush, TCP frame, / force_scale = {cfg.force_scale:g} N",
+        ),
+        Block(
+            "tcp_moment",
+            (3,),
+            -5.0,
+            5.0,
+            "N mm / M_s",
+            f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm",
+        ),
+        Block(
+            "tcp_position",
+            (3,),
+            -1.5,
+            1.5,
+            "mm / ws",
+            "TCP x, y about the nominal patch centre and height z - z_t above touching, "
+            f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm",
+        ),
+        Block(
+            "tcp_orientation",
+            (6,),
+            -1.0,
+            1.0,
+            "-",
+            "first two columns of the TCP rotation matrix (TCP x and y axes in the base frame)",
+        ),
+        Block(
+            "tcp_twist",
+            (6,),
+            -1.0,
+            1.0,
+            "-",
+            "commanded TCP velocity (v, w), base frame, / (max_linear_speed, "
+            "max_angular_speed): the last action",
+        ),
+    )
+
+
+def _task_blocks(m: int) -> tuple[Block, ...]:
+    """The task: coverage fraction, the ``m`` x ``m`` coarse coverage map and time remaining."""
+    return (
+        Block("coverage_fraction", (1,), 0.0, 1.0, "-", "fraction of patch cells cleaned"),
+        Block(
+            "coverage_map",
+            (m, m),
+            0.0,
+            1.0,
+            "-",
+            f"fraction cleaned per block of the {m} x {m} grid over the patch; row i runs "
+            "along +y, column j along +x",
+        ),
+        Block("time_remaining", (1,), 0.0, 1.0, "-", "1 - elapsed steps / max_episode_steps"),
+    )
+
+
+def _slices(blocks) -> dict[str, slice]:
+    """Each block's slice of the flat (Box) observation, in order."""
+    slices, start = {}, 0
+    for b in blocks:
+        slices[b.name] = slice(start, start + b.size)
+        start += b.size
+    return slices
+
+
 class ObservationLayout:
     """Blocks of the observation for a brush of ``n_bristles`` tips (see the env docstring).
 
@@ -68,96 +176,10 @@ class ObservationLayout:
         self.position_scale = np.array([cfg.workspace_xy, cfg.workspace_xy, h])
         self.v_max = np.asarray(cfg.max_linear_speed, float)
         self.w_max = np.asarray(cfg.max_angular_speed, float)
-        L = self.max_length
-        self.blocks = (
-            Block(
-                "tip_deflection",
-                (nb, 3),
-                -2.0,
-                2.0,
-                "mm / L",
-                f"tip minus its rest position, TCP frame, / L = {L:g} mm",
-            ),
-            Block(
-                "tip_velocity",
-                (nb, 3),
-                -10.0,
-                10.0,
-                "mm/s / v_tip",
-                "tip velocity relative to the rigidly moving head, TCP frame, "
-                f"/ tip_velocity_scale = {cfg.tip_velocity_scale:g} mm/s",
-            ),
-            Block(
-                "tip_normal_force",
-                (nb,),
-                0.0,
-                10.0,
-                "N / f_tip",
-                f"plate normal force on each tip / tip_force_limit = {cfg.tip_force_limit:g} N",
-            ),
-            Block("tip_contact", (nb,), 0.0, 1.0, "flag", "1 if the tip touches the plate"),
-            Block(
-                "tcp_force",
-                (3,),
-                -5.0,
-                5.0,
-                "N / F_s",
-                f"force the TCP applies to the brush, TCP frame, / force_scale = "
-                f"{cfg.force_scale:g} N",
-            ),
-            Block(
-                "tcp_moment",
-                (3,),
-                -5.0,
-                5.0,
-                "N mm / M_s",
-                f"moment about the TCP, TCP frame, / moment_scale = {cfg.moment_scale:g} N mm",
-            ),
-            Block(
-                "tcp_position",
-                (3,),
-                -1.5,
-                1.5,
-                "mm / ws",
-                "TCP x, y about the nominal patch centre and height z - z_t above touching, "
-                f"base frame, / ({cfg.workspace_xy:g}, {cfg.workspace_xy:g}, {h:g}) mm",
-            ),
-            Block(
-                "tcp_orientation",
-                (6,),
-                -1.0,
-                1.0,
-                "-",
-                "first two columns of the TCP rotation matrix (TCP x and y axes in the base frame)",
-            ),
-            Block(
-                "tcp_twist",
-                (6,),
-                -1.0,
-                1.0,
-                "-",
-                "commanded TCP velocity (v, w), base frame, / (max_linear_speed, "
-                "max_angular_speed): the last action",
-            ),
-            Block("coverage_fraction", (1,), 0.0, 1.0, "-", "fraction of patch cells cleaned"),
-            Block(
-                "coverage_map",
-                (m, m),
-                0.0,
-                1.0,
-                "-",
-                f"fraction cleaned per block of the {m} x {m} grid over the patch; row i runs "
-                "along +y, column j along +x",
-            ),
-            Block("time_remaining", (1,), 0.0, 1.0, "-", "1 - elapsed steps / max_episode_steps"),
-        )
+        self.blocks = _tip_blocks(cfg, nb, self.max_length) + _tcp_blocks(cfg, h) + _task_blocks(m)
         self.index = {b.name: b for b in self.blocks}
-        self.slices = {}
-        start = 0
-        for b in self.blocks:
-            self.slices[b.name] = slice(start, start + b.size)
-            start += b.size
-        self.size = start
+        self.slices = _slices(self.blocks)
+        self.size = sum(b.size for b in self.blocks)
         self.low = np.concatenate([np.full(b.size, b.low, np.float32) for b in self.blocks])
         self.high = np.concatenate([np.full(b.size, b.high, np.float32) for b in self.blocks])
 

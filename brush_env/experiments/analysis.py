@@ -14,6 +14,7 @@ TWO_PI = 2.0 * math.pi
 
 #: The paper's jamming angles (§5.1): 9π/4 and 13π/4, i.e. π/4 and 5π/4 modulo 2π.
 PAPER_JAMMING_ANGLES = (9.0 * math.pi / 4.0, 13.0 * math.pi / 4.0)
+PAPER_JAMMING_LABELS = ("9π/4", "13π/4")
 
 #: Defaults of the reference scenario (documented in docs/reference_experiment.md).
 
@@ -77,32 +78,60 @@ def detect_peaks(
         raise ValueError(f"theta and y must have the same length, got {theta.shape} and {y.shape}")
     if not (min_separation > 0 and grid_step > 0 and smooth >= 0 and min_prominence >= 0):
         raise ValueError("min_separation, grid_step must be > 0; smooth, min_prominence >= 0")
+    samples = _sorted_samples(theta, y, theta_range)
+    if samples is None:
+        return []
+    th = samples[0]
+    if th.size < 3 or th[-1] - th[0] < 2 * grid_step:
+        return []
+    g, ys = _resampled_smoothed(samples, grid_step, smooth)
+    half = max(1, int(round(0.5 * min_separation / grid_step)))
+    rng = float(ys.max() - ys.min())
+    if not rng > 0.0:
+        return []
+    thr = max(min_prominence * rng, min_abs_prominence, 1e-12 * max(1.0, float(np.max(np.abs(ys)))))
+    chosen = _separated(_candidates(ys, half, thr), g, min_separation)
+    hw = max(1, int(round(0.5 * smooth / grid_step)))
+    peaks = [_peak_record(samples, g, ys, prom, i, hw * grid_step) for prom, i in chosen]
+    if n_per_turn is not None:
+        peaks = _most_prominent_per_turn(peaks, n_per_turn)
+    return sorted(peaks, key=lambda p: p["theta"])
+
+
+def _sorted_samples(theta, y, theta_range):
+    """(θ, y, index into the input) of the finite samples in ``theta_range``, sorted by θ, with
+    the last sample of each θ (rests at constant θ); None when fewer than 3 samples are left
+    before the rests are merged."""
     m = np.isfinite(theta) & np.isfinite(y)
     if theta_range is not None:
         lo, hi = theta_range
         m &= (theta >= lo) & (theta <= hi)
     idx_all = np.flatnonzero(m)
     if idx_all.size < 3:
-        return []
+        return None
     th, yy = theta[idx_all], y[idx_all]
     order = np.argsort(th, kind="stable")
     th, yy, idx_all = th[order], yy[order], idx_all[order]
     # unique θ (rests at constant θ): keep the last sample of each θ
     keep = np.concatenate([np.diff(th) > 0, [True]])
-    th, yy, idx_all = th[keep], yy[keep], idx_all[keep]
-    if th.size < 3 or th[-1] - th[0] < 2 * grid_step:
-        return []
+    return th[keep], yy[keep], idx_all[keep]
+
+
+def _resampled_smoothed(samples, grid_step: float, smooth: float):
+    """The uniform θ grid of ``grid_step`` rad and the signal on it, smoothed over ``smooth``
+    rad (centred moving average)."""
+    th, yy, _ = samples
     g = np.arange(th[0], th[-1] + 0.5 * grid_step, grid_step)
     g = g[g <= th[-1]]
     yg = np.interp(g, th, yy)
-    ys = _smooth(yg, int(round(smooth / grid_step)) if smooth > 0 else 1)
-    n = ys.size
-    half = max(1, int(round(0.5 * min_separation / grid_step)))
-    full = 2 * half
-    rng = float(ys.max() - ys.min())
-    if not rng > 0.0:
-        return []
-    thr = max(min_prominence * rng, min_abs_prominence, 1e-12 * max(1.0, float(np.max(np.abs(ys)))))
+    return g, _smooth(yg, int(round(smooth / grid_step)) if smooth > 0 else 1)
+
+
+def _candidates(ys: np.ndarray, half: int, thr: float) -> list[tuple[float, int]]:
+    """(prominence, grid index), most prominent first, of the points that are the maximum of
+    their window of ±``half`` samples (first point of a plateau) and stand at least ``thr``
+    above the higher of the minima within ±2·``half`` samples on either side."""
+    n, full = ys.size, 2 * half
     cands = []
     for i in range(half, n - half):
         win = ys[i - half : i + half + 1]
@@ -115,38 +144,48 @@ def detect_peaks(
         if prom >= thr:
             cands.append((prom, i))
     cands.sort(reverse=True)
+    return cands
+
+
+def _separated(cands, g: np.ndarray, min_separation: float) -> list[tuple[float, int]]:
+    """The candidates, most prominent first, without those closer than ``min_separation`` to a
+    more prominent one already kept."""
     chosen: list[tuple[float, int]] = []
     for prom, i in cands:
         if all(abs(g[i] - g[j]) >= min_separation for _, j in chosen):
             chosen.append((prom, i))
-    peaks = []
-    hw = max(1, int(round(0.5 * smooth / grid_step)))
-    for prom, i in chosen:
-        t0 = g[i]
-        k = int(np.argmin(np.abs(th - t0)))
-        near = (th >= t0 - hw * grid_step) & (th <= t0 + hw * grid_step)
-        raw = float(yy[near].max()) if np.any(near) else float(yy[k])
-        peaks.append(
-            dict(
-                theta=float(t0),
-                theta_mod_2pi=float(t0 % TWO_PI),
-                turn=int(math.floor(t0 / TWO_PI)) + 1,
-                value=float(ys[i]),
-                raw_value=raw,
-                prominence=float(prom),
-                index=int(idx_all[k]),
-            )
-        )
-    if n_per_turn is not None:
-        by_turn: dict[int, list] = {}
-        for p in peaks:
-            by_turn.setdefault(p["turn"], []).append(p)
-        peaks = [
-            p
-            for lst in by_turn.values()
-            for p in sorted(lst, key=lambda q: -q["prominence"])[:n_per_turn]
-        ]
-    return sorted(peaks, key=lambda p: p["theta"])
+    return chosen
+
+
+def _peak_record(samples, g, ys, prom: float, i: int, half_width: float) -> dict:
+    """One peak (grid index ``i``): its angle, turn, smoothed and raw value (the raw signal's max
+    within ±``half_width`` rad), prominence and the index of the nearest input sample."""
+    th, yy, idx_all = samples
+    t0 = g[i]
+    k = int(np.argmin(np.abs(th - t0)))
+    near = (th >= t0 - half_width) & (th <= t0 + half_width)
+    raw = float(yy[near].max()) if np.any(near) else float(yy[k])
+    return dict(
+        theta=float(t0),
+        theta_mod_2pi=float(t0 % TWO_PI),
+        turn=int(math.floor(t0 / TWO_PI)) + 1,
+        value=float(ys[i]),
+        raw_value=raw,
+        prominence=float(prom),
+        index=int(idx_all[k]),
+    )
+
+
+def _most_prominent_per_turn(peaks: list[dict], n_per_turn: int) -> list[dict]:
+    """The ``n_per_turn`` most prominent peaks of each turn."""
+    by_turn: dict[int, list] = {}
+    for p in peaks:
+        by_turn.setdefault(p["turn"], []).append(p)
+    return [
+        p
+        for lst in by_turn.values()
+        for p in sorted(lst, key=lambda q: -q["prominence"])[:n_per_turn]
+    ]
 
 
 def _circ_dist(a: float, b: float) -> float:
@@ -199,51 +238,11 @@ def jamming_analysis(
         n_per_turn=n_per_turn,
     )
     paper_mod = [a % TWO_PI for a in PAPER_JAMMING_ANGLES]
-    out_peaks = []
-    for p in peaks:
-        i = p["index"]
-        d = [_circ_dist(p["theta_mod_2pi"], a) for a in paper_mod]
-        j = int(np.argmin(d))
-        off = (p["theta_mod_2pi"] - paper_mod[j] + math.pi) % TWO_PI - math.pi
-        out_peaks.append(
-            dict(
-                turn=p["turn"],
-                theta_rad=p["theta"],
-                theta_over_pi=p["theta"] / math.pi,
-                theta_mod_2pi_rad=p["theta_mod_2pi"],
-                theta_mod_2pi_deg=math.degrees(p["theta_mod_2pi"]),
-                theta_label=pi_label(p["theta"], 8),
-                Fh_N=p["raw_value"],
-                Fh_smoothed_N=p["value"],
-                prominence_N=p["prominence"],
-                Fx_N=float(F[i, 0]),
-                Fy_N=float(F[i, 1]),
-                Fz_N=float(F[i, 2]),
-                nearest_paper_angle=("9π/4", "13π/4")[j],
-                offset_from_paper_rad=float(off),
-                offset_from_paper_deg=math.degrees(off),
-            )
-        )
-    events = {}
-    for j, name in enumerate(("9π/4", "13π/4")):
-        ps = [p for p in out_peaks if p["nearest_paper_angle"] == name]
-        if ps:
-            mean, std = _circ_mean_std([p["theta_mod_2pi_rad"] for p in ps])
-            off = (mean - paper_mod[j] + math.pi) % TWO_PI - math.pi
-            events[name] = dict(
-                paper_angle_mod_2pi_rad=paper_mod[j],
-                count=len(ps),
-                turns=[p["turn"] for p in ps],
-                mean_angle_mod_2pi_rad=mean,
-                mean_angle_mod_2pi_deg=math.degrees(mean),
-                angle_std_deg=math.degrees(std),
-                mean_offset_from_paper_deg=math.degrees(off),
-                mean_Fh_N=float(np.mean([p["Fh_N"] for p in ps])),
-                mean_Fx_N=float(np.mean([p["Fx_N"] for p in ps])),
-                mean_Fy_N=float(np.mean([p["Fy_N"] for p in ps])),
-            )
-        else:
-            events[name] = dict(paper_angle_mod_2pi_rad=paper_mod[j], count=0)
+    out_peaks = [_jamming_peak(p, F, paper_mod) for p in peaks]
+    events = {
+        name: _jamming_event(out_peaks, name, paper_mod[j])
+        for j, name in enumerate(PAPER_JAMMING_LABELS)
+    }
     return dict(
         signal="Fh = sqrt(Fx^2 + Fy^2)",
         theta_range_rad=list(theta_range),
@@ -256,6 +255,54 @@ def jamming_analysis(
         ),
         peaks=out_peaks,
         events=events,
+    )
+
+
+def _jamming_peak(p: dict, F: np.ndarray, paper_mod: list[float]) -> dict:
+    """One peak of |F_h| (from ``detect_peaks``): its angle, forces, and the nearest of the
+    paper's jamming angles (``paper_mod``, modulo 2π) with the signed offset from it."""
+    i = p["index"]
+    d = [_circ_dist(p["theta_mod_2pi"], a) for a in paper_mod]
+    j = int(np.argmin(d))
+    off = (p["theta_mod_2pi"] - paper_mod[j] + math.pi) % TWO_PI - math.pi
+    return dict(
+        turn=p["turn"],
+        theta_rad=p["theta"],
+        theta_over_pi=p["theta"] / math.pi,
+        theta_mod_2pi_rad=p["theta_mod_2pi"],
+        theta_mod_2pi_deg=math.degrees(p["theta_mod_2pi"]),
+        theta_label=pi_label(p["theta"], 8),
+        Fh_N=p["raw_value"],
+        Fh_smoothed_N=p["value"],
+        prominence_N=p["prominence"],
+        Fx_N=float(F[i, 0]),
+        Fy_N=float(F[i, 1]),
+        Fz_N=float(F[i, 2]),
+        nearest_paper_angle=PAPER_JAMMING_LABELS[j],
+        offset_from_paper_rad=float(off),
+        offset_from_paper_deg=math.degrees(off),
+    )
+
+
+def _jamming_event(peaks: list[dict], name: str, paper_angle: float) -> dict:
+    """The peaks nearest the paper's angle ``name`` (``paper_angle`` modulo 2π) as one event:
+    count, turns, circular mean angle, spread, offset from the paper and mean forces."""
+    ps = [p for p in peaks if p["nearest_paper_angle"] == name]
+    if not ps:
+        return dict(paper_angle_mod_2pi_rad=paper_angle, count=0)
+    mean, std = _circ_mean_std([p["theta_mod_2pi_rad"] for p in ps])
+    off = (mean - paper_angle + math.pi) % TWO_PI - math.pi
+    return dict(
+        paper_angle_mod_2pi_rad=paper_angle,
+        count=len(ps),
+        turns=[p["turn"] for p in ps],
+        mean_angle_mod_2pi_rad=mean,
+        mean_angle_mod_2pi_deg=math.degrees(mean),
+        angle_std_deg=math.degrees(std),
+        mean_offset_from_paper_deg=math.degrees(off),
+        mean_Fh_N=float(np.mean([p["Fh_N"] for p in ps])),
+        mean_Fx_N=float(np.mean([p["Fx_N"] for p in ps])),
+        mean_Fy_N=float(np.mean([p["Fy_N"] for p in ps])),
     )
 
 
@@ -383,80 +430,92 @@ def pitch_asymmetry(theta, F_base, F_pitch, window, *, pitch=None) -> dict:
     m = (theta >= lo) & (theta <= hi)
     if not np.any(m):
         return dict(window_rad=[lo, hi], note="the run does not reach the perturbed window")
-
-    def stats(F, mask):
-        fx, fy, fz = F[mask, 0], F[mask, 1], F[mask, 2]
-        th = theta[mask]
-        dfy = np.gradient(fy, th) if fy.size > 2 and np.all(np.diff(th) > 0) else np.zeros(1)
-        ax, ay = float(np.max(np.abs(fx))), float(np.max(np.abs(fy)))
-        return dict(
-            Fy_max_N=float(fy.max()),
-            Fy_max_theta_rad=float(th[np.argmax(fy)]),
-            Fy_min_N=float(fy.min()),
-            Fy_min_theta_rad=float(th[np.argmin(fy)]),
-            absFx_peak_N=ax,
-            absFy_peak_N=ay,
-            Fz_max_N=float(fz.max()),
-            Fz_min_N=float(fz.min()),
-            Fx_over_Fy_peak_ratio=(ax / ay) if ay > 1e-12 else None,
-            max_abs_dFy_dtheta_N_per_rad=float(np.max(np.abs(dfy))),
-        )
-
-    b, p = stats(Fb, m), stats(Fp, m)
-
-    def change(kb, kp):
-        out = {}
-        for k in kb:
-            if k.endswith("theta_rad") or kb[k] is None or kp[k] is None:
-                continue
-            d = kp[k] - kb[k]
-            out[k] = dict(
-                baseline=kb[k],
-                pitch=kp[k],
-                change=d,
-                change_percent=(100.0 * d / abs(kb[k])) if abs(kb[k]) > 1e-12 else None,
-            )
-        return out
-
+    b, p = _window_stats(theta, Fb, m), _window_stats(theta, Fp, m)
     res = dict(
         window_rad=[lo, hi],
         window_label=[pi_label(lo), pi_label(hi)],
         baseline=b,
         pitch=p,
-        change=change(b, p),
+        change=_change(b, p),
     )
     m2 = (theta >= lo + TWO_PI) & (theta <= hi + TWO_PI)
     if np.any(m2):
-        b2, p2 = stats(Fb, m2), stats(Fp, m2)
-        tt = {}
-        for name, (x1, x2) in {"baseline": (b, b2), "pitch": (p, p2)}.items():
-            tt[name] = dict(
-                absFy_peak_ratio_window_to_next_turn=(x1["absFy_peak_N"] / x2["absFy_peak_N"])
-                if x2["absFy_peak_N"] > 1e-12
-                else None,
-                Fy_max_ratio_window_to_next_turn=(x1["Fy_max_N"] / x2["Fy_max_N"])
-                if abs(x2["Fy_max_N"]) > 1e-12
-                else None,
-                Fx_over_Fy_ratio_window=x1["Fx_over_Fy_peak_ratio"],
-                Fx_over_Fy_ratio_next_turn=x2["Fx_over_Fy_peak_ratio"],
-            )
-        res["turn_to_turn"] = tt
-    diff = Fp - Fb
-    after = theta > hi
-    res["rms_difference_N"] = {
-        "window": {c: float(np.sqrt(np.mean(diff[m, i] ** 2))) for i, c in enumerate("xyz")},
-        "after_window": (
-            {c: float(np.sqrt(np.mean(diff[after, i] ** 2))) for i, c in enumerate("xyz")}
-            if np.any(after)
-            else None
-        ),
-    }
+        b2, p2 = _window_stats(theta, Fb, m2), _window_stats(theta, Fp, m2)
+        res["turn_to_turn"] = {
+            name: _turn_to_turn(x1, x2)
+            for name, (x1, x2) in {"baseline": (b, b2), "pitch": (p, p2)}.items()
+        }
+    res["rms_difference_N"] = _rms_difference(Fp - Fb, m, theta > hi)
     if pitch is not None:
         pitch = np.asarray(pitch, dtype=float)[:n]
         k = int(np.argmax(np.abs(pitch)))
         res["pitch_peak_deg"] = math.degrees(float(pitch[k]))
         res["pitch_peak_theta_rad"] = float(theta[k])
     return res
+
+
+def _window_stats(theta, F, mask) -> dict:
+    """Peaks of Fy (with their angles), |Fx|, |Fy|, Fz, the ratio |Fx|/|Fy| and the largest
+    slope |dFy/dθ| over the samples in ``mask``."""
+    fx, fy, fz = F[mask, 0], F[mask, 1], F[mask, 2]
+    th = theta[mask]
+    dfy = np.gradient(fy, th) if fy.size > 2 and np.all(np.diff(th) > 0) else np.zeros(1)
+    ax, ay = float(np.max(np.abs(fx))), float(np.max(np.abs(fy)))
+    return dict(
+        Fy_max_N=float(fy.max()),
+        Fy_max_theta_rad=float(th[np.argmax(fy)]),
+        Fy_min_N=float(fy.min()),
+        Fy_min_theta_rad=float(th[np.argmin(fy)]),
+        absFx_peak_N=ax,
+        absFy_peak_N=ay,
+        Fz_max_N=float(fz.max()),
+        Fz_min_N=float(fz.min()),
+        Fx_over_Fy_peak_ratio=(ax / ay) if ay > 1e-12 else None,
+        max_abs_dFy_dtheta_N_per_rad=float(np.max(np.abs(dfy))),
+    )
+
+
+def _change(kb: dict, kp: dict) -> dict:
+    """pitch - baseline of every statistic but the angles, absolute and in %."""
+    out = {}
+    for k in kb:
+        if k.endswith("theta_rad") or kb[k] is None or kp[k] is None:
+            continue
+        d = kp[k] - kb[k]
+        out[k] = dict(
+            baseline=kb[k],
+            pitch=kp[k],
+            change=d,
+            change_percent=(100.0 * d / abs(kb[k])) if abs(kb[k]) > 1e-12 else None,
+        )
+    return out
+
+
+def _turn_to_turn(x1: dict, x2: dict) -> dict:
+    """One run's statistics in the window (``x1``) against the same event a turn later (``x2``)."""
+    return dict(
+        absFy_peak_ratio_window_to_next_turn=(x1["absFy_peak_N"] / x2["absFy_peak_N"])
+        if x2["absFy_peak_N"] > 1e-12
+        else None,
+        Fy_max_ratio_window_to_next_turn=(x1["Fy_max_N"] / x2["Fy_max_N"])
+        if abs(x2["Fy_max_N"]) > 1e-12
+        else None,
+        Fx_over_Fy_ratio_window=x1["Fx_over_Fy_peak_ratio"],
+        Fx_over_Fy_ratio_next_turn=x2["Fx_over_Fy_peak_ratio"],
+    )
+
+
+def _rms_difference(diff: np.ndarray, window: np.ndarray, after: np.ndarray) -> dict:
+    """RMS of pitch - baseline per component inside the window and after it (None: the run
+    ends in the window)."""
+    return {
+        "window": {c: float(np.sqrt(np.mean(diff[window, i] ** 2))) for i, c in enumerate("xyz")},
+        "after_window": (
+            {c: float(np.sqrt(np.mean(diff[after, i] ** 2))) for i, c in enumerate("xyz")}
+            if np.any(after)
+            else None
+        ),
+    }
 
 
 def analyse_run(theta, F, Fn_total, n_contact, max_pen, *, theta_lo=0.5 * math.pi) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..user_errors import add_flag
 from .plan import DEFAULTS
 from .run import run_reference
 
@@ -68,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="circle built from four MoveL points with blends (paper Algorithm 1) "
         "or the exact circle",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_flag(parser, "--no-progress", "no progress bar")
 
 
 def run(args) -> int:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -113,37 +114,25 @@ def build_trajectory(
     return traj, phase_starts, circ
 
 
-def check_run_args(
-    turns,
-    dt,
-    speed,
-    accel,
-    radius,
-    press_time,
-    tips_dt,
-    shapes_dt,
-    hold_time,
-    press_depth,
-    path,
-    integrator,
-) -> None:
-    """Every number of a run, checked before anything is built or written (ConfigError names the
-    argument, the value and the allowed range)."""
-    check_real("turns", turns, Limit("turns", gt=0))
-    for name, v, unit in (
-        ("dt", dt, "s"),
-        ("speed", speed, "mm/s"),
-        ("accel", accel, "mm/s^2"),
-        ("radius", radius, "mm"),
-        ("press_time", press_time, "s"),
-        ("tips_dt", tips_dt, "s"),
-        ("shapes_dt", shapes_dt, "s"),
+def check_run_args(args: Mapping) -> None:
+    """Every number of a run (``args``: ``run_reference``'s arguments by name), checked before
+    anything is built or written (ConfigError names the argument, the value and the allowed
+    range)."""
+    check_real("turns", args["turns"], Limit("turns", gt=0))
+    for name, unit in (
+        ("dt", "s"),
+        ("speed", "mm/s"),
+        ("accel", "mm/s^2"),
+        ("radius", "mm"),
+        ("press_time", "s"),
+        ("tips_dt", "s"),
+        ("shapes_dt", "s"),
     ):
-        check_real(name, v, Limit(unit, gt=0))
-    check_real("hold_time", hold_time, Limit("s", ge=0))
-    check_real("press_depth", press_depth, Limit("mm", ge=0))
-    check_choice("path", path, ("movel", "circle"), "path")
-    check_choice("integrator", integrator, ("bdf2", "euler"), "integrator")
+        check_real(name, args[name], Limit(unit, gt=0))
+    check_real("hold_time", args["hold_time"], Limit("s", ge=0))
+    check_real("press_depth", args["press_depth"], Limit("mm", ge=0))
+    check_choice("path", args["path"], ("movel", "circle"), "path")
+    check_choice("integrator", args["integrator"], ("bdf2", "euler"), "integrator")
 
 
 @dataclass
@@ -186,61 +175,30 @@ def resolve_scene(brush, scene, bodies):
     return scene_obj
 
 
-def make_plan(
-    scene_obj,
-    settings,
-    *,
-    turns,
-    radius,
-    speed,
-    accel,
-    press_depth,
-    press_time,
-    hold_time,
-    path,
-    pitch_error_deg,
-    pitch_window,
-    tips_dt,
-    shapes_dt,
-) -> Plan:
+#: The arguments of a run that shape its motion (``build_trajectory``'s, but turns and poses).
+MOTION_ARGS = ("radius", "speed", "accel", "press_depth", "press_time", "hold_time", "path")
+
+
+def make_plan(scene_obj, settings, args: Mapping) -> Plan:
     """Simulator, touch height, the baseline (and pitched) motion sampled on the time grid; the
-    run stops when θ reaches 2π·turns (§4: four turns)."""
+    run stops when θ reaches 2π·turns (§4: four turns).  ``args``: ``run_reference``'s arguments
+    by name (``MOTION_ARGS``, turns, pitch_error_deg, pitch_window, tips_dt, shapes_dt)."""
     sim = Simulator(scene_obj, settings)
     dt = settings.dt
     plate_z = _plate_height(scene_obj)
     touch_z = sim.touch_height(np.array(R0), plate_z)
     start_xy = (0.0, 0.0)
-    common = dict(
-        start_xy=start_xy,
-        touch_z=touch_z,
-        radius=radius,
-        speed=speed,
-        accel=accel,
-        turns=turns,
-        press_depth=press_depth,
-        press_time=press_time,
-        hold_time=hold_time,
-        path=path,
-    )
+    turns = float(args["turns"])
+    common = dict(start_xy=start_xy, touch_z=touch_z, turns=turns)
+    common.update((k, args[k]) for k in MOTION_ARGS)
     traj, phase_starts, _ = build_trajectory(**common)
     trajs = {"baseline": traj}
-    if pitch_error_deg:
+    if args["pitch_error_deg"]:
         trajs["pitch"], _, _ = build_trajectory(
-            **common, pitch_error_deg=pitch_error_deg, pitch_window=pitch_window
+            **common, pitch_error_deg=args["pitch_error_deg"], pitch_window=args["pitch_window"]
         )
-    T = traj.duration
-    n_full = int(math.ceil(T / dt - 1e-9))
-    times = np.arange(n_full + 1) * dt
-    theta_full = np.asarray(traj.angle(np.minimum(times, T)), dtype=float)
-    reach = np.flatnonzero(theta_full >= TWO_PI * turns - 1e-9)
-    n_steps = int(reach[0]) if reach.size else n_full
-    times = times[: n_steps + 1]
-    theta = theta_full[: n_steps + 1]
-    phase = np.searchsorted(np.asarray(phase_starts), times, side="right") - 1
-    phase = np.where(phase >= len(phase_starts) - 1, 2, phase)
-    if hold_time <= 0:
-        phase = np.where(phase >= 1, 2, phase)
-    poses = {name: tuple(tr.sample(times)[:2]) for name, tr in trajs.items()}
+    n_full, times, theta = _time_grid(traj, dt, turns)
+    n_steps = len(times) - 1
     pitch = {"baseline": np.zeros(n_steps + 1)}
     if "pitch" in trajs:
         pitch["pitch"] = trajs["pitch"].pitch(times)
@@ -253,11 +211,32 @@ def make_plan(
         phase_starts=phase_starts,
         times=times,
         theta=theta,
-        phase=phase,
-        poses=poses,
+        phase=_phases(times, phase_starts, args["hold_time"]),
+        poses={name: tuple(tr.sample(times)[:2]) for name, tr in trajs.items()},
         pitch=pitch,
         n_steps=n_steps,
         n_full=n_full,
-        tips_stride=max(1, int(round(tips_dt / dt))),
-        shapes_stride=max(1, int(round(shapes_dt / dt))),
+        tips_stride=max(1, int(round(args["tips_dt"] / dt))),
+        shapes_stride=max(1, int(round(args["shapes_dt"] / dt))),
     )
+
+
+def _time_grid(traj, dt: float, turns: float):
+    """(steps of the whole motion, times [s], θ [rad]): the grid of step ``dt`` cut at the first
+    step where θ reaches 2π·``turns`` (the whole motion when it never does)."""
+    T = traj.duration
+    n_full = int(math.ceil(T / dt - 1e-9))
+    times = np.arange(n_full + 1) * dt
+    theta_full = np.asarray(traj.angle(np.minimum(times, T)), dtype=float)
+    reach = np.flatnonzero(theta_full >= TWO_PI * turns - 1e-9)
+    n_steps = int(reach[0]) if reach.size else n_full
+    return n_full, times[: n_steps + 1], theta_full[: n_steps + 1]
+
+
+def _phases(times, phase_starts, hold_time) -> np.ndarray:
+    """The phase of each time: 0 press, 1 hold, 2 circle (no 1 without a hold)."""
+    phase = np.searchsorted(np.asarray(phase_starts), times, side="right") - 1
+    phase = np.where(phase >= len(phase_starts) - 1, 2, phase)
+    if hold_time <= 0:
+        phase = np.where(phase >= 1, 2, phase)
+    return phase

@@ -57,50 +57,17 @@ def plot_forces_vs_angle(
         "baseline": dict(color="C0", lw=1.2, label="without pitch error"),
         "pitch": dict(color="C3", lw=1.2, ls="--", label="with pitch error (eq 12)"),
     }
-    names = ["Fx [N]", "Fy [N]", "Fz [N]", "|F_h| [N]"]
     for name, r in recs.items():
-        n = r.n
-        th = theta[:n]
-        m = (th >= lo) & (th <= hi)
-        F = r.step["F"][:n]
-        ys = [F[:, 0], F[:, 1], F[:, 2], np.hypot(F[:, 0], F[:, 1])]
         st = dict(styles[name])
         if len(recs) == 1:
             st["label"] = None
-        for ax, y in zip(axes, ys):
-            ax.plot(th[m], y[m], **st)
-        jam = (analysis.get(name) or {}).get("jamming")
-        if jam:
-            for p in jam["peaks"]:
-                if lo <= p["theta_rad"] <= hi:
-                    i = int(np.argmin(np.abs(th - p["theta_rad"])))
-                    for ax, y in zip(axes, ys):
-                        ax.axvline(p["theta_rad"], color=st["color"], lw=0.6, ls=":", alpha=0.8)
-                        ax.plot(th[i], y[i], "v", color=st["color"], ms=6, mec="k", mew=0.5)
+        _plot_run(axes, r, theta, (lo, hi), st, (analysis.get(name) or {}).get("jamming"))
     if complete:
         _final_move(axes, theta[base.n - 1], lo, hi)
-    # the paper's jamming angles 9π/4 + 2πk and 13π/4 + 2πk
-    for a0 in PAPER_JAMMING_ANGLES:
-        k = math.floor((lo - a0) / TWO_PI)
-        a = a0 + k * TWO_PI
-        while a <= hi:
-            if a >= lo:
-                for ax in axes:
-                    ax.axvline(a, color="0.6", lw=1.0, ls="-.", alpha=0.6, zorder=0)
-            a += TWO_PI
+    _paper_angles(axes, lo, hi)
     if "pitch" in recs:
-        for ax in axes:
-            ax.axvspan(pitch_window[0], pitch_window[1], color="C3", alpha=0.08, zorder=0)
-        ax2 = axes[3].twinx()
-        m = (theta >= lo) & (theta <= hi)
-        ax2.plot(theta[m], np.degrees(pitch_series["pitch"][m]), color="C3", lw=0.8, alpha=0.6)
-        ax2.set_ylabel("pitch [deg]", color="C3")
-    for ax, nm in zip(axes, names):
-        ax.set_ylabel(nm)
-        ax.grid(alpha=0.3)
-    axes[-1].set_xlabel("rotation angle θ [rad] (0 at the start point P0)")
-    _pi_ticks(axes[-1], lo, hi, 4)
-    axes[0].set_xlim(lo, hi)
+        _pitch_overlay(axes, theta, (lo, hi), pitch_series["pitch"], pitch_window)
+    _label_axes(axes, ["Fx [N]", "Fy [N]", "Fz [N]", "|F_h| [N]"], lo, hi)
     fig.legend(
         handles=_legend_handles(plt, recs, styles, complete),
         loc="lower center",
@@ -120,6 +87,61 @@ def plot_forces_vs_angle(
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _plot_run(axes, r, theta, span, st, jam) -> None:
+    """One run's Fx, Fy, Fz, |F_h| over θ in ``span`` in style ``st``, with its detected jamming
+    peaks (``jam``: its jamming analysis, or None) marked."""
+    lo, hi = span
+    n = r.n
+    th = theta[:n]
+    m = (th >= lo) & (th <= hi)
+    F = r.step["F"][:n]
+    ys = [F[:, 0], F[:, 1], F[:, 2], np.hypot(F[:, 0], F[:, 1])]
+    for ax, y in zip(axes, ys):
+        ax.plot(th[m], y[m], **st)
+    if not jam:
+        return
+    for p in jam["peaks"]:
+        if lo <= p["theta_rad"] <= hi:
+            i = int(np.argmin(np.abs(th - p["theta_rad"])))
+            for ax, y in zip(axes, ys):
+                ax.axvline(p["theta_rad"], color=st["color"], lw=0.6, ls=":", alpha=0.8)
+                ax.plot(th[i], y[i], "v", color=st["color"], ms=6, mec="k", mew=0.5)
+
+
+def _paper_angles(axes, lo, hi) -> None:
+    """The paper's jamming angles 9π/4 + 2πk and 13π/4 + 2πk in [lo, hi]."""
+    for a0 in PAPER_JAMMING_ANGLES:
+        k = math.floor((lo - a0) / TWO_PI)
+        a = a0 + k * TWO_PI
+        while a <= hi:
+            if a >= lo:
+                for ax in axes:
+                    ax.axvline(a, color="0.6", lw=1.0, ls="-.", alpha=0.6, zorder=0)
+            a += TWO_PI
+
+
+def _pitch_overlay(axes, theta, span, pitch, pitch_window) -> None:
+    """The perturbed window shaded and the imposed eq-12 ``pitch`` [rad] on a second axis of the
+    last panel."""
+    lo, hi = span
+    for ax in axes:
+        ax.axvspan(pitch_window[0], pitch_window[1], color="C3", alpha=0.08, zorder=0)
+    ax2 = axes[3].twinx()
+    m = (theta >= lo) & (theta <= hi)
+    ax2.plot(theta[m], np.degrees(pitch[m]), color="C3", lw=0.8, alpha=0.6)
+    ax2.set_ylabel("pitch [deg]", color="C3")
+
+
+def _label_axes(axes, names, lo, hi) -> None:
+    """Y labels and grids, the θ axis in multiples of π/4 over [lo, hi]."""
+    for ax, nm in zip(axes, names):
+        ax.set_ylabel(nm)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("rotation angle θ [rad] (0 at the start point P0)")
+    _pi_ticks(axes[-1], lo, hi, 4)
+    axes[0].set_xlim(lo, hi)
 
 
 def _final_move(axes, theta_end, lo, hi) -> None:
@@ -231,14 +253,11 @@ def plot_deformed_shapes(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ns = rec.ns
-    rows = rec.shapes["row"][:ns]
-    th_s = theta[rows]
+    rows = rec.shapes["row"][: rec.ns]
     th_end = float(theta[rec.n - 1])
     lo = 0.5 * math.pi if th_end > 0.5 * math.pi else 0.0
     events = _shape_events(analysis, lo, th_end)
     m = sim.model
-    P, R = pose
     groups = [b.group for b in brush_cfg.bristles]
     gnames = sorted(set(groups))
     gcol = {g: f"C{k}" for k, g in enumerate(gnames)}
@@ -251,58 +270,15 @@ def plot_deformed_shapes(
         gridspec_kw=dict(height_ratios=[1.6, 2.4] * len(events)),
     )
     L = brush_cfg.max_length
-    span = np.ptp(m.root_p[:, 0]) / 2 + 0.7 * L
-    spany = np.ptp(m.root_p[:, 1]) / 2 + 0.7 * L
+    span = (np.ptp(m.root_p[:, 0]) / 2 + 0.7 * L, np.ptp(m.root_p[:, 1]) / 2 + 0.7 * L)
+    colours = [gcol[g] for g in groups]
+    th_s = theta[rows]
     for e, (th0, _label) in enumerate(events):
         for c, off in enumerate(offsets):
-            want = th0 + off
-            k = int(np.argmin(np.abs(th_s - want)))
-            i = int(rows[k])
-            p_tcp, R_tcp = P[i], R[i]
-            body = rec.shapes["body"][k].astype(float)
-            tips = rec.shapes["tip"][k].astype(float)
-            cont = rec.shapes["contact"][k]
-            roots = p_tcp + m.root_p @ R_tcp.T
+            k = int(np.argmin(np.abs(th_s - (th0 + off))))
             ax_s, ax_t = axes[2 * e, c], axes[2 * e + 1, c]
-            for j in range(m.n_bristles):
-                line = np.vstack([roots[j], body[m.bstart[j] : m.bstart[j + 1]], tips[j]])
-                rel = line - [p_tcp[0], p_tcp[1], 0.0]
-                col = gcol[groups[j]]
-                ax_s.plot(rel[:, 0], rel[:, 2], "-", color=col, lw=1.0, alpha=0.8)
-                ax_t.plot(rel[:, 0], rel[:, 1], "-", color=col, lw=1.0, alpha=0.8)
-                tc = "r" if cont[j] else "k"
-                ax_s.plot(rel[-1, 0], rel[-1, 2], "o", color=tc, ms=2.5)
-                ax_t.plot(rel[-1, 0], rel[-1, 1], "o", color=tc, ms=2.5)
-                ax_t.plot(rel[0, 0], rel[0, 1], "s", color=col, ms=2.5)
-            ax_s.axhline(0.0, color="0.3", lw=1.5)
-            ax_s.set_xlim(-span, span)
-            ax_s.set_ylim(min(-1.0, float(tips[:, 2].min()) - 0.5), p_tcp[2] + 1.0)
-            ax_t.set_xlim(-span, span)
-            ax_t.set_ylim(-spany, spany)
-            if i + 1 < len(P):
-                v = P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)]
-                nv = np.linalg.norm(v[:2])
-                if nv > 0:
-                    d = v[:2] / nv * 0.5 * spany
-                    ax_t.annotate(
-                        "",
-                        xy=(d[0], d[1]),
-                        xytext=(0, 0),
-                        arrowprops=dict(arrowstyle="->", color="C3", lw=1.5),
-                    )
-            # no fixed aspect: panels fill their cells (the side view stretches z, readable)
-            for ax in (ax_s, ax_t):
-                ax.grid(alpha=0.3)
-                ax.tick_params(labelsize=8)
-            ax_s.set_title(
-                f"θ = {th_s[k] / math.pi:.3f}π ({math.degrees(th_s[k] % TWO_PI):.0f}°)"
-                f"{'  [peak]' if off == 0 else ''}",
-                fontsize=9,
-            )
-            if c == 0:
-                ax_s.set_ylabel("side: z [mm]", fontsize=8)
-                ax_t.set_ylabel("top: y - y_TCP [mm]", fontsize=8)
-            ax_t.set_xlabel("x - x_TCP [mm]", fontsize=8)
+            _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span)
+            _title_panel(ax_s, ax_t, th_s[k], off, first_column=c == 0)
     handles = [plt.Line2D([], [], color=gcol[g], label=g) for g in gnames]
     handles += [
         plt.Line2D([], [], ls="", marker="o", color="r", label="tip in contact"),
@@ -321,3 +297,60 @@ def plot_deformed_shapes(
         fig.text(pos.x0, pos.y1 + 0.025, label, fontsize=10, fontweight="bold", ha="left")
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span) -> None:
+    """Stored shape ``k`` of ``rec``: every bristle's centre line (root, bodies, tip) in the side
+    (``ax_s``) and top (``ax_t``) view relative to the TCP, the tips red where in contact, the
+    plate line, the view limits (``span`` = half-widths in x, y [mm]) and the TCP velocity."""
+    P, R = pose
+    i = int(rec.shapes["row"][k])
+    p_tcp, R_tcp = P[i], R[i]
+    body = rec.shapes["body"][k].astype(float)
+    tips = rec.shapes["tip"][k].astype(float)
+    cont = rec.shapes["contact"][k]
+    roots = p_tcp + m.root_p @ R_tcp.T
+    for j in range(m.n_bristles):
+        line = np.vstack([roots[j], body[m.bstart[j] : m.bstart[j + 1]], tips[j]])
+        rel = line - [p_tcp[0], p_tcp[1], 0.0]
+        col = colours[j]
+        ax_s.plot(rel[:, 0], rel[:, 2], "-", color=col, lw=1.0, alpha=0.8)
+        ax_t.plot(rel[:, 0], rel[:, 1], "-", color=col, lw=1.0, alpha=0.8)
+        tc = "r" if cont[j] else "k"
+        ax_s.plot(rel[-1, 0], rel[-1, 2], "o", color=tc, ms=2.5)
+        ax_t.plot(rel[-1, 0], rel[-1, 1], "o", color=tc, ms=2.5)
+        ax_t.plot(rel[0, 0], rel[0, 1], "s", color=col, ms=2.5)
+    spanx, spany = span
+    ax_s.axhline(0.0, color="0.3", lw=1.5)
+    ax_s.set_xlim(-spanx, spanx)
+    ax_s.set_ylim(min(-1.0, float(tips[:, 2].min()) - 0.5), p_tcp[2] + 1.0)
+    ax_t.set_xlim(-spanx, spanx)
+    ax_t.set_ylim(-spany, spany)
+    if i + 1 < len(P):
+        v = P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)]
+        nv = np.linalg.norm(v[:2])
+        if nv > 0:
+            d = v[:2] / nv * 0.5 * spany
+            ax_t.annotate(
+                "",
+                xy=(d[0], d[1]),
+                xytext=(0, 0),
+                arrowprops=dict(arrowstyle="->", color="C3", lw=1.5),
+            )
+
+
+def _title_panel(ax_s, ax_t, th: float, off: float, first_column: bool) -> None:
+    """Grid, ticks, the angle ``th`` [rad] as title ("[peak]" at offset 0) and axis labels."""
+    # no fixed aspect: panels fill their cells (the side view stretches z, readable)
+    for ax in (ax_s, ax_t):
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=8)
+    ax_s.set_title(
+        f"θ = {th / math.pi:.3f}π ({math.degrees(th % TWO_PI):.0f}°)"
+        f"{'  [peak]' if off == 0 else ''}",
+        fontsize=9,
+    )
+    if first_column:
+        ax_s.set_ylabel("side: z [mm]", fontsize=8)
+        ax_t.set_ylabel("top: y - y_TCP [mm]", fontsize=8)
+    ax_t.set_xlabel("x - x_TCP [mm]", fontsize=8)

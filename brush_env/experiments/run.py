@@ -69,40 +69,12 @@ def run_reference(
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
-    check_run_args(
-        turns,
-        dt,
-        speed,
-        accel,
-        radius,
-        press_time,
-        tips_dt,
-        shapes_dt,
-        hold_time,
-        press_depth,
-        path,
-        integrator,
-    )
+    check_run_args(args)
     settings = SimSettings(dt=float(dt), integrator=integrator)
     scene_obj = resolve_scene(brush, scene, bodies)  # every input is valid past this line
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
-    plan = make_plan(
-        scene_obj,
-        settings,
-        turns=float(turns),
-        radius=radius,
-        speed=speed,
-        accel=accel,
-        press_depth=press_depth,
-        press_time=press_time,
-        hold_time=hold_time,
-        path=path,
-        pitch_error_deg=pitch_error_deg,
-        pitch_window=pitch_window,
-        tips_dt=tips_dt,
-        shapes_dt=shapes_dt,
-    )
+    plan = make_plan(scene_obj, settings, args)
     t_setup = time.perf_counter() - t_setup
     recs, status, perf = simulate_runs(plan, progress)
     analysis = analyse(plan, recs, pitch_window)

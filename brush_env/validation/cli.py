@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict
 
+from ..user_errors import add_flag
 from .suite import PAPER_INNER, Geometry, cantilever, format_table, frequency, suite
 
 
@@ -32,7 +33,7 @@ def _geometry_args(p) -> None:
         default="thin",
         help="bending about the thin (load along h) or wide direction",
     )
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_flag(p, "--json", "print JSON")
 
 
 def add_arguments(parser) -> None:
@@ -52,7 +53,7 @@ def add_arguments(parser) -> None:
     p = sub.add_parser("frequency", help="first bending frequency, against Euler-Bernoulli")
     _geometry_args(p)
     p = sub.add_parser("all", help="the acceptance suite; exit 1 on any failure")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_flag(p, "--json", "print JSON")
 
 
 def run(args) -> int:
@@ -74,26 +75,37 @@ def run(args) -> int:
     geom = Geometry(args.length, args.width, args.thickness, args.E, args.nu)
     if args.case == "cantilever":
         res = cantilever(args.alpha, args.bodies, geom, args.increments, args.plane)
-        if args.json:
-            print(json.dumps(res, indent=1))
-        else:
-            print(
-                f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
-                f"reference: {res['reference_kind']} ({res['reference_note']})"
-            )
-            for k in res["computed"]:
-                print(
-                    f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
-                    f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}"
-                )
-        return 0
-    res = frequency(args.bodies, geom, args.plane)
-    if args.json:
+        _report(res, args.json, lambda: _cantilever_lines(res, geom, args))
+    else:
+        res = frequency(args.bodies, geom, args.plane)
+        _report(res, args.json, lambda: _frequency_lines(res, geom, args))
+    return 0
+
+
+def _report(res: dict, as_json: bool, lines) -> None:
+    """Print one case's result: as JSON, or as the text lines ``lines()`` gives."""
+    if as_json:
         print(json.dumps(res, indent=1))
     else:
-        print(
-            f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
-            f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
-            f"rel. error {res['rel_error']:+.3e}"
-        )
-    return 0
+        for line in lines():
+            print(line)
+
+
+def _cantilever_lines(res: dict, geom: Geometry, args) -> list[str]:
+    head = (
+        f"cantilever {geom.label(args.bodies)} alpha={args.alpha:g} {args.plane}; "
+        f"reference: {res['reference_kind']} ({res['reference_note']})"
+    )
+    return [head] + [
+        f"  {k:14s} computed {res['computed'][k]:.8g}  reference "
+        f"{res['reference'][k]:.8g}  rel. error {res['rel_error'][k]:+.3e}"
+        for k in res["computed"]
+    ]
+
+
+def _frequency_lines(res: dict, geom: Geometry, args) -> list[str]:
+    return [
+        f"first bending frequency {geom.label(args.bodies)} {args.plane}: computed "
+        f"{res['computed_hz']:.6g} Hz, Euler-Bernoulli {res['reference_hz']:.6g} Hz, "
+        f"rel. error {res['rel_error']:+.3e}"
+    ]

@@ -266,6 +266,14 @@ class Check:
         return bool(abs(self.error) <= self.limit)
 
 
+def _rel_check(check: str, settings: str, res: dict, key: str, limit: float) -> Check:
+    """The row of quantity ``key`` of a ``cantilever`` result: its relative error against
+    ``limit``."""
+    return Check(
+        check, settings, res["computed"][key], res["reference"][key], res["rel_error"][key], limit
+    )
+
+
 def suite() -> list[Check]:
     """The engine-core acceptance criteria (issue "engine core", Done-when)."""
     rows = []
@@ -274,31 +282,13 @@ def suite() -> list[Check]:
             r = cantilever(alpha, 6, PAPER_INNER, plane=plane)
             s = f"{PAPER_INNER.label(6)} alpha={alpha:g} {plane}"
             for key in ("v_over_L", "tip_angle_rad"):
-                rows.append(
-                    Check(
-                        f"timoshenko {key}",
-                        s,
-                        r["computed"][key],
-                        r["reference"][key],
-                        r["rel_error"][key],
-                        0.005,
-                    )
-                )
+                rows.append(_rel_check(f"timoshenko {key}", s, r, key, 0.005))
     for alpha in (1.0, 2.0, 5.0, 10.0):
         for bodies, lim_v, lim_h in ((6, 0.02, 0.03), (24, 0.003, 0.005)):
             r = cantilever(alpha, bodies, SLENDER)
             s = f"{SLENDER.label(bodies)} alpha={alpha:g}"
             for key, lim in (("v_over_L", lim_v), ("h_over_L", lim_h)):
-                rows.append(
-                    Check(
-                        f"elastica {key}",
-                        s,
-                        r["computed"][key],
-                        r["reference"][key],
-                        r["rel_error"][key],
-                        lim,
-                    )
-                )
+                rows.append(_rel_check(f"elastica {key}", s, r, key, lim))
     r = axial(6, PAPER_INNER)
     rows.append(
         Check(

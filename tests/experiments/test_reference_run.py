@@ -184,6 +184,16 @@ def _read_csv(path):
 
 
 def _check_outputs(out, summary, nb, pitch=False):
+    """Every output file of a reference run in ``out`` and the returned ``summary`` (a brush of
+    ``nb`` bristles; ``pitch``: with a pitch run); returns the timeseries columns."""
+    _check_files(out, summary, pitch)
+    col = _check_timeseries(out / "timeseries.csv", nb)
+    _check_tips(out / "tips.npz", nb)
+    _check_summary(summary, nb, col)
+    return col
+
+
+def _check_files(out, summary, pitch):
     for name in (
         "timeseries.csv",
         "tips.npz",
@@ -198,7 +208,10 @@ def _check_outputs(out, summary, nb, pitch=False):
         assert json.load(f) == summary
     for key in SUMMARY_KEYS:
         assert key in summary, key
-    header, data = _read_csv(out / "timeseries.csv")
+
+
+def _check_timeseries(path, nb):
+    header, data = _read_csv(path)
     assert tuple(header) == CSV_COLUMNS
     assert data.shape[1] == len(CSV_COLUMNS) and data.shape[0] > 10
     col = {c: data[:, i] for i, c in enumerate(header)}
@@ -208,7 +221,11 @@ def _check_outputs(out, summary, nb, pitch=False):
     assert np.all(np.isfinite(data))
     assert col["Fh_N"] == pytest.approx(np.hypot(col["Fx_N"], col["Fy_N"]), abs=1e-6)
     assert np.all(col["n_contact"] <= nb) and np.all(col["max_penetration_mm"] >= 0)
-    with np.load(out / "tips.npz") as z:
+    return col
+
+
+def _check_tips(path, nb):
+    with np.load(path) as z:
         for k in (
             "time",
             "theta",
@@ -231,7 +248,9 @@ def _check_outputs(out, summary, nb, pitch=False):
         assert z["tip_normal_force"].shape == (M, nb)
         assert z["tip_contact_force"].shape == (M, nb, 3)
         assert z["shape_body_pos"].shape[1] == int(z["bstart"][-1])
-    s = summary
+
+
+def _check_summary(s, nb, col):
     st = s["settings"]
     for k in (
         "brush",
@@ -262,11 +281,10 @@ def _check_outputs(out, summary, nb, pitch=False):
     assert a["theta_range_rad"][0] == pytest.approx(math.pi / 2)
     if col["theta_rad"][-1] <= math.pi / 2:  # (a run stopped early by a divergence)
         assert a["per_turn"] == [] and a["jamming"] is None
-        return col
+        return
     assert len(a["per_turn"]) >= 1
     for k in ("Fx_max_N", "Fx_max_theta_rad", "Fy_min_N", "Fz_mean_N", "Fh_max_N"):
         assert k in a["per_turn"][0]
-    return col
 
 
 def _free_scene(brush="tiny"):

@@ -313,11 +313,17 @@ def test_cli_validate_all_passes(capsys):
     assert res["passed"] and len(res["checks"]) >= 20
 
 
+def _bench_rows(capsys, target: str, keys=()) -> list[dict]:
+    """The JSON rows of ``brush-env bench TARGET --quick --json`` (exit 0); at least one, each
+    with every name in ``keys``."""
+    assert cli.main(["bench", target, "--quick", "--json"]) == 0
+    out = capsys.readouterr().out
+    rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    assert rows and all(set(keys) <= set(r) for r in rows)
+    return rows
+
+
 def test_cli_bench_engine_quick(capsys):
-    assert cli.main(["bench", "engine", "--quick", "--json"]) == 0
-    rows = [
-        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
-    ]
     keys = {
         "bodies",
         "dt",
@@ -328,15 +334,11 @@ def test_cli_bench_engine_quick(capsys):
         "rtf",
         "newton_per_step_per_bristle",
     }
-    assert rows and all(keys <= set(r) for r in rows)
+    rows = _bench_rows(capsys, "engine", keys)
     assert all(np.isfinite(r["rms_force_error"]) and r["wall_s"] > 0 for r in rows)
 
 
 def test_cli_bench_contact_quick(capsys):
-    assert cli.main(["bench", "contact", "--quick", "--json"]) == 0
-    rows = [
-        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
-    ]
     keys = {
         "bodies",
         "dt",
@@ -349,7 +351,7 @@ def test_cli_bench_contact_quick(capsys):
         "substeps_extra",
         "reference",
     }
-    assert rows and all(keys <= set(r) for r in rows)
+    rows = _bench_rows(capsys, "contact", keys)
     assert {r["tip_tip"] for r in rows} == {False, True}
     grid = [r for r in rows if not r["reference"]]
     assert grid and all(
@@ -370,10 +372,7 @@ def test_cli_bench_convergence_quick(capsys):
     """Self-convergence in dt: below 1 ms (where the 3 mm press stays on one buckling branch,
     docs/model.md) the error against the finest run shrinks as dt is refined; the body series
     compares against its most refined run."""
-    assert cli.main(["bench", "convergence", "--quick", "--json"]) == 0
-    rows = [
-        json.loads(line) for line in capsys.readouterr().out.splitlines() if line.startswith("{")
-    ]
+    rows = _bench_rows(capsys, "convergence")
     assert {r["series"] for r in rows} == {"dt", "bodies"}
     dt_rows = sorted((r for r in rows if r["series"] == "dt"), key=lambda r: -r["dt"])
     assert all(r["status"] == "ok" for r in dt_rows)
