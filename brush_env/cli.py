@@ -28,7 +28,10 @@ SUBCOMMANDS = {
         "brush_env.validation.cli",
         "check the beam and contact model against closed-form references",
     ),
-    "bench": ("brush_env.bench.cli", "speed-versus-error benchmarks (engine, contact, env)"),
+    "bench": (
+        "brush_env.bench.cli",
+        "speed-versus-error benchmarks (engine, contact, env), first-start compile",
+    ),
     "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
 }
 

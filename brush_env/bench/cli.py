@@ -2,7 +2,8 @@
 
 ``engine`` (free brush under a moving TCP, vs a converged reference), ``contact`` (the plate press
 + one circle turn), ``convergence`` (self-convergence of the contact run in dt and bodies),
-``env`` (Gymnasium env steps per second).  Each target has its own options
+``env`` (Gymnasium env steps per second), ``compile`` (the first-start numba compile, in a fresh
+cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` and an
 entry in :data:`TARGETS`.
 """
@@ -12,7 +13,7 @@ from __future__ import annotations
 import argparse
 
 from ..user_errors import add_flag
-from . import contact, convergence, engine, env
+from . import compile, contact, convergence, engine, env
 
 #: name -> (run function, one-line help)
 TARGETS = {
@@ -31,6 +32,11 @@ TARGETS = {
         "self-convergence of the contact run in time step and in bodies per bristle",
     ),
     "env": (env.bench_env_target, "Gymnasium env steps per second, single and vectorised"),
+    "compile": (
+        compile.bench_compile,
+        "first-start numba compile of every kernel set (empty cache) and the cached start: "
+        "wall, CPU, retired instructions",
+    ),
 }
 
 
@@ -56,6 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p = sub.add_parser(name, help=helptext, description=helptext)
         if name == "env":
             env.add_arguments(p)
+        elif name == "compile":
+            compile.add_arguments(p)
         else:
             _common(p)
 
