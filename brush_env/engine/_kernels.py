@@ -337,8 +337,9 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
 
     Node loads are the exact gradient of the strain energy (so the element is conservative and
     balances force and moment to round-off): with F = R_m f_t (world), v = F x d, d = p_B - p_A,
-    f_r' = f_r + f_x d e_x / d psi, w = J_l(psi)^-T f_r' and T = R_A (I + exp(psi/2))^-1 R_A^T (the mid-frame's share of each
-    node's rotation, delta phi_m = (I - T) delta phi_A + T delta phi_B):
+    f_r' = f_r + f_x d e_x / d psi, w = J_l(psi)^-T f_r' and T = R_A (I + exp(psi/2))^-1 R_A^T
+    (the mid-frame's share of each node's rotation, delta phi_m = (I - T) delta phi_A +
+    T delta phi_B):
     F_A = F, F_B = -F;  M_A = -v + T^T v + R_A w,  M_B = -T^T v - R_A w;  then carried to the
     bodies' centres, M_c = M_node + (p - c) x F.
     """

@@ -333,6 +333,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
         dn[a] -= dnn * nrm[a]
     dmag = np.sqrt(dn[0] ** 2 + dn[1] ** 2 + dn[2] ** 2)
     dmax = cp[C_DMAX]
+    dtrial = dmag  # before the clamp: the tangent of the clamped Delta scales with dmax / dtrial
     if dmag > dmax:
         for a in range(3):
             dn[a] *= dmax / dmag
@@ -375,7 +376,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
         dfd = 0.0
         if dmag < dmax:
             dfd = (1.0 - beta) * mus * Fn * step10_dx(dmag / dmax, -1.0, -1.0, 1.0, 1.0) / dmax
-        ftr = fst / dmag
+        ftr = fst / dtrial  # d(Delta_hat)/dpt = (P_t - u u^T) / |Delta_trial|, clamped or not
         for a in range(3):
             ua = dn[a] / dmag
             for bb in range(3):
