@@ -43,8 +43,13 @@ def kernels_compiled() -> bool:
         return False
 
 
-def announce(notice=print) -> None:
-    """Print the compile notice once per process if the kernels are not compiled yet."""
+def _to_stderr(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def announce(notice=_to_stderr) -> None:
+    """Print the compile notice once per process if the kernels are not compiled yet (to stderr
+    by default, so that a command's --json output on stdout stays parseable)."""
     global _announced
     if not _announced and notice is not None and not kernels_compiled():
         notice(COMPILE_NOTICE)

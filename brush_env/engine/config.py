@@ -55,6 +55,11 @@ __all__ = [
 
 
 #: The allowed ranges, one place for both the loaders and the dataclass constructors.
+#: [deg] default imperfection of a "straight" bristle (BrushConfig.imperfection): 0.01 deg, a tip
+#: offset of L/5700 -- well inside a manufactured bristle's straightness, large enough to pick
+#: the buckling direction within a few growth times of the mode
+IMPERFECTION_DEG = 0.01
+
 LIMITS: dict[str, Limit] = {
     "E": Limit("MPa", gt=0, le=1e6),
     "nu": Limit("dimensionless", gt=-1, lt=0.5),
@@ -71,6 +76,8 @@ LIMITS: dict[str, Limit] = {
     "angle_deg": Limit("deg", ge=-360, le=360),
     "lean_deg": Limit("deg", ge=-10, le=10),
     "lean": Limit("rad", ge=-math.radians(10), le=math.radians(10)),
+    "imperfection_deg": Limit("deg", ge=0, le=1),
+    "imperfection": Limit("rad", ge=0, le=math.radians(1)),
     "angle": Limit("rad", ge=-2 * math.pi, le=2 * math.pi),
     "direction": Limit("dimensionless direction, head frame"),
 }
@@ -291,9 +298,15 @@ class BrushConfig:
     bristles: tuple[BristleConfig, ...]
     source: str = ""
     lean: float = 0.0  # [rad] initial lean of every bristle toward its thickness direction
+    #: [rad] the smallest lean a bristle is modelled with (a straight bristle is never perfectly
+    #: straight): a |lean| below it becomes this imperfection, toward +thickness (or the lean's
+    #: sign), so that a pressed "straight" bristle buckles as a real one does instead of holding
+    #: the unstable straight column (docs/model.md); 0 models the perfect column
+    imperfection: float = math.radians(IMPERFECTION_DEG)
 
     def __post_init__(self) -> None:
         LIMITS["lean"].check("BrushConfig.lean", self.lean)
+        LIMITS["imperfection"].check("BrushConfig.imperfection", self.imperfection)
         bristles = tuple(self.bristles)
         if not bristles:
             raise ConfigError("BrushConfig.bristles is empty: need at least 1 bristle")
@@ -315,6 +328,13 @@ class BrushConfig:
     def max_length(self) -> float:
         """Longest bristle [mm]."""
         return max(b.length for b in self.bristles)
+
+    @property
+    def effective_lean(self) -> float:
+        """The lean [rad] the model uses: ``lean``, or the imperfection if |lean| is smaller."""
+        if abs(self.lean) >= self.imperfection:
+            return self.lean
+        return math.copysign(self.imperfection, self.lean if self.lean != 0.0 else 1.0)
 
     def with_bodies(self, n: int) -> BrushConfig:
         """Copy with every bristle discretised into ``n`` bodies."""
@@ -493,6 +513,7 @@ BRUSH_KEYS = (
     "head_offset_mm",
     "head_rpy_deg",
     "lean_deg",
+    "imperfection_deg",
     "sections",
     "grid",
     "row",
@@ -581,6 +602,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     head_offset = t.vec("head_offset_mm", 3, LIMITS["offset"], (0.0, 0.0, 0.0))
     head_rpy = t.vec("head_rpy_deg", 3, LIMITS["angle_deg"], (0.0, 0.0, 0.0))
     lean = t.num("lean_deg", LIMITS["lean_deg"], 0.0)
+    imperfection = t.num("imperfection_deg", LIMITS["imperfection_deg"], IMPERFECTION_DEG)
     secs = t.get("sections", _REQUIRED, "[sections.<name>] tables")
     if not isinstance(secs, dict):
         raise type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
@@ -606,6 +628,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
         tuple(bristles),
         source,
         math.radians(lean),
+        math.radians(imperfection),
     )
 
 

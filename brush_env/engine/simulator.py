@@ -154,7 +154,7 @@ def build_model(brush: BrushConfig, element: str = "paper") -> Model:
         seg[sl] = l
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
         # lean: rotate about the width axis so the tip moves toward the thickness direction
-        c, s_ = np.cos(brush.lean), np.sin(brush.lean)
+        c, s_ = np.cos(brush.effective_lean), np.sin(brush.effective_lean)
         Ry = np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # x -> (c, 0, +s)
         root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
     return Model(

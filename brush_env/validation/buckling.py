@@ -21,7 +21,8 @@ exact rod with shear and extension (``validation.rod``), at the engine's delta.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -36,7 +37,9 @@ from ..engine import (
     Simulator,
 )
 from ..engine.checks import Limit, check_choice, check_int, check_real
+from ..engine.config import IMPERFECTION_DEG
 from ..engine.scene import ContactParams
+from .rod import buckled_bristle
 
 R_DOWN = np.diag([1.0, -1.0, -1.0])  # TCP pointing the bristle down onto the plate
 TIPS = ("free", "pinned")
@@ -50,8 +53,8 @@ TIP_CONTACT = {
 @dataclass(frozen=True)
 class BucklingCase:
     """One pressed bristle: geometry [mm], material [MPa, -], lean [deg], tip condition, bodies,
-    element formulation; the press: clamp speed [mm/s], settling time at each target [s], time
-    step [s]."""
+    element formulation, the imperfection of a straight bristle [deg] (BrushConfig.imperfection);
+    the press: clamp speed [mm/s], settling time at each target [s], time step [s]."""
 
     length: float = 10.0
     width: float = 1.8
@@ -63,6 +66,7 @@ class BucklingCase:
     tip: str = "free"
     bodies: int = 6
     element: str = "mid"
+    imperfection_deg: float = IMPERFECTION_DEG
     speed: float = 2.0
     hold: float = 0.15
     dt: float = 1e-3
@@ -75,7 +79,8 @@ class BucklingCase:
             ("E", Limit("MPa", gt=0, le=1e6)),
             ("nu", Limit("", ge=0, lt=0.5)),
             ("radius", Limit("mm", gt=0, le=5)),
-            ("lean_deg", Limit("deg", ge=0, le=30)),
+            ("lean_deg", Limit("deg", ge=0, le=10)),
+            ("imperfection_deg", Limit("deg", ge=0, le=1)),
             ("speed", Limit("mm/s", gt=0, le=100)),
             ("hold", Limit("s", gt=0, le=10)),
             ("dt", Limit("s", gt=0, le=5e-3)),
@@ -105,6 +110,7 @@ class BucklingCase:
             head_rpy=(0, 0, 0),
             bristles=(br,),
             lean=math.radians(self.lean_deg),
+            imperfection=math.radians(self.imperfection_deg),
         )
         plate = Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
         return Scene(brush, (plate,), contact=ContactParams(**TIP_CONTACT[self.tip]))
@@ -153,3 +159,93 @@ def press(case: BucklingCase, compressions) -> dict:
 
 def _pen(res) -> float:
     return float(res.tip_penetration[0]) if res.tip_in_contact[0] else 0.0
+
+
+#: compressions [mm] of the acceptance cases (issue 11: 0.25-3 mm)
+COMPRESSIONS = (0.25, 0.5, 1.0, 2.0, 3.0)
+_H = 2e-3  # [mm] spacing of the reference's interpolation stencil around each compression
+
+
+@lru_cache(maxsize=64)
+def _reference_stencil(geometry: tuple, lean_deg: float, tip: str, model: str, targets: tuple):
+    """The rod's force and tip shift at target - h, target, target + h (for each target): one
+    continuation pass, reused by every run of the same bristle, tip and lean."""
+    length, width, thickness, E, nu, radius = geometry
+    pts = np.sort(np.concatenate([np.asarray(targets) + k * _H for k in (-1, 0, 1)]))
+    r = buckled_bristle(
+        pts,
+        length=length,
+        width=width,
+        thickness=thickness,
+        E=E,
+        nu=nu,
+        lean_deg=lean_deg,
+        tip=tip,
+        radius=radius,
+        model=model,
+    )
+    return pts, np.asarray(r["force_N"], float), np.asarray(r["tip_shift_mm"], float)
+
+
+def _reference_at(case: BucklingCase, model: str, targets, deltas) -> dict:
+    """The rod (``model`` "reissner" or "elastica") at the engine's compressions ``deltas``
+    (each within ``_H`` of its target): quadratic interpolation on the stencil (error ~1e-9)."""
+    geometry = (case.length, case.width, case.thickness, case.E, case.nu, case.radius)
+    lean = math.degrees(case.scene().brush.effective_lean)
+    pts, F, X = _reference_stencil(geometry, lean, case.tip, model, tuple(targets))
+    out = {"force_N": [], "tip_shift_mm": []}
+    for t, d in zip(targets, deltas, strict=True):
+        if abs(d - t) > _H:
+            raise RuntimeError(f"compression {d:.6f} mm is not within {_H} mm of {t} mm")
+        j = int(np.argmin(np.abs(pts - t)))
+        u = (d - pts[j]) / _H
+        for key, y in (("force_N", F), ("tip_shift_mm", X)):
+            y0, y1, y2 = y[j - 1], y[j], y[j + 1]
+            out[key].append(float(y1 + 0.5 * u * (y2 - y0) + 0.5 * u * u * (y2 - 2 * y1 + y0)))
+    return out
+
+
+def buckling(case: BucklingCase, compressions=COMPRESSIONS) -> dict:
+    """The engine's pressed bristle against the rod reference (Reissner; the elastica as a second
+    column): JSON-able dict with settings, computed / reference / elastica / rel_error, each
+    holding force_N and tip_shift_mm per compression (rel_error of the shift only for the free
+    tip; a pinned tip's reference shift is 0, its computed shift is reported in mm)."""
+    comp = press(case, compressions)
+    targets = tuple(float(c) for c in compressions)
+    ref = _reference_at(case, "reissner", targets, comp["delta"])
+    ela = _reference_at(case, "elastica", targets, comp["delta"])
+    computed = {
+        "force_N": comp["force_N"].tolist(),
+        "tip_shift_mm": comp["tip_shift_mm"].tolist(),
+    }
+    rel = {
+        "force_N": [c / r - 1.0 for c, r in zip(computed["force_N"], ref["force_N"], strict=True)]
+    }
+    if case.tip == "free":
+        rel["tip_shift_mm"] = [
+            c / r - 1.0 for c, r in zip(computed["tip_shift_mm"], ref["tip_shift_mm"], strict=True)
+        ]
+    return {
+        "check": "buckling",
+        "settings": {
+            **asdict(case),
+            "lean_modelled_deg": math.degrees(case.scene().brush.effective_lean),
+            "compression_mm": comp["delta"].tolist(),
+            "penetration_mm": comp["penetration_mm"].tolist(),
+        },
+        "reference_kind": "reissner",
+        "reference_note": (
+            "planar geometrically exact rod with shear and extension (validation.rod), clamped "
+            "at the lean, end held at the sphere's height; elastica: inextensible, unshearable"
+        ),
+        "computed": computed,
+        "reference": ref,
+        "elastica": ela,
+        "rel_error": rel,
+    }
+
+
+def max_force_error(case: BucklingCase, compressions=COMPRESSIONS) -> float:
+    """Largest |relative error| of the plate force over ``compressions`` (the acceptance
+    measure)."""
+    return float(np.max(np.abs(buckling(case, compressions)["rel_error"]["force_N"])))

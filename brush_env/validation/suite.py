@@ -1,8 +1,9 @@
 """The validate cases: the discrete beam model against the independent references in
 ``references`` (one straight bristle clamped along world x, width along world y, gravity off;
 units mm, N, s, tonne, E in MPa).  ``cantilever`` (linear Timoshenko for alpha <= 0.1, the exact
-elastica above), ``frequency`` (Euler-Bernoulli), ``axial``, ``torsion``, and ``suite`` (the
-acceptance table of ``brush-env validate all``).
+elastica above), ``frequency`` (Euler-Bernoulli), ``axial``, ``torsion``, the pressed bristle of
+``buckling`` (the rod of ``rod``), and ``suite`` (the acceptance table of ``brush-env validate
+all``), each for the element formulation ``element`` ("paper" or "mid").
 
 Geometry defaults are the paper's inner bristle (L = 10, b = 1.8, h = 0.8 mm, L/h = 12.5).  The
 elastica and Euler-Bernoulli references neglect shear, axial strain and rotary inertia, so the
@@ -19,6 +20,7 @@ import numpy as np
 from ..engine import BristleConfig, BrushConfig, Material, Section, SimSettings, Simulator
 from ..engine.modal import bristle_stiffness_mass, natural_frequencies
 from . import references as ref
+from .buckling import COMPRESSIONS, BucklingCase, buckling
 
 LINEAR_ALPHA_MAX = 0.1  # alpha <= this: linear Timoshenko reference
 
@@ -58,13 +60,20 @@ class Geometry:
             tip_radius=min(0.2, self.length),
         )
         return BrushConfig(
-            name="validation", head_offset=(0.0, 0.0, 0.0), head_rpy=(0.0, 0.0, 0.0), bristles=(br,)
+            name="validation",
+            head_offset=(0.0, 0.0, 0.0),
+            head_rpy=(0.0, 0.0, 0.0),
+            bristles=(br,),
+            imperfection=0.0,  # the closed forms are for the perfect beam
         )
 
-    def simulator(self, bodies: int, settings: SimSettings | None = None) -> Simulator:
+    def simulator(
+        self, bodies: int, settings: SimSettings | None = None, element: str = "paper"
+    ) -> Simulator:
         """A simulator holding this bristle, reset at the identity TCP pose (default settings:
-        gravity off)."""
-        sim = Simulator(self.brush(bodies), settings or SimSettings(gravity=(0.0, 0.0, 0.0)))
+        gravity off, the beam element ``element``)."""
+        settings = settings or SimSettings(gravity=(0.0, 0.0, 0.0), element=element)
+        sim = Simulator(self.brush(bodies), settings)
         sim.reset()
         return sim
 
@@ -93,6 +102,7 @@ def cantilever(
     geom: Geometry = PAPER_INNER,
     increments: int | None = None,
     plane: str = "thin",
+    element: str = "paper",
 ) -> dict:
     """Static tip of a clamped bristle under a dead transverse tip load P = alpha E I / L^2 [N].
 
@@ -111,7 +121,7 @@ def cantilever(
     EI = mat.E * I
     P = alpha * EI / L**2
     increments = increments or max(1, math.ceil(alpha))
-    sim = geom.simulator(bodies)
+    sim = geom.simulator(bodies, element=element)
     F = np.zeros((1, 3))
     F[0, c] = P
     sim.set_tip_forces(F)
@@ -186,7 +196,9 @@ def classified_modes(sim: Simulator, bristle: int = 0) -> tuple[np.ndarray, list
     return np.sqrt(np.clip(w2, 0.0, None)) / (2.0 * np.pi), kinds
 
 
-def frequency(bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin") -> dict:
+def frequency(
+    bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin", element: str = "paper"
+) -> dict:
     """First bending frequency [Hz] (modal analysis of the model) against Euler-Bernoulli.
 
     plane "thin" (I_y: the lowest mode of a flat bristle) or "wide" (I_z); the mode is picked by
@@ -199,10 +211,10 @@ def frequency(bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin") ->
             0
         ]
     )
-    sim = geom.simulator(bodies)
+    sim = geom.simulator(bodies, element=element)
     f, kinds = classified_modes(sim)
     fc = float(f[kinds.index("bend_" + plane)])
-    settings = {**asdict(geom), "bodies": bodies, "plane": plane}
+    settings = {**asdict(geom), "bodies": bodies, "plane": plane, "element": element}
     return {
         "check": "frequency",
         "settings": settings,
@@ -213,31 +225,33 @@ def frequency(bodies: int, geom: Geometry = PAPER_INNER, plane: str = "thin") ->
     }
 
 
-def axial(bodies: int, geom: Geometry = PAPER_INNER, strain: float = 1e-4) -> dict:
+def axial(
+    bodies: int, geom: Geometry = PAPER_INNER, strain: float = 1e-4, element: str = "paper"
+) -> dict:
     """Tip elongation [mm] under an axial tip load P = strain E A [N] against P L / (E A)."""
     sec, mat = geom.section, geom.material
     P = strain * mat.E * sec.area
-    sim = geom.simulator(bodies)
+    sim = geom.simulator(bodies, element=element)
     sim.set_tip_forces(np.array([[P, 0.0, 0.0]]))
     u = float(sim.solve_static().tip_pos[0, 0] - geom.length)
     uref = ref.axial_tip(P, geom.length, mat.E, sec.area)
     return {
         "check": "axial",
-        "settings": {**asdict(geom), "bodies": bodies, "P_N": P},
+        "settings": {**asdict(geom), "bodies": bodies, "P_N": P, "element": element},
         "computed_mm": u,
         "reference_mm": uref,
         "rel_error": _rel(u, uref),
     }
 
 
-def torsion(bodies: int, geom: Geometry = PAPER_INNER) -> dict:
+def torsion(bodies: int, geom: Geometry = PAPER_INNER, element: str = "paper") -> dict:
     """Tip twist compliance [rad/(N mm)] from the model's tangent stiffness against L / (G J).
 
     The engine has no tip moments, so a unit torque about the axis is applied to the last body
     through the inverse of the static tangent stiffness (modal.bristle_stiffness_mass).
     """
     sec, mat = geom.section, geom.material
-    K, _ = bristle_stiffness_mass(geom.simulator(bodies), 0)
+    K, _ = bristle_stiffness_mass(geom.simulator(bodies, element=element), 0)
     c = float(np.linalg.solve(K, np.eye(len(K))[:, 6 * bodies - 3])[6 * bodies - 3])
     cref = ref.torsion_tip(1.0, geom.length, mat.G, sec.J)
     return {
@@ -274,37 +288,46 @@ def _rel_check(check: str, settings: str, res: dict, key: str, limit: float) -> 
     )
 
 
-def suite() -> list[Check]:
-    """The engine-core acceptance criteria (issue "engine core", Done-when)."""
+def suite(elements=("paper", "mid")) -> list[Check]:
+    """The acceptance criteria: free bending (engine core) for every element formulation, and the
+    pressed bristle (issue 11) with targets for the "mid" element (the paper's reported)."""
+    rows = []
+    for element in elements:
+        rows += _free_bending_rows(element)
+    return rows + _buckling_rows(elements)
+
+
+def _free_bending_rows(element: str) -> list[Check]:
+    """Timoshenko, elastica, axial, torsion and frequency checks of one element formulation."""
     rows = []
     for plane in ("thin", "wide"):
         for alpha in (0.01, 0.1):
-            r = cantilever(alpha, 6, PAPER_INNER, plane=plane)
-            s = f"{PAPER_INNER.label(6)} alpha={alpha:g} {plane}"
+            r = cantilever(alpha, 6, PAPER_INNER, plane=plane, element=element)
+            s = f"{PAPER_INNER.label(6)} alpha={alpha:g} {plane} {element}"
             for key in ("v_over_L", "tip_angle_rad"):
                 rows.append(_rel_check(f"timoshenko {key}", s, r, key, 0.005))
     for alpha in (1.0, 2.0, 5.0, 10.0):
         for bodies, lim_v, lim_h in ((6, 0.02, 0.03), (24, 0.003, 0.005)):
-            r = cantilever(alpha, bodies, SLENDER)
-            s = f"{SLENDER.label(bodies)} alpha={alpha:g}"
+            r = cantilever(alpha, bodies, SLENDER, element=element)
+            s = f"{SLENDER.label(bodies)} alpha={alpha:g} {element}"
             for key, lim in (("v_over_L", lim_v), ("h_over_L", lim_h)):
                 rows.append(_rel_check(f"elastica {key}", s, r, key, lim))
-    r = axial(6, PAPER_INNER)
+    r = axial(6, PAPER_INNER, element=element)
     rows.append(
         Check(
             "axial u [mm]",
-            f"{PAPER_INNER.label(6)} P={r['settings']['P_N']:.3g}",
+            f"{PAPER_INNER.label(6)} P={r['settings']['P_N']:.3g} {element}",
             r["computed_mm"],
             r["reference_mm"],
             r["rel_error"],
             0.001,
         )
     )
-    r = torsion(6, PAPER_INNER)
+    r = torsion(6, PAPER_INNER, element=element)
     rows.append(
         Check(
             "torsion compliance [1/(N mm)]",
-            PAPER_INNER.label(6),
+            f"{PAPER_INNER.label(6)} {element}",
             r["computed_rad_per_Nmm"],
             r["reference_rad_per_Nmm"],
             r["rel_error"],
@@ -312,17 +335,47 @@ def suite() -> list[Check]:
         )
     )
     for bodies, lim in ((6, 0.03), (24, 0.005)):
-        r = frequency(bodies, SLENDER)
+        r = frequency(bodies, SLENDER, element=element)
         rows.append(
             Check(
                 "first frequency [Hz]",
-                SLENDER.label(bodies),
+                f"{SLENDER.label(bodies)} {element}",
                 r["computed_hz"],
                 r["reference_hz"],
                 r["rel_error"],
                 lim,
             )
         )
+    return rows
+
+
+#: issue 11's targets for the "mid" element: largest |force error| over compressions 0.25-3 mm
+#: and leans 0-3 deg, by tip condition and bodies (the paper's element is reported, no target)
+BUCKLING_LIMITS = {("free", 6): 0.01, ("free", 3): 0.04, ("pinned", 6): 0.02, ("pinned", 3): 0.06}
+
+
+def _buckling_rows(elements) -> list[Check]:
+    """The pressed bristle against the rod: the largest plate-force error over the compressions
+    of ``buckling.COMPRESSIONS``, one row per element, tip, lean and bodies."""
+    rows = []
+    for (tip, bodies), limit in BUCKLING_LIMITS.items():
+        for lean in (0.0, 1.0, 3.0):
+            for element in elements:
+                case = BucklingCase(tip=tip, lean_deg=lean, bodies=bodies, element=element)
+                r = buckling(case)
+                err = r["rel_error"]["force_N"]
+                k = int(np.argmax(np.abs(err)))
+                rows.append(
+                    Check(
+                        "buckling plate force [N]",
+                        f"{tip} tip, lean {lean:g} deg, {bodies} bodies, {element}, "
+                        f"worst at {COMPRESSIONS[k]:g} mm",
+                        r["computed"]["force_N"][k],
+                        r["reference"]["force_N"][k],
+                        err[k],
+                        limit if element == "mid" else math.inf,
+                    )
+                )
     return rows
 
 
@@ -335,7 +388,7 @@ def format_table(rows: list[Check]) -> str:
             f"{r.computed:.6g}",
             f"{r.reference:.6g}",
             f"{r.error:+.3e}",
-            f"{r.limit:.1%}",
+            f"{r.limit:.1%}" if math.isfinite(r.limit) else "report",
             "PASS" if r.passed else "FAIL",
         )
         for r in rows
