@@ -87,13 +87,21 @@ CONTACT_GRID_QUICK = dict(
 
 
 def simulate_contact(
-    bodies: int, dt: float, integrator: str, tip_tip: bool, press: float, hold: float, arc: float
+    bodies: int,
+    dt: float,
+    integrator: str,
+    tip_tip: bool,
+    press: float,
+    hold: float,
+    arc: float,
+    element: str | None = None,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
     touching the plate at t = 0, pressed 3 mm along the bristle axis (``press`` s, minimum jerk),
     held ``hold`` s, then driven ``arc`` s along the 20 mm circle at 20 mm/s (100 mm/s^2 ramp),
-    as ``brush-env reference --path circle``.  A ``SimulationDivergence`` ends the run early; the
-    samples up to the last completed step are kept and ``status`` says when it diverged."""
+    as ``brush-env reference --path circle``, with the beam element ``element`` (None: the
+    SimSettings default).  A ``SimulationDivergence`` ends the run early; the samples up to the
+    last completed step are kept and ``status`` says when it diverged."""
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
@@ -101,7 +109,8 @@ def simulate_contact(
 
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
-    sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator))
+    extra = {} if element is None else {"element": element}
+    sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator, **extra))
     touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)
     t_circle = starts[-1]

@@ -388,13 +388,19 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     h1 = 0.5 * s1
     h2 = 0.5 * s2
     hh2 = 0.25 * th2
+    # one sine/cosine of theta/2 serves exp(psi/2) and, below, J_l^-T and (I + exp(psi/2))^-1
+    hn = 0.0
+    sh = 0.0
+    ch = 1.0
     if hh2 < 1e-12:
         sa = 1.0 - hh2 / 6.0
         sb = 0.5 - hh2 / 24.0
     else:
         hn = np.sqrt(hh2)
-        sa = np.sin(hn) / hn
-        sb = (1.0 - np.cos(hn)) / hh2
+        sh = np.sin(hn)
+        ch = np.cos(hn)
+        sa = sh / hn
+        sb = (1.0 - ch) / hh2
     E00 = 1.0 - sb * (h1 * h1 + h2 * h2)
     E11 = 1.0 - sb * (h0 * h0 + h2 * h2)
     E22 = 1.0 - sb * (h0 * h0 + h1 * h1)
@@ -447,10 +453,9 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     if th2 < 1e-8:
         c = 1.0 / 12.0 + th2 / 720.0
         t = 0.25 + th2 / 192.0
-    else:
-        th = np.sqrt(th2)
-        c = (1.0 - 0.5 * th / np.tan(0.5 * th)) / th2
-        t = np.tan(0.25 * th) / th
+    else:  # c = (1 - (theta/2) cot(theta/2)) / theta^2, t = tan(theta/4) / theta
+        c = (1.0 - hn * ch / sh) / th2
+        t = sh / ((1.0 + ch) * 2.0 * hn)
     x0 = s1 * m2 - s2 * m1
     x1 = s2 * m0 - s0 * m2
     x2 = s0 * m1 - s1 * m0

@@ -301,8 +301,10 @@ class BrushConfig:
     #: [rad] the smallest lean a bristle is modelled with (a straight bristle is never perfectly
     #: straight): a |lean| below it becomes this imperfection, toward +thickness (or the lean's
     #: sign), so that a pressed "straight" bristle buckles as a real one does instead of holding
-    #: the unstable straight column (docs/model.md); 0 models the perfect column
-    imperfection: float = math.radians(IMPERFECTION_DEG)
+    #: the unstable straight column (docs/model.md).  Brush files default to IMPERFECTION_DEG
+    #: (key imperfection_deg); a BrushConfig built in code is the geometry as given (0: the
+    #: perfect column, as the closed-form validations need)
+    imperfection: float = 0.0
 
     def __post_init__(self) -> None:
         LIMITS["lean"].check("BrushConfig.lean", self.lean)

@@ -73,7 +73,12 @@ def element_strains(sim) -> np.ndarray:
         for i in range(m.bstart[j], m.bstart[j + 1]):
             pB = st.pos[i] + m.bp[i, B_HALF] * st.rot[i][:, 0]
             out[i, 3:] = logmap(RA.T @ st.rot[i])
-            Rf = RA @ expmap(0.5 * out[i, 3:]) if m.elem[i] == ELEM_MID else RA
-            out[i, :3] = Rf.T @ (pB - pA) - np.array([m.bp[i, B_LEN], 0.0, 0.0])
+            chord = m.bp[i, B_LEN]
+            Rf = RA
+            if m.elem[i] == ELEM_MID:  # mid-frame and the arc's chord (_kernels._element_mid)
+                Rf = RA @ expmap(0.5 * out[i, 3:])
+                x = 0.5 * np.hypot(out[i, 4], out[i, 5])
+                chord *= np.sinc(x / np.pi)
+            out[i, :3] = Rf.T @ (pB - pA) - np.array([chord, 0.0, 0.0])
             pA, RA = pB, st.rot[i]
     return out

@@ -72,7 +72,7 @@ class SimSettings:
     max_substep_levels: int = 8
     gravity: tuple = (0.0, 0.0, -G_EARTH)
     jacobian_max_age: int = 25
-    element: str = "paper"
+    element: str = "mid"
 
     def __post_init__(self):
         check_real("settings.dt", self.dt, Limit("s", gt=0, le=0.1))
@@ -117,7 +117,7 @@ class Model:
         return int(self.bstart[-1])
 
 
-def build_model(brush: BrushConfig, element: str = "paper") -> Model:
+def build_model(brush: BrushConfig, element: str = "mid") -> Model:
     """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping) for
     the beam element ``element`` ("paper" or "mid", see SimSettings)."""
     nbod = [b.bodies for b in brush.bristles]

@@ -77,6 +77,13 @@ class EnvConfig:
         10, "engine", "count", "engine steps per action (control step)", lo=1, hi=1000
     )
     integrator: str = _f("bdf2", "engine", "-", "implicit scheme", choices=("bdf2", "euler"))
+    element: str = _f(
+        "mid",
+        "engine",
+        "-",
+        "beam element: mid (accurate with few bodies) or paper (docs/model.md)",
+        choices=("mid", "paper"),
+    )
     gravity: bool = _f(True, "engine", "-", "gravity on the bristles (-z, 9810 mm/s^2)")
     tip_tip: str = _f(
         "scene",

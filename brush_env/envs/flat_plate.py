@@ -108,6 +108,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | engine_dt | 0.004 | s | engine time step |
 | frame_skip | 10 | count | engine steps per action; dt = engine_dt * frame_skip |
 | integrator | "bdf2" | - | "bdf2" or "euler" |
+| element | "mid" | - | beam element: "mid" (accurate with few bodies) or "paper" |
 | gravity | True | - | gravity on the bristles |
 | tip_tip | "scene" | - | tip-tip contact: the scene file's (on for flat_plate), "on", "off" |
 | action_mode | "6d" | - | "6d" or "3d" |
@@ -232,7 +233,10 @@ class BrushEnv(gym.Env):
         self.plate_z = float(planes[0].point[2])
         gravity = SimSettings().gravity if cfg.gravity else (0.0, 0.0, 0.0)
         self.sim = Simulator(
-            scene, SimSettings(dt=cfg.engine_dt, integrator=cfg.integrator, gravity=gravity)
+            scene,
+            SimSettings(
+                dt=cfg.engine_dt, integrator=cfg.integrator, gravity=gravity, element=cfg.element
+            ),
         )
         model = self.sim.model
         self.n_bristles = model.n_bristles

@@ -58,6 +58,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=d["integrator"],
         help="implicit scheme: bdf2 (2nd order, default) or euler (1st order)",
     )
+    parser.add_argument(
+        "--element",
+        choices=("mid", "paper"),
+        default=d["element"],
+        help="beam element: mid (default; accurate with few bodies in buckled contact) or paper "
+        "(the paper's element, to reproduce it); docs/model.md",
+    )
     parser.add_argument("--speed", type=float, default=d["speed"], help="tool speed [mm/s]")
     parser.add_argument(
         "--accel", type=float, default=d["accel"], help="tool acceleration [mm/s^2]"
@@ -83,6 +90,7 @@ def run(args) -> int:
         dt=args.dt,
         bodies=args.bodies,
         integrator=args.integrator,
+        element=args.element,
         speed=args.speed,
         accel=args.accel,
         progress=not args.no_progress,

@@ -254,6 +254,7 @@ def settings_info(plan, settings, args: dict) -> dict:
         scene=dict(name=scene.name, tip_tip=scene.tip_tip, plate_z_mm=plan.plate_z),
         dt_s=settings.dt,
         integrator=settings.integrator,
+        element=settings.element,
         bodies=sorted({b.bodies for b in brush_cfg.bristles}),
         bodies_override=args["bodies"],
         speed_mm_s=args["speed"],

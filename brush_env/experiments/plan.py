@@ -29,6 +29,7 @@ DEFAULTS = dict(
     hold_time=0.25,  # [s] settling after the press
     dt=1e-3,  # [s]
     integrator="bdf2",
+    element="mid",  # beam element: "mid" (accurate with few bodies) or "paper" (docs/model.md)
     path="movel",  # "movel" (paper Algorithm 1) or "circle" (exact circle)
     pitch_window=(2.0 * math.pi, 2.5 * math.pi),  # eq 12 support [rad]
     tips_dt=5e-3,  # sampling interval of tips.npz [s]
@@ -133,6 +134,7 @@ def check_run_args(args: Mapping) -> None:
     check_real("press_depth", args["press_depth"], Limit("mm", ge=0))
     check_choice("path", args["path"], ("movel", "circle"), "path")
     check_choice("integrator", args["integrator"], ("bdf2", "euler"), "integrator")
+    check_choice("element", args["element"], ("mid", "paper"), "beam element")
 
 
 @dataclass

@@ -44,6 +44,7 @@ def run_reference(
     dt: float = DEFAULTS["dt"],
     bodies: int | None = None,
     integrator: str = DEFAULTS["integrator"],
+    element: str = DEFAULTS["element"],
     speed: float = DEFAULTS["speed"],
     accel: float = DEFAULTS["accel"],
     progress: bool = True,
@@ -64,13 +65,14 @@ def run_reference(
     ``scene``: a ``Scene``, path or name (default ``flat_plate``); ``turns`` (fractional for quick
     runs: cut when θ reaches 2π·turns); ``pitch_error_deg`` (0: none; else a second run with the
     eq-12 pitch of this amplitude [deg] in ``pitch_window`` [rad]); ``dt`` [s]; ``bodies`` per
-    bristle (override); ``integrator`` 'bdf2' | 'euler'; ``speed`` [mm/s]; ``accel`` [mm/s²];
-    ``path`` 'movel' (Algorithm 1) | 'circle'.  Files: docs/reference_experiment.md.
+    bristle (override); ``integrator`` 'bdf2' | 'euler'; ``element`` 'mid' | 'paper' (beam
+    element); ``speed`` [mm/s]; ``accel`` [mm/s²]; ``path`` 'movel' (Algorithm 1) | 'circle'.
+    Files: docs/reference_experiment.md.
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
     check_run_args(args)
-    settings = SimSettings(dt=float(dt), integrator=integrator)
+    settings = SimSettings(dt=float(dt), integrator=integrator, element=element)
     scene_obj = resolve_scene(brush, scene, bodies)  # every input is valid past this line
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()

@@ -107,4 +107,7 @@ def test_reference_cleans_more_than_random(make_env):
         c_ref, why = _coverage(env, ref, seed)
         c_rnd, _ = _coverage(env, rnd, seed)
         assert why is None, f"the reference episode was terminated: {why}"
-        assert c_ref > 0.02 and c_ref > 2 * c_rnd, (seed, c_ref, c_rnd)
+        # the circle must clean twice what random actions do, and a visible part of the
+        # patch in 6 s (the mid element's tip forces are lower than the 3-body paper element's,
+        # which overestimated them by ~67 %, so fewer tips are inside the cleaning window)
+        assert c_ref > 0.01 and c_ref > 2 * c_rnd, (seed, c_ref, c_rnd)
