@@ -201,6 +201,47 @@ def _node(c, R, half, out):
     out[2] = c[2] + half * R[2, 0]
 
 
+@njit(**HOT, inline="always")
+def _element_chord(aIsBase, A, pAbase, B):
+    """Nodes of an element (p_A = c_A + half_A R_A e_x, or the base point; p_B likewise) as the
+    scalars (p_A, r_B = p_B - c_B, d = p_B - p_A)."""
+    cA = A.c
+    RA = A.R
+    if aIsBase:
+        pA0 = pAbase[0]
+        pA1 = pAbase[1]
+        pA2 = pAbase[2]
+    else:
+        pA0 = cA[0] + A.half * RA[0, 0]
+        pA1 = cA[1] + A.half * RA[1, 0]
+        pA2 = cA[2] + A.half * RA[2, 0]
+    RB = B.R
+    rB0 = B.half * RB[0, 0]
+    rB1 = B.half * RB[1, 0]
+    rB2 = B.half * RB[2, 0]
+    dx = B.c[0] + rB0 - pA0
+    dy = B.c[1] + rB1 - pA1
+    dz = B.c[2] + rB2 - pA2
+    return rB0, rB1, rB2, dx, dy, dz
+
+
+@njit(**HOT, inline="always")
+def _relative_rotation(RA, RB, out):
+    """out <- log(R_A^T R_B), the element's rotation strain."""
+    _log3s(
+        RA[0, 0] * RB[0, 0] + RA[1, 0] * RB[1, 0] + RA[2, 0] * RB[2, 0],
+        RA[0, 0] * RB[0, 1] + RA[1, 0] * RB[1, 1] + RA[2, 0] * RB[2, 1],
+        RA[0, 0] * RB[0, 2] + RA[1, 0] * RB[1, 2] + RA[2, 0] * RB[2, 2],
+        RA[0, 1] * RB[0, 0] + RA[1, 1] * RB[1, 0] + RA[2, 1] * RB[2, 0],
+        RA[0, 1] * RB[0, 1] + RA[1, 1] * RB[1, 1] + RA[2, 1] * RB[2, 1],
+        RA[0, 1] * RB[0, 2] + RA[1, 1] * RB[1, 2] + RA[2, 1] * RB[2, 2],
+        RA[0, 2] * RB[0, 0] + RA[1, 2] * RB[1, 0] + RA[2, 2] * RB[2, 0],
+        RA[0, 2] * RB[0, 1] + RA[1, 2] * RB[1, 1] + RA[2, 2] * RB[2, 1],
+        RA[0, 2] * RB[0, 2] + RA[1, 2] * RB[1, 2] + RA[2, 2] * RB[2, 2],
+        out,
+    )
+
+
 #: element formulations (``records.ModelArrays.elem``, ``SimSettings.element``)
 ELEM_PAPER = 0  # the paper's (Adams FIELD): strain in the proximal body's frame
 ELEM_MID = 1  # co-rotational Timoshenko element in the mid-frame between its nodes (issue 11)
@@ -236,43 +277,16 @@ def _element_paper(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     Written out in scalars on purpose: array views and helper calls cost reference counting in
     numba, which made this (the innermost kernel) ~6x slower than its arithmetic.
     """
-    cA = A.c
     RA = A.R
     halfA = A.half
-    cB = B.c
-    RB = B.R
-    halfB = B.half
     ehist = damp.ehist
     gs = damp.gs
     hs = damp.hs
-    if aIsBase:
-        pA0 = pAbase[0]
-        pA1 = pAbase[1]
-        pA2 = pAbase[2]
-    else:
-        pA0 = cA[0] + halfA * RA[0, 0]
-        pA1 = cA[1] + halfA * RA[1, 0]
-        pA2 = cA[2] + halfA * RA[2, 0]
-    rB0 = halfB * RB[0, 0]
-    rB1 = halfB * RB[1, 0]
-    rB2 = halfB * RB[2, 0]
-    dx = cB[0] + rB0 - pA0
-    dy = cB[1] + rB1 - pA1
-    dz = cB[2] + rB2 - pA2
+    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
     e[0] = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz - length
     e[1] = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
     e[2] = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
-    # relative rotation R_A^T R_B
-    q00 = RA[0, 0] * RB[0, 0] + RA[1, 0] * RB[1, 0] + RA[2, 0] * RB[2, 0]
-    q01 = RA[0, 0] * RB[0, 1] + RA[1, 0] * RB[1, 1] + RA[2, 0] * RB[2, 1]
-    q02 = RA[0, 0] * RB[0, 2] + RA[1, 0] * RB[1, 2] + RA[2, 0] * RB[2, 2]
-    q10 = RA[0, 1] * RB[0, 0] + RA[1, 1] * RB[1, 0] + RA[2, 1] * RB[2, 0]
-    q11 = RA[0, 1] * RB[0, 1] + RA[1, 1] * RB[1, 1] + RA[2, 1] * RB[2, 1]
-    q12 = RA[0, 1] * RB[0, 2] + RA[1, 1] * RB[1, 2] + RA[2, 1] * RB[2, 2]
-    q20 = RA[0, 2] * RB[0, 0] + RA[1, 2] * RB[1, 0] + RA[2, 2] * RB[2, 0]
-    q21 = RA[0, 2] * RB[0, 1] + RA[1, 2] * RB[1, 1] + RA[2, 2] * RB[2, 1]
-    q22 = RA[0, 2] * RB[0, 2] + RA[1, 2] * RB[1, 2] + RA[2, 2] * RB[2, 2]
-    _log3s(q00, q01, q02, q10, q11, q12, q20, q21, q22, e[3:6])
+    _relative_rotation(RA, B.R, e[3:6])
     f0 = 0.0
     f1 = 0.0
     f2 = 0.0
@@ -343,42 +357,14 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     F_A = F, F_B = -F;  M_A = -v + T^T v + R_A w,  M_B = -T^T v - R_A w;  then carried to the
     bodies' centres, M_c = M_node + (p - c) x F.
     """
-    cA = A.c
     RA = A.R
     halfA = A.half
-    cB = B.c
-    RB = B.R
-    halfB = B.half
     ehist = damp.ehist
     gs = damp.gs
     hs = damp.hs
-    if aIsBase:
-        pA0 = pAbase[0]
-        pA1 = pAbase[1]
-        pA2 = pAbase[2]
-    else:
-        pA0 = cA[0] + halfA * RA[0, 0]
-        pA1 = cA[1] + halfA * RA[1, 0]
-        pA2 = cA[2] + halfA * RA[2, 0]
-    rB0 = halfB * RB[0, 0]
-    rB1 = halfB * RB[1, 0]
-    rB2 = halfB * RB[2, 0]
-    dx = cB[0] + rB0 - pA0
-    dy = cB[1] + rB1 - pA1
-    dz = cB[2] + rB2 - pA2
+    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
     # relative rotation psi = log(R_A^T R_B) (the same components in the A, mid and B frames)
-    _log3s(
-        RA[0, 0] * RB[0, 0] + RA[1, 0] * RB[1, 0] + RA[2, 0] * RB[2, 0],
-        RA[0, 0] * RB[0, 1] + RA[1, 0] * RB[1, 1] + RA[2, 0] * RB[2, 1],
-        RA[0, 0] * RB[0, 2] + RA[1, 0] * RB[1, 2] + RA[2, 0] * RB[2, 2],
-        RA[0, 1] * RB[0, 0] + RA[1, 1] * RB[1, 0] + RA[2, 1] * RB[2, 0],
-        RA[0, 1] * RB[0, 1] + RA[1, 1] * RB[1, 1] + RA[2, 1] * RB[2, 1],
-        RA[0, 1] * RB[0, 2] + RA[1, 1] * RB[1, 2] + RA[2, 1] * RB[2, 2],
-        RA[0, 2] * RB[0, 0] + RA[1, 2] * RB[1, 0] + RA[2, 2] * RB[2, 0],
-        RA[0, 2] * RB[0, 1] + RA[1, 2] * RB[1, 1] + RA[2, 2] * RB[2, 1],
-        RA[0, 2] * RB[0, 2] + RA[1, 2] * RB[1, 2] + RA[2, 2] * RB[2, 2],
-        e[3:6],
-    )
+    _relative_rotation(RA, B.R, e[3:6])
     s0 = e[3]
     s1 = e[4]
     s2 = e[5]

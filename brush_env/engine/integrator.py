@@ -477,15 +477,7 @@ def _start(br, model, chain, sub, base, con, ws):
     """Set up one (sub)step of one bristle: the step constants (``_prepare``), the start state
     kept in ws.it (s_pos, s_rot, s_vel, s_omg) and the tip node's rate history for contact."""
     _prepare(br, model, chain, sub, base, ws.hist, ws.el)
-    it = ws.it
-    for k in range(br.n):
-        i = br.b0 + k
-        for a in range(3):
-            it.s_pos[k, a] = chain.pos[i, a]
-            it.s_vel[k, a] = chain.vel[i, a]
-            it.s_omg[k, a] = chain.omg[i, a]
-            for bb in range(3):
-                it.s_rot[k, a, bb] = chain.rot[i, a, bb]
+    _start_state(br, chain, ws.it, True)
     # tip node history for the contact rate and the stiction deformation
     il = br.il
     tip_state = con.tip_state[br.b]
@@ -874,16 +866,25 @@ def _update_negligible(br, model, chain, it, alpha):
 
 
 @njit(**HOT)
-def _restore_start(br, chain, it):
-    """The bristle back at its start-of-step state (Newton failed)."""
+def _start_state(br, chain, it, save):
+    """save: it.s_pos/s_rot/s_vel/s_omg <- the bristle's state at the (sub)step's start; else the
+    bristle back at that state (Newton failed)."""
     for k in range(br.n):
         i = br.b0 + k
         for a in range(3):
-            chain.pos[i, a] = it.s_pos[k, a]
-            chain.vel[i, a] = it.s_vel[k, a]
-            chain.omg[i, a] = it.s_omg[k, a]
+            if save:
+                it.s_pos[k, a] = chain.pos[i, a]
+                it.s_vel[k, a] = chain.vel[i, a]
+                it.s_omg[k, a] = chain.omg[i, a]
+            else:
+                chain.pos[i, a] = it.s_pos[k, a]
+                chain.vel[i, a] = it.s_vel[k, a]
+                chain.omg[i, a] = it.s_omg[k, a]
             for bb in range(3):
-                chain.rot[i, a, bb] = it.s_rot[k, a, bb]
+                if save:
+                    it.s_rot[k, a, bb] = chain.rot[i, a, bb]
+                else:
+                    chain.rot[i, a, bb] = it.s_rot[k, a, bb]
 
 
 @njit(**HOT)
@@ -987,7 +988,7 @@ def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
             break
         ok = nrm <= rtol
     if not ok:
-        _restore_start(br, chain, ws.it)
+        _start_state(br, chain, ws.it, False)  # restore
         return False, it
     _commit(br, chain, sub, con, ws)
     return True, it

@@ -1,0 +1,171 @@
+"""``bench element``: the flat-plate turn against its converged reference, for both beam elements.
+
+The motion and scene of ``bench contact`` (default brush, 40 bristles, tip-tip on, BDF2: 3 mm press
+in 0.5 s, 0.25 s hold, one turn of the 20 mm circle at 20 mm/s; 7.234 s).  Each row runs one
+element ("paper" | "mid") at one bodies-per-bristle and time step and reports
+
+    rms_force_error = RMS_t |F - F_conv| / RMS_t |F_conv|   (whole run and circle only)
+
+against the **converged reference**: the mid element at 24 bodies and dt = 0.125 ms, stored in
+``tests/data/flat_plate_turn_reference.npz`` (TCP force sampled every 1 ms, with its settings and
+commit; ``--write-reference`` recomputes it, ~4 min on one core).  24 bodies are converged in
+bodies: 48 bodies at 0.25 ms sit 0.78 % from it and 24 bodies at 0.25 ms 0.80 % (the time step's
+share), so "converged" here means the continuum, not the same bodies at a small step.  The rows
+at dt = 0.25 ms show the discretisation's error, the rows at 1 ms add the time step's (the
+stick-slip and tip-tip lag of issue 15).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .contact import CONTACT_GRID_FULL, CONTACT_GRID_QUICK, _arc_seconds, simulate_contact
+from .harness import _best_of, machine_info, markdown_table
+
+REFERENCE_FILE = (
+    Path(__file__).resolve().parents[2] / "tests" / "data" / "flat_plate_turn_reference.npz"
+)
+REFERENCE_SETTINGS = dict(element="mid", bodies=24, dt=1.25e-4, integrator="bdf2", tip_tip=True)
+ELEMENT_GRID_FULL = dict(elements=("paper", "mid"), bodies=(3, 6), dts=(1e-3, 2.5e-4))
+ELEMENT_GRID_QUICK = dict(elements=("paper", "mid"), bodies=(3,), dts=(4e-3,))
+SAMPLE = 5e-3  # [s] comparison grid
+
+
+def _motion(quick: bool):
+    g = dict(CONTACT_GRID_QUICK if quick else CONTACT_GRID_FULL)
+    return g["press"], g["hold"], _arc_seconds(g)
+
+
+def load_reference(path: Path = REFERENCE_FILE) -> dict:
+    """The stored converged reference: t [s], F [N] (TCP force, world), t_circle [s], settings."""
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path}: no converged reference; `brush-env bench element --write-reference` makes it"
+        )
+    d = np.load(path, allow_pickle=False)
+    return {
+        "t": d["t"],
+        "F": d["F"],
+        "t_circle": float(d["t_circle"]),
+        "settings": json.loads(str(d["settings"])),
+    }
+
+
+def write_reference(path: Path = REFERENCE_FILE) -> dict:
+    """Run the converged reference (REFERENCE_SETTINGS, the full motion) and store its TCP force
+    every 1 ms (compressed), with its settings, machine and commit."""
+    s = REFERENCE_SETTINGS
+    run = simulate_contact(
+        s["bodies"], s["dt"], s["integrator"], s["tip_tip"], *_motion(False), element=s["element"]
+    )
+    if run.status != "ok":
+        raise RuntimeError(f"the converged reference did not finish: {run.status}")
+    every = int(round(1e-3 / s["dt"]))
+    meta = dict(
+        s, motion="bench contact (full): press 0.5 s, hold 0.25 s, one turn", **machine_info()
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        t=run.t[::every],
+        F=run.F[::every],
+        t_circle=run.t_circle,
+        wall_s=run.wall,
+        settings=json.dumps(meta),
+    )
+    return load_reference(path)
+
+
+def errors_against(t, F, ref: dict, t_circle: float) -> tuple[float, float]:
+    """(whole run, circle only) RMS force error of (t, F) against ``ref`` on the 5 ms grid."""
+    grid = np.arange(0.0, min(ref["t"][-1], t[-1]) + 1e-12, SAMPLE)
+
+    def on(tt, Y):
+        return np.stack([np.interp(grid, tt, Y[:, c]) for c in range(3)], axis=1)
+
+    Fr = on(ref["t"], ref["F"])
+    d2 = np.sum((on(t, F) - Fr) ** 2, axis=1)
+    r2 = np.sum(Fr**2, axis=1)
+    arc = grid >= t_circle - 1e-12
+    return math.sqrt(d2.mean() / r2.mean()), math.sqrt(d2[arc].mean() / r2[arc].mean())
+
+
+def bench_element(args) -> int:
+    """``brush-env bench element``: see the module docstring."""
+    log = sys.stderr if args.json else sys.stdout
+    info = machine_info()
+    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    if args.write_reference:
+        print("writing the converged reference (mid, 24 bodies, dt 0.125 ms) ...", file=log)
+        write_reference()
+    g = ELEMENT_GRID_QUICK if args.quick else ELEMENT_GRID_FULL
+    motion = _motion(args.quick)
+    simulate_contact(3, 4e-3, "bdf2", True, 0.02, 0.0, 0.0)  # compile / load the kernels first
+    ref = None if args.quick else load_reference()
+    rows = []
+    for element in g["elements"]:
+        for bodies in g["bodies"]:
+            for dt in g["dts"]:
+                print(f"  {element}, {bodies} bodies, dt={dt:g} ...", file=sys.stderr, flush=True)
+                run = _best_of(
+                    args,
+                    lambda e=element, b=bodies, h=dt: simulate_contact(
+                        b, h, "bdf2", True, *motion, element=e
+                    ),
+                )
+                whole = circ = math.nan
+                if ref is not None and run.status == "ok":
+                    whole, circ = errors_against(run.t, run.F, ref, ref["t_circle"])
+                row = {
+                    "element": element,
+                    "bodies": bodies,
+                    "dt": dt,
+                    "rms_force_error_converged": whole,
+                    "rms_force_error_converged_circle": circ,
+                    "wall_s": run.wall,
+                    "rtf": float(run.t[-1]) / run.wall if run.wall > 0 else math.nan,
+                    "newton_per_step_per_bristle": run.newton / max(run.steps, 1) / 40,
+                    "status": run.status,
+                }
+                rows.append(row)
+                if args.json:
+                    print(json.dumps(row), flush=True)
+    if not args.json:
+        print(format_element_table(rows))
+    return 0
+
+
+def format_element_table(rows) -> str:
+    def pct(key):
+        return lambda r: "—" if not math.isfinite(r[key]) else f"{100 * r[key]:.1f} %"
+
+    return markdown_table(
+        rows,
+        [
+            ("element", lambda r: r["element"]),
+            ("bodies", lambda r: str(r["bodies"])),
+            ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
+            ("RMS F err vs converged", pct("rms_force_error_converged")),
+            ("(circle)", pct("rms_force_error_converged_circle")),
+            ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
+            ("RTF", lambda r: f"{r['rtf']:.2f}"),
+            ("Newton/step/bristle", lambda r: f"{r['newton_per_step_per_bristle']:.2f}"),
+            ("status", lambda r: r["status"]),
+        ],
+    )
+
+
+def add_arguments(p) -> None:
+    from ..user_errors import add_flag
+
+    add_flag(p, "--json", "one JSON object per row on stdout (machine info on stderr)")
+    add_flag(p, "--quick", "reduced grid and motion, no reference (for tests)")
+    add_flag(p, "--write-reference", "recompute tests/data/flat_plate_turn_reference.npz first")
+    p.add_argument(
+        "--repeats", type=int, default=1, help="runs per row; the fastest wall time is reported"
+    )
