@@ -248,7 +248,7 @@ ELEM_MID = 1  # co-rotational Timoshenko element in the mid-frame between its no
 ELEMENTS = {"paper": ELEM_PAPER, "mid": ELEM_MID}
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _element_gen(kind, aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """Generalised forces of one beam element on the centres of its bodies A and B, by
     formulation ``kind``: ``ELEM_PAPER`` (``_element_paper``, eq 5) or ``ELEM_MID``

@@ -272,7 +272,7 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
     _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     """Tip-surface contact with the deepest surface: the penalty normal force of eq 6 and its
     tangent, then friction (eq 7-10, ``_friction_load``)."""
@@ -311,7 +311,7 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
         _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
     """Friction on a tip pressed with Fn [N] (normal tangent kk [N/mm]): eq 7 (F_mu = stiction +
     sliding), eq 8 (stiction), eq 9 (sliding), with the steps of eq 10; adds force and Newton
@@ -409,7 +409,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
             Kt[a, bb] -= kk * ft[a] / Fn * nrm[bb]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
     """Tip-tip contact, no friction (Table 3): the normal law of eq 6 with the tip-tip parameters
     along the line of centres, for every listed partner (held at its latest position)."""

@@ -128,7 +128,7 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
 
 
 # ------------------------------------------------------------------------------ residual (eq 11)
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     """Element k of bristle ``br`` (eq 5) for body poses P/Q (positions/rotations of all bodies)
     and the base node (pAb, RAb): generalised forces into el.out12, strain into el.e."""
@@ -144,7 +144,7 @@ def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
         _element_gen(kind, False, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _inertia_residual(br, model, chain, sub, hist, res, th):
     """res <- rate of momentum minus gravity of every body (eq 11, the discrete formula)."""
     bp = model.bp
@@ -177,7 +177,7 @@ def _inertia_residual(br, model, chain, sub, hist, res, th):
             res[k, 3 + a] = (c0 * La + hist.Lm[k, a]) * inv_h
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _residual_norm(br, bp, res):
     """Scaled max norm of the residual: forces / bristle force scale, moments / (scale * l);
     inf if any entry is not finite."""
@@ -198,7 +198,7 @@ def _residual_norm(br, bp, res):
     return nrm
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _residual(br, model, chain, sub, base, con, ws, rootw):
     """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm) into
     ``ws.it.res``: inertia and gravity, the elements (eq 1-5), the tip load (eq 6-10, Table 3).
@@ -257,7 +257,7 @@ def _jacobian(br, model, chain, sub, base, hist, D, U, L, ws):
     _add_tip_block(D[br.n - 1], model.bp, chain.rot, br.il, ws.it, ws.blk)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _inertia_blocks(br, bp, rot, sub, D):
     """D_k <- the inertia blocks m c0^2/h^2 I and R J R^T c0^2/h^2 (zero for statics)."""
     if sub.static:
@@ -276,7 +276,7 @@ def _inertia_blocks(br, bp, rot, sub, D):
                 )
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _perturbed(src, col, eps_x, eps_r, pos, rot, cP, RP):
     """(cP, RP) <- body ``src``'s pose moved along coordinate ``col`` (0-2: translation by eps_x,
     3-5: rotation by eps_r about a world axis).  Returns the step taken."""
@@ -352,7 +352,7 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                         L[k, a, col] -= dB
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _add_tip_block(Dk, bp, rot, il, it, blk):
     """Dk += d(-tip load, -its moment about c)/d(dc, dtheta) of the tip body ``il``.
 
@@ -377,7 +377,7 @@ def _add_tip_block(Dk, bp, rot, il, it, blk):
             Dk[3 + a, 3 + b] += blk.SrKS[a, b] - blk.SFSr[a, b]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _tip_refactor(br, D, piv, S, bp, rot, ws):
     """Last block of the factored Newton matrix <- LU(S + tip block at the current tip load).
 
@@ -392,7 +392,7 @@ def _tip_refactor(br, D, piv, S, bp, rot, ws):
     return _lu6(Dl, piv[br.n - 1])
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
     """Fresh Newton matrix of one bristle (``_jacobian_chain``), factored by block Thomas up to
     the tip body, its Schur complement kept in jc.S, the tip block added at the current tip load.
@@ -472,7 +472,7 @@ def _prepare(br, model, chain, sub, base, hist, el):
                 hist.ehist[k, a] += coef * e[a]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _start(br, model, chain, sub, base, con, ws):
     """Set up one (sub)step of one bristle: the step constants (``_prepare``), the start state
     kept in ws.it (s_pos, s_rot, s_vel, s_omg) and the tip node's rate history for contact."""
@@ -510,7 +510,7 @@ def _load_chain(br, pos, rot, t_pos, t_rot):
                 rot[br.b0 + k, a, bb] = t_rot[k, a, bb]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _extrapolate(br, chain, order, base, it, mot):
     """chain.pos/rot <- the state at t_n (it.s_pos, it.s_rot) moved on by polynomial
     extrapolation in the base frame.
@@ -594,7 +594,7 @@ def _extrapolate(br, chain, order, base, it, mot):
         reorthonormalize(rot[i])
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _rigid_predict(br, chain, base, it, mot):
     """chain.pos/rot <- the start configuration (it.s_pos, it.s_rot) carried rigidly by the
     base's motion over the step, T = base_end o base_start^-1: a driven, nearly quasi-static
@@ -623,7 +623,7 @@ def _rigid_predict(br, chain, base, it, mot):
                 )
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
     """Start Newton from the better of two predictors; returns the residual norm there.
 
@@ -638,22 +638,33 @@ def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
     it = ws.it
     if extrap == 3 and not in_contact(con.tip_state[br.b]):
         extrap = 2
-    _rigid_predict(br, chain, base, it, ws.mot)
-    nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
-    if extrap >= 2 and nrm > sub.rtol:
-        _save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
-        _extrapolate(br, chain, extrap, base, it, ws.mot)
-        nx = _residual(br, model, chain, sub, base, con, ws, rootw)
-        if nx < nrm:
-            nrm = nx
+    nrm = np.inf
+    nx = np.inf
+    # one residual call site for the three evaluations (rigid, extrapolated, rigid again): the
+    # residual is inlined, and each copy costs compile time
+    for stage in range(3):
+        if stage == 0:
+            _rigid_predict(br, chain, base, it, ws.mot)
+        elif stage == 1:
+            if extrap < 2 or nrm <= sub.rtol:
+                break
+            _save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+            _extrapolate(br, chain, extrap, base, it, ws.mot)
         else:
+            if nx < nrm:
+                nrm = nx
+                break
             _load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
-            nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
+        r = _residual(br, model, chain, sub, base, con, ws, rootw)
+        if stage == 1:
+            nx = r
+        else:
+            nrm = r
     return nrm
 
 
 # ------------------------------------------------------------------------------ Newton iteration
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _chain_update(br, model, chain, it, alpha, base, mot):
     """Apply the Newton correction alpha*it.dq to one bristle (from the trial point it.t_pos,
     it.t_rot), rebuilding the chain from the root.
@@ -732,7 +743,7 @@ def _chain_update(br, model, chain, it, alpha, base, mot):
             pAn[a] = pBn
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _direction(br, jc, ws):
     """it.dq <- the Newton correction -A^-1 r on the current factors (it.r0 keeps r).  Returns
     g0 = dq . r, the line search's slope at alpha = 0."""
@@ -759,7 +770,7 @@ def _direction(br, jc, ws):
     return g0
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _step_cap(br, model, chain, sub, con, ws):
     """Largest safe fraction alpha of the Newton correction: the rotation increment (keeps the
     log map far from pi), a trust region on the tip's displacement while in contact (the contact
@@ -805,7 +816,7 @@ def _step_cap(br, model, chain, sub, con, ws):
     return alpha
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     """Move along the correction from the saved trial point (``ws.it.t_pos``/``t_rot``); returns
     (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm)``, the capped
@@ -835,7 +846,7 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     return False, new, alpha
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _stale(fresh, alpha, new, nrm, rtol):
     """True if the factors should be rebuilt before the next iteration: the step was cut (the
     factors no longer describe the way down), or old factors converge so slowly that finishing
@@ -848,7 +859,7 @@ def _stale(fresh, alpha, new, nrm, rtol):
     return False
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _update_negligible(br, model, chain, it, alpha):
     """True if |alpha dq| is at the level of the coordinates' last bits (a round-off floor)."""
     stepmax = 0.0
@@ -865,7 +876,7 @@ def _update_negligible(br, model, chain, it, alpha):
     return stepmax < 1e-13
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _start_state(br, chain, it, save):
     """save: it.s_pos/s_rot/s_vel/s_omg <- the bristle's state at the (sub)step's start; else the
     bristle back at that state (Newton failed)."""
@@ -887,7 +898,7 @@ def _start_state(br, chain, it, save):
                     chain.rot[i, a, bb] = it.s_rot[k, a, bb]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _commit(br, chain, sub, con, ws):
     """Accept the step: commit the stiction deformation and beta (eq 7-10), rates from the
     discrete formula, shift the history (t_n -> t_{n-1} -> t_{n-2})."""
@@ -1004,7 +1015,7 @@ def _tcp_to_base(tp, tR, rp, rR, pout, Rout):
             Rout[a, b] = tR[a, 0] * rR[0, b] + tR[a, 1] * rR[1, b] + tR[a, 2] * rR[2, b]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _base_of_substep(br, model, drive, s, ds, ws):
     """ws.base <- the root node's poses of one bristle for the sub-step [s, s + ds] of the step
     (fractions; the TCP pose interpolated by ``_base_pose``), and at t_{n-1}, t_{n-2}."""
@@ -1024,7 +1035,7 @@ def _base_of_substep(br, model, drive, s, ds, ws):
     _tcp_to_base(tp, tR, rp, rR, base.pAe, base.RAe)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _substep(prm, whole, hist_ok, h):
     """The (sub)step's ``Substep``: BDF2 on a whole step with history, else backward Euler;
     c1 = c2 = 0 for statics (no history)."""
@@ -1050,7 +1061,7 @@ def _substep(prm, whole, hist_ok, h):
     )
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _backup(br, chain, con, bk, save):
     """save: bk <- the bristle's state at the start of the step; else the bristle <- bk (every
     sub-step level failed)."""
@@ -1078,7 +1089,7 @@ def _backup(br, chain, con, bk, save):
             ts[a] = bk.tip_state[a]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out):
     """One bristle over one step h = prm[P_H]: Newton on the whole step, halved recursively on
     failure (down to h / 2**max_levels) and regrown when aligned; restored and flagged
