@@ -13,7 +13,9 @@ ENGINE = Path(__file__).resolve().parent / "engine"
 STAMP = ENGINE / "__pycache__" / "brush_env_kernels.stamp"
 
 #: Shown before the first compile; the figure is the measured first start (docs/benchmarks.md).
-COMPILE_NOTICE = "compiling numba kernels, first run only (~60 s; `brush-env warmup` does it ahead)"
+COMPILE_NOTICE = (
+    "compiling numba kernels, first run only (~1.5 min; `brush-env warmup` does it ahead)"
+)
 
 _announced = False
 
