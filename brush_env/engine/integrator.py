@@ -62,8 +62,6 @@ from .records import (
     Node,
     Substep,
     Trial,
-    make_newton_cache,
-    make_work,
 )
 
 # status codes per bristle (step_bristles' ``out.status``)
@@ -90,10 +88,6 @@ MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip 
 #: as four iterations with reused factors (~2 us each).
 SLOW = 0.1
 REBUILD_ITERS = 3.0
-
-#: scratch and Newton-factor constructors (records.py), re-exported for the Simulator
-make_workspace = make_work
-make_jacobian_store = make_newton_cache
 
 
 @njit(**HOT, inline="always")

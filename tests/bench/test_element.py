@@ -24,7 +24,8 @@ def reference():
 
 def test_stored_reference_is_the_converged_run(reference):
     """The file holds what REFERENCE_SETTINGS name (mid element, 24 bodies, 0.125 ms), over the
-    whole motion (press 0.5 s + hold 0.25 s + one 20 mm turn at 20 mm/s with its ramps)."""
+    whole motion (press 0.5 s + hold 0.25 s + one turn of the circle of radius 20 mm at 20 mm/s,
+    whose 100 mm/s^2 ramps add v/a = 0.2 s)."""
     s = reference["settings"]
     for k, v in REFERENCE_SETTINGS.items():
         assert s[k] == v, k
@@ -32,7 +33,7 @@ def test_stored_reference_is_the_converged_run(reference):
     assert REFERENCE_FILE.stat().st_size < 500_000
     assert np.all(np.diff(t) > 0) and np.all(np.isfinite(F))
     assert reference["t_circle"] == pytest.approx(0.75)
-    assert t[-1] == pytest.approx(0.75 + 2 * np.pi * 10.0 / 20.0 + 0.2, abs=0.01)
+    assert t[-1] == pytest.approx(0.75 + 2 * np.pi * 20.0 / 20.0 + 0.2, abs=0.01)
     # the held press: the brush pushes the plate down (Fz < 0 is the TCP's reaction convention)
     hold = (t > 0.6) & (t < 0.75)
     assert np.all(F[hold, 2] < -1.0)

@@ -114,9 +114,12 @@ def test_reward_terms_recomputed_from_the_engine_outputs(make_env):
     integrals as sums over engine steps, the coverage term from the cells within clean_radius of
     the effective contact points (bounded below by the points themselves and the segment shrunk
     by the quarter-cell sampling tolerance, above by the swept segments)."""
-    # non-default weights (they must come from the config); the tiny brush's total is 0.1-0.7 N
+    # non-default weights and limits (they must come from the config); the tiny brush's total is
+    # 0.1-0.7 N, its tips carry up to ~0.15 N (mid element), so both limits are crossed
     kw = dict(
         total_force_limit=0.3,
+        tip_force_limit=0.1,
+        tip_force_window=(0.01, 0.1),
         coverage_weight=50.0,
         tip_force_weight=90.0,
         total_force_weight=7.0,
