@@ -242,6 +242,26 @@ def _relative_rotation(RA, RB, out):
     )
 
 
+@njit(**HOT, inline="always")
+def _element_stress(K, e, ehist, gs, hs):
+    """Generalised element forces f = K (gs e + hs ehist) (eq 5 with C = beta K), as 6 scalars."""
+    f0 = 0.0
+    f1 = 0.0
+    f2 = 0.0
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    for j in range(6):
+        gj = gs * e[j] + hs * ehist[j]
+        f0 += K[0, j] * gj
+        f1 += K[1, j] * gj
+        f2 += K[2, j] * gj
+        m0 += K[3, j] * gj
+        m1 += K[4, j] * gj
+        m2 += K[5, j] * gj
+    return f0, f1, f2, m0, m1, m2
+
+
 #: element formulations (``records.ModelArrays.elem``, ``SimSettings.element``)
 ELEM_PAPER = 0  # the paper's (Adams FIELD): strain in the proximal body's frame
 ELEM_MID = 1  # co-rotational Timoshenko element in the mid-frame between its nodes (issue 11)
@@ -287,20 +307,7 @@ def _element_paper(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     e[1] = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
     e[2] = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
     _relative_rotation(RA, B.R, e[3:6])
-    f0 = 0.0
-    f1 = 0.0
-    f2 = 0.0
-    m0 = 0.0
-    m1 = 0.0
-    m2 = 0.0
-    for j in range(6):
-        gj = gs * e[j] + hs * ehist[j]
-        f0 += K[0, j] * gj
-        f1 += K[1, j] * gj
-        f2 += K[2, j] * gj
-        m0 += K[3, j] * gj
-        m1 += K[4, j] * gj
-        m2 += K[5, j] * gj
+    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, ehist, gs, hs)
     FB0 = -(RA[0, 0] * f0 + RA[0, 1] * f1 + RA[0, 2] * f2)
     FB1 = -(RA[1, 0] * f0 + RA[1, 1] * f1 + RA[1, 2] * f2)
     FB2 = -(RA[2, 0] * f0 + RA[2, 1] * f1 + RA[2, 2] * f2)
@@ -413,20 +420,7 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
     e[1] = E01 * a0 + E11 * a1 + E21 * a2
     e[2] = E02 * a0 + E12 * a1 + E22 * a2
-    f0 = 0.0
-    f1 = 0.0
-    f2 = 0.0
-    m0 = 0.0
-    m1 = 0.0
-    m2 = 0.0
-    for j in range(6):
-        gj = gs * e[j] + hs * ehist[j]
-        f0 += K[0, j] * gj
-        f1 += K[1, j] * gj
-        f2 += K[2, j] * gj
-        m0 += K[3, j] * gj
-        m1 += K[4, j] * gj
-        m2 += K[5, j] * gj
+    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, ehist, gs, hs)
     # the arc's chord: the axial force is conjugate to psi_b through e_x = ... - l sinc(|psi_b|/2),
     # d e_x / d psi_b = l q psi_b (the element's own P-delta, see the docstring)
     m1 += f0 * length * qarc * s1

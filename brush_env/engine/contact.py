@@ -236,6 +236,15 @@ def _surface_gap(surf, pt, nrm, cpt, mesh):
     return rr - surf[7]
 
 
+@njit(**HOT, inline="always")
+def _from_partner(pt, tips, j):
+    """(d, |d|): the vector from partner tip j's centre to ``pt`` [mm] and its length."""
+    d0 = pt[0] - tips[j, 0]
+    d1 = pt[1] - tips[j, 1]
+    d2 = pt[2] - tips[j, 2]
+    return d0, d1, d2, np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
 @njit(**HOT)
 def tip_load(b, pt, sub, con, F, Kt, tw):
     """Total load on bristle b's tip node at ``pt`` [mm]: force F [N] and dF/dpt Kt [N/mm].
@@ -420,10 +429,7 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
     cp = con.cp
     for q in range(pair_ptr[b], pair_ptr[b + 1]):
         j = con.pair_idx[q]
-        d0 = pt[0] - tips[j, 0]
-        d1 = pt[1] - tips[j, 1]
-        d2 = pt[2] - tips[j, 2]
-        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        d0, d1, d2, dist = _from_partner(pt, tips, j)
         rj = tips[j, 6]
         delta = R + rj - dist
         if dist < 1e-12 or delta <= 0.0:
@@ -478,10 +484,7 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
     if pair_ptr.shape[0] > b + 1:
         for q in range(pair_ptr[b], pair_ptr[b + 1]):
             j = con.pair_idx[q]
-            d0 = pt[0] - tips[j, 0]
-            d1 = pt[1] - tips[j, 1]
-            d2 = pt[2] - tips[j, 2]
-            dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            d0, d1, d2, dist = _from_partner(pt, tips, j)
             if dist < 1e-12:
                 continue
             gap = dist - R - tips[j, 6]
