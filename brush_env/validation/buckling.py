@@ -243,9 +243,3 @@ def buckling(case: BucklingCase, compressions=COMPRESSIONS) -> dict:
         "elastica": ela,
         "rel_error": rel,
     }
-
-
-def max_force_error(case: BucklingCase, compressions=COMPRESSIONS) -> float:
-    """Largest |relative error| of the plate force over ``compressions`` (the acceptance
-    measure)."""
-    return float(np.max(np.abs(buckling(case, compressions)["rel_error"]["force_N"])))
