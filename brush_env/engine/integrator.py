@@ -130,12 +130,11 @@ def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     i = br.b0 + k
     kind = model.elem[i]
     B = Node(P[i], Q[i], bp[i, B_HALF])
-    if k == 0:
-        A = Node(pAb, RAb, 0.0)
-        _element_gen(kind, True, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
-    else:
-        A = Node(P[i - 1], Q[i - 1], bp[i - 1, B_HALF])
-        _element_gen(kind, False, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
+    # one call with a run-time flag: a literal True/False would compile each element twice more
+    isroot = k == 0
+    j = i - 1 if k > 0 else i
+    A = Node(pAb, RAb, 0.0) if isroot else Node(P[j], Q[j], bp[j, B_HALF])
+    _element_gen(kind, isroot, A, pAb, B, model.K[i], bp[i, B_LEN], damp, el.out12, el.e)
 
 
 @njit(**HOT, inline="always")
@@ -333,7 +332,7 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                     _element_gen(kind, isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
                 else:
                     AP = Node(el.cP, el.RP, A.half)
-                    _element_gen(kind, False, AP, pAb, B, model.K[i], ln, damp, pert, e)
+                    _element_gen(kind, isroot, AP, pAb, B, model.K[i], ln, damp, pert, e)  # isroot is False here
                 for a in range(6):
                     dA = (pert[a] - basef[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - basef[6 + a]) / eps  # d(force on B)
