@@ -95,13 +95,15 @@ def simulate_contact(
     hold: float,
     arc: float,
     element: str | None = None,
+    max_substep: float | None = None,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
     touching the plate at t = 0, pressed 3 mm along the bristle axis (``press`` s, minimum jerk),
     held ``hold`` s, then driven ``arc`` s along the 20 mm circle at 20 mm/s (100 mm/s^2 ramp),
     as ``brush-env reference --path circle``, with the beam element ``element`` (None: the
-    SimSettings default).  A ``SimulationDivergence`` ends the run early; the samples up to the
-    last completed step are kept and ``status`` says when it diverged."""
+    SimSettings default) and SimSettings.max_substep ``max_substep`` [s] (None: the default;
+    dt switches the internal split off).  A ``SimulationDivergence`` ends the run early; the
+    samples up to the last completed step are kept and ``status`` says when it diverged."""
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
@@ -110,6 +112,8 @@ def simulate_contact(
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     extra = {} if element is None else {"element": element}
+    if max_substep is not None:
+        extra["max_substep"] = max_substep
     sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator, **extra))
     touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)

@@ -15,7 +15,14 @@ from .config import (
     load_materials,
 )
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
-from .simulator import SimSettings, SimulationDivergence, Simulator, State, StepResult
+from .simulator import (
+    PenetrationWarning,
+    SimSettings,
+    SimulationDivergence,
+    Simulator,
+    State,
+    StepResult,
+)
 
 __all__ = [
     "BristleConfig",
@@ -27,6 +34,7 @@ __all__ = [
     "load_brush",
     "load_materials",
     "SimSettings",
+    "PenetrationWarning",
     "SimulationDivergence",
     "Simulator",
     "State",

@@ -332,7 +332,8 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                     _element_gen(kind, isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
                 else:
                     AP = Node(el.cP, el.RP, A.half)
-                    _element_gen(kind, isroot, AP, pAb, B, model.K[i], ln, damp, pert, e)  # isroot is False here
+                    # (isroot is False on this side)
+                    _element_gen(kind, isroot, AP, pAb, B, model.K[i], ln, damp, pert, e)
                 for a in range(6):
                     dA = (pert[a] - basef[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - basef[6 + a]) / eps  # d(force on B)

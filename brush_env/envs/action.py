@@ -38,13 +38,17 @@ class TcpVelocityAction:
 
     def check(self, action) -> np.ndarray:
         """The action as float64 (dim,), clipped to [-1, 1]; ValueError on a bad action."""
+        expected = f"expected an array of shape ({self.dim},) of real numbers in [-1, 1]"
         try:
-            a = np.asarray(action, dtype=float)
+            raw = None if action is None else np.asarray(action)
         except (TypeError, ValueError):
-            raise ValueError(
-                f"action = {action!r} is not numeric: expected an array of shape "
-                f"({self.dim},) with values in [-1, 1]"
-            ) from None
+            raw = None
+        # complex values would lose their imaginary part and booleans become 0/1 in a float
+        # cast without a word: refuse them, and None, rather than guess
+        if raw is None or raw.dtype.kind not in "iuf":
+            kind = "None" if action is None else f"dtype {getattr(raw, 'dtype', type(action))}"
+            raise ValueError(f"action = {action!r} is not real numbers ({kind}): {expected}")
+        a = raw.astype(float)
         if a.shape != (self.dim,):
             raise ValueError(
                 f"action has shape {a.shape}: expected ({self.dim},) for "

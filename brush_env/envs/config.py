@@ -73,6 +73,17 @@ class EnvConfig:
         hi=24,
     )
     engine_dt: float = _f(0.004, "engine", "s", "engine time step", lo=0.0, hi=0.02, lo_open=True)
+    engine_max_substep: float = _f(
+        0.001,
+        "engine",
+        "s",
+        "longest internal solver step: engine_dt is split into ceil(engine_dt / this) steps "
+        "(1 ms keeps the press on the small-step buckling branch; engine_dt switches the split "
+        "off, faster but on the wrong branch at 2-4 ms, docs/env.md)",
+        lo=0.0,
+        hi=0.02,
+        lo_open=True,
+    )
     frame_skip: int = _f(
         10, "engine", "count", "engine steps per action (control step)", lo=1, hi=1000
     )

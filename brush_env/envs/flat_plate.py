@@ -106,6 +106,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | scene | "flat_plate" | - | scene name in configs/scenes or a TOML path |
 | bodies_per_bristle | 3 | count | bodies per bristle (0: the brush file's) |
 | engine_dt | 0.004 | s | engine time step |
+| engine_max_substep | 0.001 | s | longest internal solver step (engine_dt is split into equal steps) |
 | frame_skip | 10 | count | engine steps per action; dt = engine_dt * frame_skip |
 | integrator | "bdf2" | - | "bdf2" or "euler" |
 | element | "mid" | - | beam element: "mid" (accurate with few bodies) or "paper" |
@@ -235,7 +236,11 @@ class BrushEnv(gym.Env):
         self.sim = Simulator(
             scene,
             SimSettings(
-                dt=cfg.engine_dt, integrator=cfg.integrator, gravity=gravity, element=cfg.element
+                dt=cfg.engine_dt,
+                max_substep=cfg.engine_max_substep,
+                integrator=cfg.integrator,
+                gravity=gravity,
+                element=cfg.element,
             ),
         )
         model = self.sim.model

@@ -7,6 +7,8 @@ References are the paper's laws and tables with closed-form consequences: the st
 from __future__ import annotations
 
 import dataclasses
+import re
+import warnings
 
 import numpy as np
 import pytest
@@ -16,6 +18,7 @@ from brush_env.engine import (
     BrushConfig,
     ConfigError,
     Material,
+    PenetrationWarning,
     Plane,
     Scene,
     Section,
@@ -26,6 +29,7 @@ from brush_env.engine import (
 )
 from brush_env.engine import contact as ct
 from brush_env.engine.scene import ContactParams
+from brush_env.engine.simulator import PENETRATION_WARN_FRACTION
 
 R0 = np.diag([1.0, -1.0, -1.0])  # TCP z down: bristles hang toward the plate z = 0
 SILICONE = Material(name="silicone", E=7.0, nu=0.48, density=1.15e-9, damping_ratio=0.1)
@@ -270,12 +274,17 @@ def test_hard_cases_stay_finite_and_bounded(name):
         poses += [np.array([xi, 0.0, z0 - case["press"]]) for xi in x]
     pen_max = 0.0
     fmax = 0.0
-    for p in poses:
-        out = sim.step(p, R0)
-        assert np.all(np.isfinite(out.tcp_force)) and np.all(np.isfinite(out.tip_pos))
-        pen_max = max(pen_max, out.tip_penetration.max())
-        fmax = max(fmax, np.linalg.norm(out.tcp_force))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PenetrationWarning)
+        for p in poses:
+            out = sim.step(p, R0)
+            assert np.all(np.isfinite(out.tcp_force)) and np.all(np.isfinite(out.tip_pos))
+            pen_max = max(pen_max, out.tip_penetration.max())
+            fmax = max(fmax, np.linalg.norm(out.tcp_force))
     assert pen_max < 0.1  # mm: a tenth of the tip sphere... far above the silicone's ~5 um
+    # a penetration beyond 10 % of the tip radius is announced, once (issue 15)
+    deep = pen_max > PENETRATION_WARN_FRACTION * sim.model.tip_radius.min()
+    assert len([w for w in caught if w.category is PenetrationWarning]) == int(deep)
     assert fmax < brush.n_bristles * 100.0 * 0.1**1.3 * 2.0
 
 
@@ -295,14 +304,20 @@ def test_paper_penetration_criterion_7MPa_meets_7GPa_does_not(E, must_meet):
     sim = Simulator(load_scene("flat_plate", brush=brush), SimSettings(dt=1e-3))
     z0 = brush.max_length + 0.44
     sim.reset(np.array([0.0, 0.0, z0]), R0)
-    for k in range(1, 601):  # 0.4 s minimum-jerk-like press, 0.2 s hold
-        s = min(k / 400.0, 1.0)
-        out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s**3)]), R0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PenetrationWarning)
+        for k in range(1, 601):  # 0.4 s minimum-jerk-like press, 0.2 s hold
+            s = min(k / 400.0, 1.0)
+            out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s**3)]), R0)
     pen_um = out.tip_penetration.max() * 1e3
+    warned = [str(w.message) for w in caught if w.category is PenetrationWarning]
     if must_meet:
         assert pen_um <= 2.0 * PAPER_PENETRATION_UM
+        assert not warned
     else:
         assert pen_um > 20.0 * PAPER_PENETRATION_UM
+        # the 7 GPa press leaves the penalty law's range: one warning naming bristle and depth
+        assert len(warned) == 1 and re.search(r"tip of bristle \d+ penetrates [\d.]+ um", warned[0])
 
 
 def test_mesh_plate_and_analytic_plane_give_the_same_forces():

@@ -222,8 +222,15 @@ def test_bad_actions_raise_with_shape_and_value(make_env):
         u.step(np.array([0, np.nan, 0, 0, 0, 0], np.float32))
     with pytest.raises(ValueError, match="not finite"):
         u.step(np.array([0, 0, np.inf, 0, 0, 0]))
-    with pytest.raises(ValueError, match="not numeric"):
+    with pytest.raises(ValueError, match="not real numbers"):
         u.step("up")
+    # complex, boolean and None actions are refused, not cast (issue 15)
+    with pytest.raises(ValueError, match=r"not real numbers \(dtype complex128\)"):
+        u.step(np.array([0.1 + 1j, 0, 0, 0, 0, 0]))
+    with pytest.raises(ValueError, match=r"not real numbers \(dtype bool\)"):
+        u.step(np.array([True, False, False, False, False, False]))
+    with pytest.raises(ValueError, match=r"action = None is not real numbers \(None\)"):
+        u.step(None)
     # finite values outside [-1, 1] are clipped, as the docs say
     _, _, _, _, info = u.step(np.array([5.0, 0, 0, 0, 0, 0]))
     obs, *_ = u.step(ZERO)
