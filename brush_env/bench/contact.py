@@ -96,14 +96,17 @@ def simulate_contact(
     arc: float,
     element: str | None = None,
     max_substep: float | None = None,
+    observe=None,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
     touching the plate at t = 0, pressed 3 mm along the bristle axis (``press`` s, minimum jerk),
     held ``hold`` s, then driven ``arc`` s along the 20 mm circle at 20 mm/s (100 mm/s^2 ramp),
     as ``brush-env reference --path circle``, with the beam element ``element`` (None: the
-    SimSettings default) and SimSettings.max_substep ``max_substep`` [s] (None: the default;
-    dt switches the internal split off).  A ``SimulationDivergence`` ends the run early; the
-    samples up to the last completed step are kept and ``status`` says when it diverged."""
+    SimSettings default) and SimSettings.max_substep ``max_substep`` [s] (None: dt, i.e. no
+    internal split: the benches time the solver at the step they name); ``observe(t, out)``,
+    if given, sees every step's ``StepResult`` (inside the timed loop).  A
+    ``SimulationDivergence`` ends the run early; the samples up to the last completed step are
+    kept and ``status`` says when it diverged."""
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
@@ -112,8 +115,7 @@ def simulate_contact(
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     extra = {} if element is None else {"element": element}
-    if max_substep is not None:
-        extra["max_substep"] = max_substep
+    extra["max_substep"] = dt if max_substep is None else max_substep
     sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator, **extra))
     touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)
@@ -132,6 +134,8 @@ def simulate_contact(
         for k in range(1, n + 1):
             out = sim.step(P[k], R[k])
             F[k] = out.tcp_force
+            if observe is not None:
+                observe(times[k], out)
             newton += out.iterations
             subs += out.substeps
         k = n + 1

@@ -97,6 +97,8 @@ def errors_against(t, F, ref: dict, t_circle: float) -> tuple[float, float]:
 
 def bench_element(args) -> int:
     """``brush-env bench element``: see the module docstring."""
+    if args.events:
+        return bench_events(args)
     log = sys.stderr if args.json else sys.stdout
     info = machine_info()
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
@@ -140,6 +142,90 @@ def bench_element(args) -> int:
     return 0
 
 
+#: the slip events of the circle's start: bodies per bristle of the rows (mid element, 0.25 ms)
+EVENT_BODIES = (3, 6, 12, 24)
+EVENT_END = 1.12  # [s] after the second group's break-away in every row
+
+
+def slip_events(bodies: int, dt: float = 2.5e-4, element: str = "mid") -> dict:
+    """The break-away at the start of the circle (the flat-plate turn's motion up to EVENT_END):
+    each bristle's first sliding step after the hold, grouped by time.  Returns ``groups``
+    [(t_ms, n_bristles), ...] and the TCP force [N] every 5 ms from 1.05 s (``t``, ``F``)."""
+    press, hold, _ = _motion(False)
+    first: dict[int, float] = {}
+    samples: list[tuple[float, np.ndarray]] = []
+
+    def observe(t, out):
+        if t <= press + hold:
+            return
+        for b in np.flatnonzero(out.tip_sliding):
+            first.setdefault(int(b), round(1e3 * t, 3))
+        if t >= 1.05 - 1e-9 and abs(t * 200.0 - round(t * 200.0)) < 1e-6:
+            samples.append((t, out.tcp_force.copy()))
+
+    run = simulate_contact(
+        bodies, dt, "bdf2", True, press, hold, EVENT_END - press - hold, element, observe=observe
+    )
+    times = sorted(set(first.values()))
+    groups = [(t, sum(1 for v in first.values() if v == t)) for t in times]
+    return {
+        "bodies": bodies,
+        "dt": dt,
+        "element": element,
+        "groups": groups,
+        "t": [t for t, _ in samples],
+        "F": [f.tolist() for _, f in samples],
+        "status": run.status,
+    }
+
+
+def bench_events(args) -> int:
+    """``brush-env bench element --events``: the break-away times over bodies (see slip_events)."""
+    log = sys.stderr if args.json else sys.stdout
+    info = machine_info()
+    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    rows = []
+    for bodies in (3,) if args.quick else EVENT_BODIES:
+        print(f"  slip events, mid, {bodies} bodies, dt=0.25 ms ...", file=sys.stderr, flush=True)
+        row = slip_events(bodies)
+        rows.append(row)
+        if args.json:
+            print(json.dumps(row), flush=True)
+    if not args.json:
+        print(format_events_table(rows))
+    return 0
+
+
+def format_events_table(rows) -> str:
+    def group(k):
+        return lambda r: (
+            f"{r['groups'][k][0]:.2f} ms ({r['groups'][k][1]})" if len(r["groups"]) > k else "—"
+        )
+
+    def force_at(t_s):
+        def f(r):
+            for t, F in zip(r["t"], r["F"]):
+                if abs(t - t_s) < 1e-6:
+                    return f"{F[2]:.2f}"
+            return "—"
+
+        return f
+
+    return markdown_table(
+        rows,
+        [
+            ("bodies", lambda r: str(r["bodies"])),
+            ("first break-away (bristles)", group(0)),
+            ("second break-away (bristles)", group(1)),
+            ("third", group(2)),
+            ("Fz at 1.070 s [N]", force_at(1.07)),
+            ("Fz at 1.090 s [N]", force_at(1.09)),
+            ("Fz at 1.100 s [N]", force_at(1.10)),
+            ("status", lambda r: r["status"]),
+        ],
+    )
+
+
 def format_element_table(rows) -> str:
     def pct(key):
         return lambda r: "—" if not math.isfinite(r[key]) else f"{100 * r[key]:.1f} %"
@@ -166,6 +252,12 @@ def add_arguments(p) -> None:
     add_flag(p, "--json", "one JSON object per row on stdout (machine info on stderr)")
     add_flag(p, "--quick", "reduced grid and motion, no reference (for tests)")
     add_flag(p, "--write-reference", "recompute tests/data/flat_plate_turn_reference.npz first")
+    add_flag(
+        p,
+        "--events",
+        "instead of the table: the break-away (first sliding step of each bristle) at the "
+        "circle's start, mid element at 3/6/12/24 bodies, 0.25 ms",
+    )
     p.add_argument(
         "--repeats", type=int, default=1, help="runs per row; the fastest wall time is reported"
     )

@@ -13,6 +13,7 @@ A designer's script::
 
 from __future__ import annotations
 
+import sys
 import warnings
 from dataclasses import dataclass, field
 
@@ -46,6 +47,15 @@ PENETRATION_WARN_FRACTION = 0.1
 
 class PenetrationWarning(RuntimeWarning):
     """A tip sphere sank deeper into a surface than the penalty law (eq 6) is meant for."""
+
+
+def _caller_level() -> int:
+    """warnings.warn's stacklevel of the first frame outside this module (the user's call)."""
+    level, f = 2, sys._getframe(2)
+    while f is not None and f.f_code.co_filename == __file__:
+        level += 1
+        f = f.f_back
+    return level
 
 
 class SimulationDivergence(RuntimeError):
@@ -585,7 +595,7 @@ class Simulator:
                 "contact forces there are not reliable (stiffer material or deeper press than "
                 "the scene's contact parameters were fitted for); warned once per simulator",
                 PenetrationWarning,
-                stacklevel=4,
+                stacklevel=_caller_level(),
             )
 
     def _result(self, iters: int, nsub: int) -> StepResult:

@@ -60,3 +60,15 @@ def test_cli_bench_element_quick(capsys):
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.strip()]
     assert {r["element"] for r in rows} == {"paper", "mid"}
     assert all(r["status"] == "ok" for r in rows)
+
+
+def test_break_away_events_quick(capsys):
+    """``--events``: during the hold every tip sticks (no first slip before the circle starts at
+    0.75 s); the drag then breaks every one of the 40 tips away, in groups, before 1.12 s."""
+    assert cli.main(["bench", "element", "--events", "--quick", "--json"]) == 0
+    (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert row["status"] == "ok" and row["bodies"] == 3
+    times = [t for t, _ in row["groups"]]
+    assert times == sorted(times) and times[0] > 750.0 and times[-1] < 1120.0
+    assert sum(n for _, n in row["groups"]) == 40
+    assert len(row["t"]) == len(row["F"]) and abs(row["t"][0] - 1.05) < 1e-9

@@ -75,11 +75,12 @@ def test_large_steps_keep_the_small_step_hold_force(integrator):
     """The default brush (3 bodies), pressed 3 mm in 0.5 s and held 0.25 s: the hold force at
     dt = 4 and 25 ms (the default max_substep) is within 3 % of the dt = 0.25 ms run (issue 15;
     without the split, 4 ms held 8.2 N instead of 4.5 N on another buckling branch)."""
+    limit = SimSettings().max_substep  # the default (simulate_contact's own default: no split)
     ref = simulate_contact(3, 2.5e-4, integrator, True, 0.5, 0.25, 0.0)
     f_ref = np.linalg.norm(ref.F[-1])
     assert f_ref > 1.0
     for dt in (4e-3, 2.5e-2):
-        run = simulate_contact(3, dt, integrator, True, 0.5, 0.25, 0.0)
+        run = simulate_contact(3, dt, integrator, True, 0.5, 0.25, 0.0, max_substep=limit)
         assert run.status == "ok"
         assert abs(run.t[-1] - ref.t[-1]) <= dt  # both end in the hold
         assert np.linalg.norm(run.F[-1] - ref.F[-1]) <= 0.03 * f_ref, (dt, run.F[-1], ref.F[-1])
