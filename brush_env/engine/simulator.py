@@ -86,6 +86,9 @@ class SimSettings:
     jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at every
     step; reuse changes iteration counts only, the converged state is set by the residual);
     gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off);
+    max_tcp_speed [mm/s], max_tcp_angular_speed [rad/s]: the fastest TCP motion ``step``
+    accepts (default 1000 mm/s, a UR5's tool speed limit, and 2 pi rad/s): a faster command is a
+    jump, not a motion, and is refused with an error naming the speed;
     element: the beam element formulation, "paper" (the paper's Adams-FIELD element, strain in
     the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
     accurate with few bodies in buckled contact; docs/model.md).
@@ -94,6 +97,8 @@ class SimSettings:
     dt: float = 1e-3
     integrator: str = "bdf2"
     max_substep: float = 1e-3
+    max_tcp_speed: float = 1000.0
+    max_tcp_angular_speed: float = 2.0 * np.pi
     newton_rtol: float = 1e-7
     newton_max_iter: int = 100
     max_substep_levels: int = 8
@@ -109,6 +114,12 @@ class SimSettings:
     def __post_init__(self):
         check_real("settings.dt", self.dt, Limit("s", gt=0, le=0.1))
         check_real("settings.max_substep", self.max_substep, Limit("s", gt=0, le=0.1))
+        check_real("settings.max_tcp_speed", self.max_tcp_speed, Limit("mm/s", gt=0, le=1e5))
+        check_real(
+            "settings.max_tcp_angular_speed",
+            self.max_tcp_angular_speed,
+            Limit("rad/s", gt=0, le=1e3),
+        )
         check_choice("settings.integrator", self.integrator, sorted(INTEGRATORS), "integrator")
         check_choice("settings.element", self.element, sorted(ELEMENTS), "element")
         check_real("settings.newton_rtol", self.newton_rtol, Limit("relative", gt=0, le=1e-2))
@@ -378,6 +389,25 @@ class Simulator:
             f"tcp_R = {R!r}: must be a rotation matrix (orthonormal, det +1, tolerance 1e-6)"
         )
 
+    def _check_motion(self, tcp_p, tcp_R) -> None:
+        """A command the TCP cannot reach within one step at the allowed speeds is refused
+        before anything changes (an implicit step would otherwise try to follow the jump)."""
+        s, st = self.settings, self.state
+        v = float(np.linalg.norm(tcp_p - st.tcp_p[1])) / s.dt
+        if v > s.max_tcp_speed:
+            raise ValueError(
+                f"tcp_p = {tcp_p.tolist()} is {v * s.dt:.4g} mm from the current TCP position in "
+                f"one step of dt = {s.dt:g} s: {v:.4g} mm/s, allowed up to "
+                f"settings.max_tcp_speed = {s.max_tcp_speed:g} mm/s"
+            )
+        w = float(np.linalg.norm(logmap(tcp_R @ st.tcp_R[1].T))) / s.dt
+        if w > s.max_tcp_angular_speed:
+            raise ValueError(
+                f"tcp_R turns {w * s.dt:.4g} rad from the current TCP orientation in one step of "
+                f"dt = {s.dt:g} s: {w:.4g} rad/s, allowed up to settings.max_tcp_angular_speed "
+                f"= {s.max_tcp_angular_speed:g} rad/s"
+            )
+
     def set_tip_forces(self, forces) -> None:
         """Dead external loads on the tips [N, world], shape (nb, 3)."""
         f = np.asarray(forces, float)
@@ -405,6 +435,7 @@ class Simulator:
         tcp_p = np.asarray(tcp_p, float)
         tcp_R = np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
+        self._check_motion(tcp_p, tcp_R)
         n = self.settings.substeps
         if n == 1:
             return self._advance(tcp_p, tcp_R, self._prm, st.time + self.settings.dt)

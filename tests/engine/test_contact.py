@@ -236,6 +236,7 @@ def test_bristle_dropped_on_plate_loses_energy_and_never_gains_it():
 HARD_CASES = {
     "press_6mm": dict(press=6.0, stroke=0.0, speed=0.0),
     "reversal_50": dict(press=3.0, stroke=3.0, speed=50.0, reverse=True),
+    "reversal_200": dict(press=3.0, stroke=3.0, speed=200.0, reverse=True),
     "stroke_200": dict(press=3.0, stroke=10.0, speed=200.0),
     "stiff_contact_10x": dict(press=3.0, stroke=3.0, speed=20.0, kscale=10.0),
     "material_7GPa": dict(press=0.05, stroke=0.5, speed=20.0, gpa=True),

@@ -84,3 +84,51 @@ def test_large_steps_keep_the_small_step_hold_force(integrator):
         assert run.status == "ok"
         assert abs(run.t[-1] - ref.t[-1]) <= dt  # both end in the hold
         assert np.linalg.norm(run.F[-1] - ref.F[-1]) <= 0.03 * f_ref, (dt, run.F[-1], ref.F[-1])
+
+
+def test_a_tcp_jump_is_refused_and_changes_nothing():
+    """A 5 mm jump in one 1 ms step (5000 mm/s) is an error naming the speed and the setting;
+    the state is untouched, and a reachable command then steps normally (issue 15)."""
+    sim = Simulator(load_scene("flat_plate"), SimSettings(dt=1e-3))
+    p0 = np.array([0.0, 0.0, sim.touch_height(R_DOWN) + 1.0])
+    sim.reset(p0, R_DOWN)
+    before = sim.get_state()
+    with pytest.raises(ValueError, match=r"5000 mm/s, allowed up to settings.max_tcp_speed = 1000"):
+        sim.step(p0 + np.array([5.0, 0.0, 0.0]), R_DOWN)
+    tilt = rot_axis(np.array([1.0, 0.0, 0.0]), 0.1) @ R_DOWN  # 0.1 rad in 1 ms = 100 rad/s
+    with pytest.raises(ValueError, match=r"settings.max_tcp_angular_speed"):
+        sim.step(p0, tilt)
+    after = sim.get_state()
+    assert after.time == before.time and after.steps == before.steps
+    np.testing.assert_array_equal(after.pos, before.pos)
+    out = sim.step(p0 + np.array([0.5, 0.0, 0.0]), R_DOWN)  # 500 mm/s: allowed
+    assert np.all(np.isfinite(out.tcp_force))
+
+
+@pytest.mark.parametrize("dt", [1e-5, 5e-2])
+def test_extreme_step_sizes_press_the_tiny_brush(dt):
+    """dt at both ends of issue 15's range: 0.3 mm of a press at 1e-5 s (200 steps) and a 2 mm
+    press + hold at 5e-2 s (split into 1 ms steps) give finite forces; the 50 ms run's held force
+    is the 1 ms run's (same internal step) to 3 %."""
+    from brush_env.engine import load_brush
+
+    brush = load_brush("tiny")
+
+    def run(step, n_press, n_hold, depth):
+        sim = Simulator(load_scene("flat_plate", brush=brush), SimSettings(dt=step))
+        z0 = sim.touch_height(R_DOWN)
+        sim.reset(np.array([0.0, 0.0, z0]), R_DOWN)
+        for k in range(1, n_press + n_hold + 1):
+            s = min(k / n_press, 1.0)
+            out = sim.step(np.array([0.0, 0.0, z0 - depth * s]), R_DOWN)
+            assert np.all(np.isfinite(out.tcp_force)) and np.all(np.isfinite(out.tip_pos))
+        return out
+
+    if dt < 1e-4:
+        out = run(dt, 200, 0, 200 * dt * 150.0)  # 150 mm/s: 0.3 mm in 2 ms
+        assert out.tip_in_contact.any()
+        return
+    big = run(dt, 10, 6, 2.0)  # 0.5 s press, 0.3 s hold
+    small = run(1e-3, 500, 300, 2.0)
+    f = np.linalg.norm(small.tcp_force)
+    assert f > 0.1 and np.linalg.norm(big.tcp_force - small.tcp_force) <= 0.03 * f
