@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .harness import machine_info, markdown_table
+from .harness import markdown_table, open_log
 
 PERF = "/usr/bin/perf"
 EVENT = "instructions:u"
@@ -252,9 +252,7 @@ def add_arguments(p) -> None:
 
 def bench_compile(args) -> int:
     """Measure the first-start compile and the cached start; print the table (or JSON rows)."""
-    log = sys.stderr if args.json else sys.stdout
-    info = machine_info()
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    log = open_log(args)
     rows = measure(args.repeats, quick=args.quick, perf=False if args.no_perf else None, log=log)
     if args.json:
         for r in rows:

@@ -18,12 +18,12 @@ from .contact import (
     _contact_errors,
     simulate_contact,
 )
-from .harness import machine_info, markdown_table
+from .harness import markdown_table, open_log
 
 #: ``bench convergence``: how far the contact run (``bench contact``'s motion, BDF2, tip-tip on) is
 #: from converged, in time step (6 bodies) and in bodies per bristle (dt = 2.5e-4 s).
 CONVERGENCE_GRID_FULL = dict(dts=(1e-3, 5e-4, 2.5e-4, 1.25e-4), bodies=(6, 12, 24), body_dt=2.5e-4)
-CONVERGENCE_GRID_QUICK = dict(dts=(2e-3, 1e-3, 5e-4, 2.5e-4), bodies=(3, 6), body_dt=4e-3)
+CONVERGENCE_GRID_QUICK = dict(dts=(1e-3, 5e-4, 2.5e-4, 1.25e-4), bodies=(3, 6), body_dt=1e-3)
 
 
 def bench_convergence(args) -> int:
@@ -36,9 +36,7 @@ def bench_convergence(args) -> int:
     c = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
     c = dict(c, arc=_arc_seconds(c))
     motion = (c["press"], c["hold"], c["arc"])
-    log = sys.stderr if args.json else sys.stdout
-    info = machine_info()
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    open_log(args)
     rows = []
     series = [("dt", 6 if not args.quick else 3, dt) for dt in g["dts"]] + [
         ("bodies", b, g["body_dt"]) for b in g["bodies"]

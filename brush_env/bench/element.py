@@ -24,15 +24,21 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact import CONTACT_GRID_FULL, CONTACT_GRID_QUICK, _arc_seconds, simulate_contact
-from .harness import _best_of, machine_info, markdown_table
+from .contact import (
+    CONTACT_GRID_FULL,
+    CONTACT_GRID_QUICK,
+    _arc_seconds,
+    simulate_contact,
+    warm_kernels,
+)
+from .harness import _best_of, emit, machine_info, markdown_table, open_log
 
 REFERENCE_FILE = (
     Path(__file__).resolve().parents[2] / "tests" / "data" / "flat_plate_turn_reference.npz"
 )
 REFERENCE_SETTINGS = dict(element="mid", bodies=24, dt=1.25e-4, integrator="bdf2", tip_tip=True)
 ELEMENT_GRID_FULL = dict(elements=("paper", "mid"), bodies=(3, 6), dts=(1e-3, 2.5e-4))
-ELEMENT_GRID_QUICK = dict(elements=("paper", "mid"), bodies=(3,), dts=(4e-3,))
+ELEMENT_GRID_QUICK = dict(elements=("paper", "mid"), bodies=(3,), dts=(1e-3,))
 SAMPLE = 5e-3  # [s] comparison grid
 
 
@@ -99,15 +105,13 @@ def bench_element(args) -> int:
     """``brush-env bench element``: see the module docstring."""
     if args.events:
         return bench_events(args)
-    log = sys.stderr if args.json else sys.stdout
-    info = machine_info()
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    log = open_log(args)
     if args.write_reference:
         print("writing the converged reference (mid, 24 bodies, dt 0.125 ms) ...", file=log)
         write_reference()
     g = ELEMENT_GRID_QUICK if args.quick else ELEMENT_GRID_FULL
     motion = _motion(args.quick)
-    simulate_contact(3, 4e-3, "bdf2", True, 0.02, 0.0, 0.0)  # compile / load the kernels first
+    warm_kernels()
     ref = None if args.quick else load_reference()
     rows = []
     for element in g["elements"]:
@@ -134,9 +138,7 @@ def bench_element(args) -> int:
                     "newton_per_step_per_bristle": run.newton / max(run.steps, 1) / 40,
                     "status": run.status,
                 }
-                rows.append(row)
-                if args.json:
-                    print(json.dumps(row), flush=True)
+                rows.append(emit(args, row))
     if not args.json:
         print(format_element_table(rows))
     return 0
@@ -181,16 +183,11 @@ def slip_events(bodies: int, dt: float = 2.5e-4, element: str = "mid") -> dict:
 
 def bench_events(args) -> int:
     """``brush-env bench element --events``: the break-away times over bodies (see slip_events)."""
-    log = sys.stderr if args.json else sys.stdout
-    info = machine_info()
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    open_log(args)
     rows = []
     for bodies in (3,) if args.quick else EVENT_BODIES:
         print(f"  slip events, mid, {bodies} bodies, dt=0.25 ms ...", file=sys.stderr, flush=True)
-        row = slip_events(bodies)
-        rows.append(row)
-        if args.json:
-            print(json.dumps(row), flush=True)
+        rows.append(emit(args, slip_events(bodies)))
     if not args.json:
         print(format_events_table(rows))
     return 0

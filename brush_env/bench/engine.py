@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion import R0
-from .harness import REF_RTOL, _best_of, _print_cold_start, cold_start, machine_info, markdown_table
+from .harness import REF_RTOL, _best_of, _print_cold_start, cold_start, markdown_table, open_log
 
 P0 = np.array([0.0, 0.0, 10.0])  # [mm]
 
@@ -126,9 +126,7 @@ GRID_QUICK = dict(bodies=(3,), dts=(2e-3, 5e-3), duration=0.1, ref=(6, 2e-4), sa
 
 def bench_engine(args) -> int:
     g = GRID_QUICK if args.quick else GRID_FULL
-    info = machine_info()
-    log = sys.stderr if args.json else sys.stdout
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    log = open_log(args)
     print(
         f"motion: default brush, R0 = diag(1,-1,-1), p0 = {P0.tolist()} mm, gravity on, "
         f"circle r=2 mm @ 2 Hz + vertical 1 mm @ 5 Hz (50 ms ramp), {g['duration']} s",

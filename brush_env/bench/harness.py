@@ -5,6 +5,7 @@ the machine line (time, error, settings, machine); timings never enter pass/fail
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import subprocess
@@ -14,6 +15,26 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+
+def open_log(args):
+    """The stream for progress and the machine line (stderr with ``--json``, so that stdout holds
+    only the JSON rows; else stdout), with the machine line printed on it."""
+    log = sys.stderr if args.json else sys.stdout
+    print_machine(log)
+    return log
+
+
+def print_machine(log) -> None:
+    """One line of ``machine_info``, on ``log``."""
+    print("machine: " + "; ".join(f"{k}={v}" for k, v in machine_info().items()), file=log)
+
+
+def emit(args, row: dict) -> dict:
+    """``row`` as a JSON line on stdout with ``--json``; returns it."""
+    if args.json:
+        print(json.dumps(row), flush=True)
+    return row
 
 
 def machine_info() -> dict:

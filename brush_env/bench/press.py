@@ -17,15 +17,13 @@ end of the hold [N].
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 
 import numpy as np
 
 from ..engine import SimSettings
-from .contact import simulate_contact
-from .harness import machine_info, markdown_table
+from .contact import simulate_contact, warm_kernels
+from .harness import emit, markdown_table, open_log
 
 PRESS_GRID_FULL = dict(
     bodies=(3, 6),
@@ -45,11 +43,9 @@ def _hold_force(bodies: int, dt: float, integ: str, max_substep: float):
 
 def bench_press(args) -> int:
     """``brush-env bench press``: see the module docstring."""
-    log = sys.stderr if args.json else sys.stdout
-    info = machine_info()
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()), file=log)
+    log = open_log(args)
     g = PRESS_GRID_QUICK if args.quick else PRESS_GRID_FULL
-    simulate_contact(3, 4e-3, "bdf2", True, 0.02, 0.0, 0.0)  # compile / load the kernels first
+    warm_kernels()
     rows = []
     for bodies in g["bodies"]:
         for integ in g["integrators"]:
@@ -70,9 +66,7 @@ def bench_press(args) -> int:
                         "wall_s": run.wall,
                         "status": run.status,
                     }
-                    rows.append(row)
-                    if args.json:
-                        print(json.dumps(row), flush=True)
+                    rows.append(emit(args, row))
     if not args.json:
         print(format_press_table(rows))
     return 0

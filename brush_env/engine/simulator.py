@@ -87,8 +87,8 @@ class SimSettings:
     step; reuse changes iteration counts only, the converged state is set by the residual);
     gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off);
     max_tcp_speed [mm/s], max_tcp_angular_speed [rad/s]: the fastest TCP motion ``step``
-    accepts (default 1000 mm/s, a UR5's tool speed limit, and 2 pi rad/s): a faster command is a
-    jump, not a motion, and is refused with an error naming the speed;
+    accepts (default 1000 mm/s, a UR5's tool speed limit, and 10 turns/s): a faster command is
+    a jump, not a motion, and is refused with an error naming the speed;
     element: the beam element formulation, "paper" (the paper's Adams-FIELD element, strain in
     the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
     accurate with few bodies in buckled contact; docs/model.md).
@@ -98,7 +98,7 @@ class SimSettings:
     integrator: str = "bdf2"
     max_substep: float = 1e-3
     max_tcp_speed: float = 1000.0
-    max_tcp_angular_speed: float = 2.0 * np.pi
+    max_tcp_angular_speed: float = 20.0 * np.pi
     newton_rtol: float = 1e-7
     newton_max_iter: int = 100
     max_substep_levels: int = 8

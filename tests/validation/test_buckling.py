@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from brush_env import cli
+from brush_env.engine import PenetrationWarning
 from brush_env.validation.buckling import BucklingCase, buckling, press
 from brush_env.validation.rod import buckled_bristle
 
@@ -48,7 +49,9 @@ def test_a_straight_bristle_buckles_like_a_real_one():
     bent = press(BucklingCase(tip="free", lean_deg=0.0, bodies=6), d)
     rod = buckled_bristle(list(bent["delta"]), lean_deg=0.0, tip="free")
     np.testing.assert_allclose(bent["force_N"], rod["force_N"], rtol=0.01)
-    straight = press(BucklingCase(tip="free", lean_deg=0.0, bodies=6, imperfection_deg=0.0), d)
+    # the straight column's 3 N sinks the tip ~67 um, beyond the penalty law's range: warned
+    with pytest.warns(PenetrationWarning, match="bristle 0"):
+        straight = press(BucklingCase(tip="free", lean_deg=0.0, bodies=6, imperfection_deg=0.0), d)
     EA_over_L = 7.0 * 1.8 * 0.8 / 10.0
     np.testing.assert_allclose(straight["force_N"], EA_over_L * straight["delta"], rtol=0.05)
 
