@@ -76,6 +76,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="circle built from four MoveL points with blends (paper Algorithm 1) "
         "or the exact circle",
     )
+    parser.add_argument(
+        "--head-yaw",
+        type=float,
+        default=d["head_yaw_deg"],
+        metavar="DEG",
+        help="the head turned on the flange about TCP z [deg] (default 90: the handle along TCP "
+        "y, which puts the jams at the paper's 9pi/4 and 13pi/4; docs/reference_experiment.md)",
+    )
+    parser.add_argument(
+        "--p0-angle",
+        type=float,
+        default=d["p0_angle_deg"],
+        metavar="DEG",
+        help="polar angle of the start point P0 about the circle's centre [deg] (default 180)",
+    )
+    add_flag(parser, "--clockwise", "travel the circle clockwise seen from above the plate")
     add_flag(parser, "--no-progress", "no progress bar")
 
 
@@ -95,6 +111,9 @@ def run(args) -> int:
         accel=args.accel,
         progress=not args.no_progress,
         path=args.path,
+        head_yaw_deg=args.head_yaw,
+        p0_angle_deg=args.p0_angle,
+        clockwise=args.clockwise,
     )
     perf = summary["performance"]
     print(

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..engine import Simulator, load_brush, load_scene
-from ..engine.checks import Limit, check_choice, check_real
+from ..engine.checks import ConfigError, Limit, check_choice, check_real
 from ..engine.config import BrushConfig
 from ..engine.scene import Plane
 from ..motion import R0, Circle, Hold, PitchPerturbation, Press, Sequence, paper_circle_movel
@@ -31,6 +31,10 @@ DEFAULTS = dict(
     integrator="bdf2",
     element="mid",  # beam element: "mid" (accurate with few bodies) or "paper" (docs/model.md)
     path="movel",  # "movel" (paper Algorithm 1) or "circle" (exact circle)
+    # the set-up the paper leaves open (issue 17, docs/reference_experiment.md "Set-up"):
+    head_yaw_deg=90.0,  # [deg] the head turned on the flange about TCP z: the handle along TCP y
+    p0_angle_deg=180.0,  # [deg] polar angle of P0 about the circle's centre (world x axis)
+    clockwise=False,  # direction of travel seen from above the plate (False: counter-clockwise)
     pitch_window=(2.0 * math.pi, 2.5 * math.pi),  # eq 12 support [rad]
     tips_dt=5e-3,  # sampling interval of tips.npz [s]
     shapes_dt=2e-2,  # sampling interval of the stored bristle centre lines [s]
@@ -71,14 +75,19 @@ def build_trajectory(
     path,
     pitch_error_deg=0.0,
     pitch_window=DEFAULTS["pitch_window"],
+    p0_angle_deg=180.0,
+    clockwise=False,
+    pitch_axis=(0.0, 1.0, 0.0),
 ):
     """The reference motion: Press (along the bristle axis) -> Hold -> circle, optionally pitched.
 
     Returns ``(trajectory, phase_starts, circle)`` with ``phase_starts = (0, t_hold, t_circle)``.
     ``path='movel'``: the paper's four MoveL control points with blend radius = circle radius
     (``paper_circle_movel``, ``ceil(turns)`` turns); ``'circle'``: the exact ``Circle``.
-    The circle is centred at (start_xy + radius · x) so that P0 (θ = 0, polar angle π) is
-    ``start_xy`` and the motion is counter-clockwise about +z.
+    The circle is centred so that P0 (θ = 0) is ``start_xy`` at polar angle ``p0_angle_deg``
+    about the centre (default 180: the centre at start_xy + radius · x), travelled
+    counter-clockwise about +z (``clockwise``: the other way).  The eq-12 pitch turns about the
+    TCP-frame ``pitch_axis`` (the head's lateral axis).
     """
     p_touch = np.array([start_xy[0], start_xy[1], touch_z], dtype=float)
     press = Press((p_touch, R0), press_depth, press_time)
@@ -86,7 +95,8 @@ def build_trajectory(
     segs = [press]
     if hold_time > 0:
         segs.append(Hold((p_pressed, R0), hold_time))
-    center = p_pressed + np.array([radius, 0.0, 0.0])
+    phi0 = math.radians(p0_angle_deg)
+    center = p_pressed - radius * np.array([math.cos(phi0), math.sin(phi0), 0.0])
     if path == "movel":
         circ = paper_circle_movel(
             center,
@@ -94,10 +104,21 @@ def build_trajectory(
             speed,
             accel,
             turns=int(math.ceil(turns - 1e-9)),
+            start_angle=phi0,
+            clockwise=clockwise,
             orientation=np.array(R0),
         )
     elif path == "circle":
-        circ = Circle(center, radius, speed, accel, turns=turns, start_angle=math.pi, R=R0)
+        circ = Circle(
+            center,
+            radius,
+            speed,
+            accel,
+            turns=turns,
+            start_angle=phi0,
+            R=R0,
+            clockwise=clockwise,
+        )
     else:
         raise ValueError(f"path must be 'movel' or 'circle', got {path!r}")
     segs.append(circ)
@@ -111,6 +132,7 @@ def build_trajectory(
             math.radians(pitch_error_deg),
             theta_start=pitch_window[0],
             theta_end=pitch_window[1],
+            axis=pitch_axis,
         )
     return traj, phase_starts, circ
 
@@ -132,6 +154,10 @@ def check_run_args(args: Mapping) -> None:
         check_real(name, args[name], Limit(unit, gt=0))
     check_real("hold_time", args["hold_time"], Limit("s", ge=0))
     check_real("press_depth", args["press_depth"], Limit("mm", ge=0))
+    for name in ("head_yaw_deg", "p0_angle_deg"):
+        check_real(name, args[name], Limit("deg", ge=-360.0, le=360.0))
+    if not isinstance(args["clockwise"], bool):
+        raise ConfigError(f"clockwise = {args['clockwise']!r}: must be true or false")
     check_choice("path", args["path"], ("movel", "circle"), "path")
     check_choice("integrator", args["integrator"], ("bdf2", "euler"), "integrator")
     check_choice("element", args["element"], ("mid", "paper"), "beam element")
@@ -162,9 +188,32 @@ class Plan:
     shapes_stride: int
 
 
-def resolve_scene(brush, scene, bodies):
+def pitch_axis(brush: BrushConfig) -> np.ndarray:
+    """The eq-12 pitch axis in the TCP frame: the head's lateral axis (head y; §5.2 "the pitch
+    direction of the brush's main body", whose handle runs along head x)."""
+    return brush.head_rotation() @ np.array([0.0, 1.0, 0.0])
+
+
+def mount_head(brush: BrushConfig, yaw_deg: float) -> BrushConfig:
+    """``brush`` turned by ``yaw_deg`` about the TCP z axis on the flange: its head pose (offset
+    and roll/pitch/yaw, R = Rz(yaw) Ry Rx) pre-rotated by Rz(yaw_deg)."""
+    if yaw_deg == 0.0:
+        return brush
+    a = math.radians(yaw_deg)
+    c, s = math.cos(a), math.sin(a)
+    x, y, z = brush.head_offset
+    r, p, yaw = brush.head_rpy
+    return replace(
+        brush,
+        head_offset=(c * x - s * y, s * x + c * y, z),
+        head_rpy=(r, p, yaw + a),
+    )
+
+
+def resolve_scene(brush, scene, bodies, head_yaw_deg: float = 0.0):
     """The scene to run: a Scene, a path or a name (default flat_plate), with ``brush`` (a
-    BrushConfig, path or name) and ``bodies`` per bristle overriding the scene's."""
+    BrushConfig, path or name) and ``bodies`` per bristle overriding the scene's, the head
+    mounted ``head_yaw_deg`` about TCP z (``mount_head``)."""
     if scene is None or isinstance(scene, (str, os.PathLike)):
         scene_obj = load_scene(scene, brush=brush if brush is not None else None)
     else:
@@ -174,11 +223,23 @@ def resolve_scene(brush, scene, bodies):
             scene_obj = replace(scene, brush=b)
     if bodies is not None:
         scene_obj = replace(scene_obj, brush=scene_obj.brush.with_bodies(int(bodies)))
+    if head_yaw_deg:
+        scene_obj = replace(scene_obj, brush=mount_head(scene_obj.brush, head_yaw_deg))
     return scene_obj
 
 
 #: The arguments of a run that shape its motion (``build_trajectory``'s, but turns and poses).
-MOTION_ARGS = ("radius", "speed", "accel", "press_depth", "press_time", "hold_time", "path")
+MOTION_ARGS = (
+    "radius",
+    "speed",
+    "accel",
+    "press_depth",
+    "press_time",
+    "hold_time",
+    "path",
+    "p0_angle_deg",
+    "clockwise",
+)
 
 
 def make_plan(scene_obj, settings, args: Mapping) -> Plan:
@@ -197,7 +258,10 @@ def make_plan(scene_obj, settings, args: Mapping) -> Plan:
     trajs = {"baseline": traj}
     if args["pitch_error_deg"]:
         trajs["pitch"], _, _ = build_trajectory(
-            **common, pitch_error_deg=args["pitch_error_deg"], pitch_window=args["pitch_window"]
+            **common,
+            pitch_error_deg=args["pitch_error_deg"],
+            pitch_window=args["pitch_window"],
+            pitch_axis=pitch_axis(scene_obj.brush),
         )
     n_full, times, theta = _time_grid(traj, dt, turns)
     n_steps = len(times) - 1

@@ -50,6 +50,9 @@ def run_reference(
     progress: bool = True,
     *,
     path: str = DEFAULTS["path"],
+    head_yaw_deg: float = DEFAULTS["head_yaw_deg"],
+    p0_angle_deg: float = DEFAULTS["p0_angle_deg"],
+    clockwise: bool = DEFAULTS["clockwise"],
     radius: float = DEFAULTS["radius"],
     press_depth: float = DEFAULTS["press_depth"],
     press_time: float = DEFAULTS["press_time"],
@@ -66,14 +69,17 @@ def run_reference(
     runs: cut when θ reaches 2π·turns); ``pitch_error_deg`` (0: none; else a second run with the
     eq-12 pitch of this amplitude [deg] in ``pitch_window`` [rad]); ``dt`` [s]; ``bodies`` per
     bristle (override); ``integrator`` 'bdf2' | 'euler'; ``element`` 'mid' | 'paper' (beam
-    element); ``speed`` [mm/s]; ``accel`` [mm/s²]; ``path`` 'movel' (Algorithm 1) | 'circle'.
+    element); ``speed`` [mm/s]; ``accel`` [mm/s²]; ``path`` 'movel' (Algorithm 1) | 'circle';
+    the set-up the paper leaves open: ``head_yaw_deg`` (the head turned on the flange about TCP
+    z, default 90: handle along TCP y), ``p0_angle_deg`` (P0's polar angle about the centre,
+    default 180), ``clockwise`` (default False).
     Files: docs/reference_experiment.md.
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
     check_run_args(args)
     settings = SimSettings(dt=float(dt), integrator=integrator, element=element)
-    scene_obj = resolve_scene(brush, scene, bodies)  # every input is valid past this line
+    scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)  # inputs valid past here
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     plan = make_plan(scene_obj, settings, args)

@@ -264,6 +264,10 @@ def _check_summary(s, nb, col):
         "turns",
         "press_depth_mm",
         "pitch_error_deg",
+        "head_yaw_deg",
+        "p0_angle_deg",
+        "clockwise",
+        "max_substep_s",
     ):
         assert k in st, k
     assert st["brush"]["name"] == "tiny" and st["brush"]["n_bristles"] == nb
