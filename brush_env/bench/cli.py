@@ -2,7 +2,8 @@
 
 ``engine`` (free brush under a moving TCP, vs a converged reference), ``contact`` (the plate press
 + one circle turn), ``convergence`` (self-convergence of the contact run in dt and bodies),
-``press`` (the 3 mm press's hold force at every step size), ``env`` (Gymnasium env steps
+``press`` (the 3 mm press's hold force at every step size), ``branch`` (hold direction and
+jamming angles over step sizes), ``env`` (Gymnasium env steps
 per second), ``compile`` (the first-start numba compile, in a fresh
 cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` and an
@@ -14,7 +15,7 @@ from __future__ import annotations
 import argparse
 
 from ..user_errors import add_flag
-from . import compile, contact, convergence, element, engine, env, press
+from . import branch, compile, contact, convergence, element, engine, env, press
 
 #: name -> (run function, one-line help)
 TARGETS = {
@@ -41,6 +42,11 @@ TARGETS = {
         press.bench_press,
         "3 mm press: hold force at every step size (0.5-50 ms), with and without the internal "
         "split of SimSettings.max_substep, against the 0.125 ms run",
+    ),
+    "branch": (
+        branch.bench_branch,
+        "reference experiment (two turns) over dt x integrator x bodies x lean: hold force "
+        "direction and jamming angles against the 0.25 ms run",
     ),
     "env": (env.bench_env_target, "Gymnasium env steps per second, single and vectorised"),
     "compile": (
@@ -79,6 +85,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             element.add_arguments(p)
         elif name == "press":
             press.add_arguments(p)
+        elif name == "branch":
+            branch.add_arguments(p)
         else:
             _common(p)
 

@@ -53,6 +53,7 @@ def run_reference(
     head_yaw_deg: float = DEFAULTS["head_yaw_deg"],
     p0_angle_deg: float = DEFAULTS["p0_angle_deg"],
     clockwise: bool = DEFAULTS["clockwise"],
+    max_substep: float | None = None,
     radius: float = DEFAULTS["radius"],
     press_depth: float = DEFAULTS["press_depth"],
     press_time: float = DEFAULTS["press_time"],
@@ -72,13 +73,15 @@ def run_reference(
     element); ``speed`` [mm/s]; ``accel`` [mm/s²]; ``path`` 'movel' (Algorithm 1) | 'circle';
     the set-up the paper leaves open: ``head_yaw_deg`` (the head turned on the flange about TCP
     z, default 90: handle along TCP y), ``p0_angle_deg`` (P0's polar angle about the centre,
-    default 180), ``clockwise`` (default False).
+    default 180), ``clockwise`` (default False); ``max_substep`` [s]: SimSettings.max_substep
+    (None: its default, 1 ms).
     Files: docs/reference_experiment.md.
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
     check_run_args(args)
-    settings = SimSettings(dt=float(dt), integrator=integrator, element=element)
+    extra = {} if max_substep is None else {"max_substep": float(max_substep)}
+    settings = SimSettings(dt=float(dt), integrator=integrator, element=element, **extra)
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)  # inputs valid past here
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
