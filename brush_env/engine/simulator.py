@@ -438,7 +438,7 @@ class Simulator:
         self._check_motion(tcp_p, tcp_R)
         n = self.settings.substeps
         if n == 1:
-            return self._advance(tcp_p, tcp_R, self._prm, st.time + self.settings.dt)
+            return self._result(*self._advance(tcp_p, tcp_R, self._prm, st.time + self.settings.dt))
         return self._advance_split(tcp_p, tcp_R, n)
 
     def _advance_split(self, tcp_p, tcp_R, n: int) -> StepResult:
@@ -456,18 +456,16 @@ class Simulator:
                 s = k / n
                 p = tcp_p if k == n else (1.0 - s) * p0 + s * tcp_p
                 R = tcp_R if k == n else expmap(s * w) @ R0
-                res = self._advance(p, R, self._prm, t0 + k * h)
-                iters += res.iterations
-                nsub += res.substeps
+                it, ns = self._advance(p, R, self._prm, t0 + k * h)
+                iters += it
+                nsub += ns
         except SimulationDivergence:
             self.set_state(start)
             self.state.jac.key[:] = 0.0  # as _accept_or_rollback: factors of the failed attempt
             raise
-        res.iterations = iters
-        res.substeps = nsub
-        res.time = st.time = t0 + self.settings.dt  # no round-off drift of the step grid
+        st.time = t0 + self.settings.dt  # no round-off drift of the step grid
         st.steps = start.steps + 1  # steps counts calls of step, not internal steps
-        return res
+        return self._result(iters, nsub)
 
     def solve_static(self, tcp_p=None, tcp_R=None, increments: int = 1) -> StepResult:
         """Static equilibrium at the given (or current) TCP pose under the current tip loads.
@@ -487,22 +485,26 @@ class Simulator:
         try:
             for k in range(1, increments + 1):
                 self.tip_args[:] = full * (k / increments)
-                res = self._advance(tcp_p, tcp_R, prm, st.time)
+                counts = self._advance(tcp_p, tcp_R, prm, st.time)
         finally:
             self.tip_args[:] = full
         self.state.hist_ok[:] = 0
-        return res
+        return self._result(*counts)
 
-    def _advance(self, tcp_p, tcp_R, prm, t_new) -> StepResult:
-        """One step as named stages: base motion -> per-bristle implicit solve (contact search,
-        beam, contact, friction, tip-tip inside Newton) -> acceptance or rollback -> outputs."""
+    def _advance(self, tcp_p, tcp_R, prm, t_new) -> tuple[int, int]:
+        """One (internal) step as named stages: base motion -> per-bristle implicit solve
+        (contact search, beam, contact, friction, tip-tip inside Newton) -> acceptance or
+        rollback -> the penetration check; returns (Newton iterations, sub-steps) of all
+        bristles (``_result`` builds the outputs once per ``step``)."""
         snapshot = self._snapshot(self.state)  # rollback target
         self._base_motion(tcp_p, tcp_R)
         self._solve_bristles(prm)
         self._accept_or_rollback(snapshot, prm, t_new)
         self._shift_drive(tcp_p, tcp_R, t_new)
         out = self._out
-        return self._result(int(out.iters.sum()), int(out.nsub.sum()))
+        if not self._pen_warned:
+            self._warn_penetration(self._penetration())
+        return int(out.iters.sum()), int(out.nsub.sum())
 
     def _base_motion(self, tcp_p, tcp_R) -> None:
         """Stage 1: the prescribed TCP pose at t + dt (row 2 of the drive); the kernels
@@ -612,6 +614,11 @@ class Simulator:
         itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, out)
         return out
 
+    def _penetration(self) -> np.ndarray:
+        """(nb,) [mm] each tip's penetration, 0 where it does not touch."""
+        ts = self.state.tip_state
+        return np.maximum(ts[:, ct.S_PEN], 0.0) * (ts[:, ct.S_FN] > 0.0)
+
     def _warn_penetration(self, pen: np.ndarray) -> None:
         """Once per simulator: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius."""
         excess = pen / self.model.tip_radius
@@ -637,9 +644,6 @@ class Simulator:
         F, M = w[0:3], w[3:6]
         ts = st.tip_state
         fn = ts[:, ct.S_FN].copy()
-        pen = np.maximum(ts[:, ct.S_PEN], 0.0) * (fn > 0.0)
-        if not self._pen_warned:
-            self._warn_penetration(pen)
         tips = self._tips[:, 0:6].copy()  # step_bristles / tip_states keep them current
         return StepResult(
             st.time,
@@ -655,7 +659,7 @@ class Simulator:
             ts[:, ct.S_FT : ct.S_FT + 3].copy(),
             fn > 0.0,
             (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
-            pen,
+            self._penetration(),
             ts[:, ct.S_CP : ct.S_CP + 3].copy(),
             extra={"tip_tip_force": ts[:, ct.S_FTT].copy()},
         )
