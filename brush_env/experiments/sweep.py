@@ -79,10 +79,10 @@ def format_table(rows) -> str:
         )
 
     head = (
-        "| head yaw [deg] | P0 [deg] | direction | 9π/4 event: angle (offset) | |F_h| [N] | "
-        "Fx / Fy [N] | 13π/4 event: angle (offset) | |F_h| [N] | Fx / Fy [N] | status |\n"
+        "| head yaw [deg] | P0 [deg] | direction | 9π/4 event: angle (offset) | F_h [N] | "
+        "Fx / Fy [N] | 13π/4 event: angle (offset) | F_h [N] | Fx / Fy [N] | status |\n"
         "|---|---|---|---|---|---|---|---|---|---|"
-    ).replace("| |F_h| [N] |", "| F_h [N] |")
+    )
     lines = [head]
     for r in rows:
         d = "clockwise" if r["clockwise"] else "counter-clockwise"
