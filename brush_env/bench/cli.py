@@ -48,6 +48,11 @@ TARGETS = {
         "reference experiment (two turns) over dt x integrator x bodies x lean: hold force "
         "direction and jamming angles against the 0.25 ms run",
     ),
+    "random": (
+        env.bench_random_target,
+        "FlatPlate-v0 under uniform random actions at several solver-step limits: divergences, "
+        "tip-force spikes and penetration against the smallest limit",
+    ),
     "env": (env.bench_env_target, "Gymnasium env steps per second, single and vectorised"),
     "compile": (
         compile.bench_compile,
@@ -87,6 +92,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             press.add_arguments(p)
         elif name == "branch":
             branch.add_arguments(p)
+        elif name == "random":
+            env.add_random_arguments(p)
         else:
             _common(p)
 

@@ -20,3 +20,18 @@ def add_arguments(p) -> None:
 
     add_flag(p, "--json", "one JSON object per row on stdout")
     bench_env.add_arguments(p)
+
+
+def bench_random_target(args) -> int:
+    """Run the random-action env benchmark (brush_env.envs.bench_random)."""
+    from brush_env.envs import bench_random
+
+    return bench_random.run(args)
+
+
+def add_random_arguments(p) -> None:
+    """The random-action benchmark's options (beside the env, in brush_env.envs.bench_random)."""
+    from brush_env.envs import bench_random
+
+    add_flag(p, "--json", "one JSON object per row on stdout")
+    bench_random.add_arguments(p)
