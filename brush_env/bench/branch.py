@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .harness import emit, markdown_table, open_log
+from .press import MAX_SUBSTEP
 
 BRANCH_GRID_FULL = dict(
     bodies=(3, 6),
@@ -103,7 +104,7 @@ def bench_branch(args) -> int:
                         lean_deg=lean,
                         integrator=integ,
                         dt=dt,
-                        max_substep=min(dt, 1e-3) if split else dt,
+                        max_substep=min(dt, MAX_SUBSTEP) if split else dt,
                         ref_dt=g["ref_dt"],
                         hold_F_N=run["hold_F_N"],
                         ref_hold_F_N=ref["hold_F_N"],

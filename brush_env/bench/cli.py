@@ -2,12 +2,12 @@
 
 ``engine`` (free brush under a moving TCP, vs a converged reference), ``contact`` (the plate press
 + one circle turn), ``convergence`` (self-convergence of the contact run in dt and bodies),
-``press`` (the 3 mm press's hold force at every step size), ``branch`` (hold direction and
-jamming angles over step sizes), ``env`` (Gymnasium env steps
-per second), ``compile`` (the first-start numba compile, in a fresh
-cache).  Each target has its own options
-(``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` and an
-entry in :data:`TARGETS`.
+``element`` (both beam elements against the converged turn), ``press`` (the 3 mm press's hold
+force at every step size), ``branch`` (hold direction and jamming angles over step sizes),
+``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``compile``
+(the first-start numba compile, in a fresh cache).  Each target has its own options
+(``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
+``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
 """
 
 from __future__ import annotations
@@ -17,45 +17,57 @@ import argparse
 from ..user_errors import add_flag
 from . import branch, compile, contact, convergence, element, engine, env, press
 
-#: name -> (run function, one-line help)
+#: name -> (run function, its options (None: the common ones), one-line help)
 TARGETS = {
     "engine": (
         engine.bench_engine,
+        None,
         "free brush under a moving TCP: error vs a converged "
         "reference and speed, over bodies x dt x integrator",
     ),
     "contact": (
         contact.bench_contact,
+        None,
         "3 mm press + one turn of the circle on the plate: error "
         "and speed over bodies x dt x integrator x tip-tip",
     ),
     "convergence": (
         convergence.bench_convergence,
+        None,
         "self-convergence of the contact run in time step and in bodies per bristle",
     ),
     "element": (
         element.bench_element,
+        element.add_arguments,
         "flat-plate turn against its converged reference (mid element, 24 bodies, 0.125 ms) "
         "for both beam elements",
     ),
     "press": (
         press.bench_press,
+        press.add_arguments,
         "3 mm press: hold force at every step size (0.5-50 ms), with and without the internal "
         "split of SimSettings.max_substep, against the 0.125 ms run",
     ),
     "branch": (
         branch.bench_branch,
+        branch.add_arguments,
         "reference experiment (two turns) over dt x integrator x bodies x lean: hold force "
         "direction and jamming angles against the 0.25 ms run",
     ),
     "random": (
         env.bench_random_target,
+        env.add_random_arguments,
         "FlatPlate-v0 under uniform random actions at several solver-step limits: divergences, "
         "tip-force spikes and penetration against the smallest limit",
     ),
-    "env": (env.bench_env_target, "Gymnasium env steps per second, single and vectorised"),
+    "env": (
+        env.bench_env_target,
+        env.add_arguments,
+        "Gymnasium env steps per second, single and vectorised",
+    ),
     "compile": (
         compile.bench_compile,
+        compile.add_arguments,
         "first-start numba compile of every kernel set (empty cache) and the cached start: "
         "wall, CPU, retired instructions",
     ),
@@ -80,22 +92,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(
         dest="target", required=True, metavar="TARGET", parser_class=type(parser)
     )
-    for name, (_, helptext) in TARGETS.items():
+    for name, (_, options, helptext) in TARGETS.items():
         p = sub.add_parser(name, help=helptext, description=helptext)
-        if name == "env":
-            env.add_arguments(p)
-        elif name == "compile":
-            compile.add_arguments(p)
-        elif name == "element":
-            element.add_arguments(p)
-        elif name == "press":
-            press.add_arguments(p)
-        elif name == "branch":
-            branch.add_arguments(p)
-        elif name == "random":
-            env.add_random_arguments(p)
-        else:
-            _common(p)
+        (options or _common)(p)
 
 
 def run(args) -> int:

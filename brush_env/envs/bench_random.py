@@ -81,11 +81,8 @@ def run(args) -> int:
 
 
 def format_table(rows) -> str:
-    ref = {
-        r["seed"]: np.asarray(r["peaks"])
-        for r in rows
-        if r["engine_max_substep"] == min(x["engine_max_substep"] for x in rows)
-    }
+    smallest = min(r["engine_max_substep"] for r in rows)  # the small-step run of each seed
+    ref = {r["seed"]: np.asarray(r["peaks"]) for r in rows if r["engine_max_substep"] == smallest}
     lines = [
         "| engine_max_substep [s] | seed | divergences | episode ends | peak tip force [N] | "
         "steps > 1 N | of them not > 1 N in the smallest-limit run | max penetration [um] | "
