@@ -449,20 +449,15 @@ class Simulator:
         t0, h = st.time, self.settings.dt / n
         p0, R0 = st.tcp_p[1].copy(), st.tcp_R[1].copy()
         w = logmap(tcp_R @ R0.T)  # world-frame rotation vector from R0 to tcp_R
-        start = st.copy()
+        start = self._snapshot(st)  # the rollback target of every internal step
         iters = nsub = 0
-        try:
-            for k in range(1, n + 1):
-                s = k / n
-                p = tcp_p if k == n else (1.0 - s) * p0 + s * tcp_p
-                R = tcp_R if k == n else expmap(s * w) @ R0
-                it, ns = self._advance(p, R, self._prm, t0 + k * h)
-                iters += it
-                nsub += ns
-        except SimulationDivergence:
-            self.set_state(start)
-            self.state.jac.key[:] = 0.0  # as _accept_or_rollback: factors of the failed attempt
-            raise
+        for k in range(1, n + 1):
+            s = k / n
+            p = tcp_p if k == n else (1.0 - s) * p0 + s * tcp_p
+            R = tcp_R if k == n else expmap(s * w) @ R0
+            it, ns = self._advance(p, R, self._prm, t0 + k * h, start)
+            iters += it
+            nsub += ns
         st.time = t0 + self.settings.dt  # no round-off drift of the step grid
         st.steps = start.steps + 1  # steps counts calls of step, not internal steps
         return self._result(iters, nsub)
@@ -491,12 +486,14 @@ class Simulator:
         self.state.hist_ok[:] = 0
         return self._result(*counts)
 
-    def _advance(self, tcp_p, tcp_R, prm, t_new) -> tuple[int, int]:
+    def _advance(self, tcp_p, tcp_R, prm, t_new, snapshot=None) -> tuple[int, int]:
         """One (internal) step as named stages: base motion -> per-bristle implicit solve
         (contact search, beam, contact, friction, tip-tip inside Newton) -> acceptance or
         rollback -> the penetration check; returns (Newton iterations, sub-steps) of all
-        bristles (``_result`` builds the outputs once per ``step``)."""
-        snapshot = self._snapshot(self.state)  # rollback target
+        bristles (``_result`` builds the outputs once per ``step``).  ``snapshot``: the state a
+        divergence restores (default: this step's start; a split step passes its own start)."""
+        if snapshot is None:
+            snapshot = self._snapshot(self.state)  # rollback target
         self._base_motion(tcp_p, tcp_R)
         self._solve_bristles(prm)
         self._accept_or_rollback(snapshot, prm, t_new)

@@ -132,3 +132,39 @@ def test_extreme_step_sizes_press_the_tiny_brush(dt):
     small = run(1e-3, 500, 300, 2.0)
     f = np.linalg.norm(small.tcp_force)
     assert f > 0.1 and np.linalg.norm(big.tcp_force - small.tcp_force) <= 0.03 * f
+
+
+def test_a_failed_split_step_restores_the_start_of_the_whole_step():
+    """A divergence in a later internal step of a split step (the third of four, injected as a
+    Newton failure of bristle 0) leaves every state array as it was before ``step``, not at the
+    internal step that failed; the simulator then goes on."""
+    from dataclasses import fields
+
+    from brush_env.engine import SimulationDivergence
+
+    sim = Simulator(load_scene("flat_plate"), SimSettings(dt=4e-3))
+    z0 = sim.touch_height(R_DOWN)
+    p0 = np.array([0.0, 0.0, z0])
+    sim.reset(p0, R_DOWN)
+    for p, R in _press_poses(sim, 5, 0.5, rotate=False):
+        sim.step(p, R)
+    before = sim.get_state()
+    solve, calls = sim._solve_bristles, []
+
+    def failing_third(prm):
+        solve(prm)
+        calls.append(1)
+        if len(calls) == 3:
+            sim._out.status[0] = 1  # as NEWTON_FAILED on the smallest sub-step
+
+    sim._solve_bristles = failing_third
+    with pytest.raises(SimulationDivergence) as err:
+        sim.step(p + np.array([0.02, 0.0, -0.02]), R)
+    assert err.value.time == pytest.approx(before.time + 3e-3) and err.value.bristles == [0]
+    now = sim.state
+    for name in [f.name for f in fields(now) if isinstance(getattr(now, f.name), np.ndarray)]:
+        assert np.array_equal(getattr(now, name), getattr(before, name)), name
+    assert now.time == before.time and now.steps == before.steps
+    sim._solve_bristles = solve
+    out = sim.step(p + np.array([0.02, 0.0, -0.02]), R)
+    assert np.all(np.isfinite(out.tcp_force)) and out.time == pytest.approx(before.time + 4e-3)
