@@ -99,6 +99,7 @@ def simulate_contact(
     element: str | None = None,
     max_substep: float | None = None,
     observe=None,
+    **settings,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
     touching the plate at t = 0, pressed 3 mm along the bristle axis (``press`` s, minimum jerk),
@@ -108,7 +109,8 @@ def simulate_contact(
     internal split: the benches time the solver at the step they name); ``observe(t, out)``,
     if given, sees every step's ``StepResult`` (inside the timed loop).  A
     ``SimulationDivergence`` ends the run early; the samples up to the last completed step are
-    kept and ``status`` says when it diverged."""
+    kept and ``status`` says when it diverged.  Further keywords are SimSettings fields
+    (e.g. ``tip_tip_sweeps``)."""
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
@@ -118,6 +120,7 @@ def simulate_contact(
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     extra = {} if element is None else {"element": element}
     extra["max_substep"] = dt if max_substep is None else max_substep
+    extra.update(settings)
     sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator, **extra))
     touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)

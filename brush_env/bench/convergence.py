@@ -1,7 +1,9 @@
 """``bench convergence``: the ``bench contact`` motion (BDF2, tip-tip on) at 6 bodies for
 dt = 1, 0.5, 0.25, 0.125 ms, each against the finest, and at dt = 0.25 ms for 6, 12, 24 bodies,
-each against
-24: how far from converged the contact run is in time step and in bodies (self-convergence).
+each against 24: how far from converged the contact run is in time step and in bodies
+(self-convergence).  A third series, "lag", repeats the time-step series with one sweep per step
+(``tip_tip_sweeps = 1``: the partner tips held, not solved with) against the same finest coupled
+run: the floor the tip-tip lag leaves.
 """
 
 from __future__ import annotations
@@ -38,16 +40,21 @@ def bench_convergence(args) -> int:
     motion = (c["press"], c["hold"], c["arc"])
     open_log(args)
     rows = []
-    series = [("dt", 6 if not args.quick else 3, dt) for dt in g["dts"]] + [
-        ("bodies", b, g["body_dt"]) for b in g["bodies"]
-    ]
+    nb_dt = 6 if not args.quick else 3
+    series = (
+        [("dt", nb_dt, dt) for dt in g["dts"]]
+        + [("bodies", b, g["body_dt"]) for b in g["bodies"]]
+        + [("lag", nb_dt, dt) for dt in g["dts"]]
+    )
     runs = {}
     for kind, bodies, dt in series:
         print(f"  {kind}: {bodies} bodies, dt={dt:g} ...", file=sys.stderr, flush=True)
-        runs[(kind, bodies, dt)] = simulate_contact(bodies, dt, "bdf2", True, *motion)
-    for kind in ("dt", "bodies"):
+        extra = {"tip_tip_sweeps": 1} if kind == "lag" else {}
+        runs[(kind, bodies, dt)] = simulate_contact(bodies, dt, "bdf2", True, *motion, **extra)
+    for kind in ("dt", "bodies", "lag"):
         keys = [k for k in runs if k[0] == kind]
-        finest = keys[-1]
+        # the lag series is measured against the coupled series' finest run
+        finest = [k for k in runs if k[0] == "dt"][-1] if kind == "lag" else keys[-1]
         ref = runs[finest]
         grid = np.arange(0.0, ref.t[-1] + 1e-12, c["sample"])
         for k in keys:
@@ -59,6 +66,7 @@ def bench_convergence(args) -> int:
                 "dt": k[2],
                 "integrator": "bdf2",
                 "tip_tip": True,
+                "tip_tip_sweeps": 1 if kind == "lag" else "coupled",
                 "against": f"{finest[1]} bodies, dt={finest[2]:g}",
                 "rms_force_error": whole,
                 "rms_force_error_circle": circ,
@@ -77,6 +85,7 @@ def bench_convergence(args) -> int:
                     ("series", lambda r: r["series"]),
                     ("bodies", lambda r: str(r["bodies"])),
                     ("dt [s]", lambda r: f"{r['dt']:g}"),
+                    ("tip-tip", lambda r: str(r["tip_tip_sweeps"])),
                     ("against", lambda r: r["against"]),
                     ("RMS F err", lambda r: f"{r['rms_force_error']:.2e}"),
                     ("RMS F err (circle)", lambda r: f"{r['rms_force_error_circle']:.2e}"),

@@ -192,6 +192,55 @@ def _lus6(A, piv, b):
         b[i] = s / A[i, i]
 
 
+@njit(**HOT)
+def lu_dense(A, n, piv):
+    """In-place LU with partial pivoting of A[:n, :n].  Returns False if singular."""
+    for k in range(n):
+        p = k
+        amax = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > amax:
+                amax = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if amax == 0.0 or not np.isfinite(amax):
+            return False
+        if p != k:
+            for j in range(n):
+                t = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = t
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] * inv
+            A[i, k] = f
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+    return True
+
+
+@njit(**HOT)
+def lus_dense(A, n, piv, b):
+    """Solve in place with the factors of ``lu_dense`` (b[:n])."""
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+    for i in range(1, n):
+        s = b[i]
+        for j in range(i):
+            s -= A[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]
+
+
 # --------------------------------------------------------------------------- beam element (eq 1-5)
 @njit(**HOT)
 def _node(c, R, half, out):

@@ -458,6 +458,37 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
 
 
 @njit(**HOT)
+def pair_law(b, j, pj, con, c0_inv_h, f, C):
+    """The Table 3 contact of tip b (at con.tips[b]) with partner j held at ``pj`` (3,) [mm]
+    (velocities from con.tips): f <- the force on b [N]; C <- dF_b/dp_j [N/mm], the negative of
+    the pair's term in b's own tangent (``_tip_tip_load``); c0_inv_h = c0 / h weighs the damping
+    (0 for statics).  Returns False (f, C untouched) if the tips do not touch."""
+    tips = con.tips
+    cp = con.cp
+    d0 = tips[b, 0] - pj[0]
+    d1 = tips[b, 1] - pj[1]
+    d2 = tips[b, 2] - pj[2]
+    dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    delta = tips[b, 6] + tips[j, 6] - dist
+    if dist < 1e-12 or delta <= 0.0:
+        return False
+    u = (d0 / dist, d1 / dist, d2 / dist)
+    rv = 0.0
+    for a in range(3):
+        rv += u[a] * (tips[b, 3 + a] - tips[j, 3 + a])
+    Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
+    if Fn <= 0.0:
+        return False
+    kk = kn + cn * c0_inv_h
+    geo = Fn / dist
+    for a in range(3):
+        f[a] = Fn * u[a]
+        for bb in range(3):
+            C[a, bb] = kk * u[a] * u[bb] - geo * ((1.0 if a == bb else 0.0) - u[a] * u[bb])
+    return True
+
+
+@njit(**HOT)
 def penetration_step_limit(b, pt, dp, R, con, tw):
     """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
     tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from

@@ -50,6 +50,7 @@ from .contact import (
     slip_step_limit,
     tip_load,
 )
+from .coupling import place_partners, store_tip_load
 from .records import (
     B_BETA,
     B_FSCALE,
@@ -63,6 +64,7 @@ from .records import (
     Substep,
     Trial,
 )
+from .tipblock import add_tip_block as _add_tip_block
 
 # status codes per bristle (step_bristles' ``out.status``)
 OK = 0
@@ -77,7 +79,9 @@ P_MAXIT = 4  # Newton iterations per attempt
 P_MAXLEV = 5  # sub-stepping levels (h / 2**levels is the smallest step)
 P_G = 6  # 6, 7, 8: gravity [mm/s^2]
 P_JAGE = 9  # steps a factored Newton matrix may be reused
-N_PRM = 10
+P_SWEEPS = 10  # most Gauss-Seidel sweeps over the bristles per step (1: one sweep, the tip-tip lag)
+P_TTTOL = 11  # [mm] a partner tip that moved by less than this does not call for another sweep
+N_PRM = 12
 
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
@@ -88,28 +92,8 @@ MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip 
 #: as four iterations with reused factors (~2 us each).
 SLOW = 0.1
 REBUILD_ITERS = 3.0
-
-
-@njit(**HOT, inline="always")
-def _skew_into(x, y, z, S):
-    """S <- [v]x, the cross-product matrix of v = (x, y, z)."""
-    S[0, 0] = 0.0
-    S[0, 1] = -z
-    S[0, 2] = y
-    S[1, 0] = z
-    S[1, 1] = 0.0
-    S[1, 2] = -x
-    S[2, 0] = -y
-    S[2, 1] = x
-    S[2, 2] = 0.0
-
-
-@njit(**HOT, inline="always")
-def _mul3(A, B, C):
-    """C <- A B for 3x3 matrices (C distinct from A and B)."""
-    for a in range(3):
-        for b in range(3):
-            C[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
+#: ``extrap`` of ``_predict`` for a re-solve in a later Gauss-Seidel sweep (warm start)
+WARM = -1
 
 
 @njit(**HOT)
@@ -344,31 +328,6 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                     else:
                         D[k - 1, a, col] -= dA
                         L[k, a, col] -= dB
-
-
-@njit(**HOT, inline="always")
-def _add_tip_block(Dk, bp, rot, il, it, blk):
-    """Dk += d(-tip load, -its moment about c)/d(dc, dtheta) of the tip body ``il``.
-
-    Tip load F = it.tipF at p_tip = c + r, r = half * R e_x, stiffness it.tipK:
-    dp_tip = dc - [r]x dtheta."""
-    tipF = it.tipF
-    tipK = it.tipK
-    Sr = blk.Sr
-    hl = bp[il, B_HALF]
-    _skew_into(hl * rot[il, 0, 0], hl * rot[il, 1, 0], hl * rot[il, 2, 0], Sr)
-    _skew_into(tipF[0], tipF[1], tipF[2], blk.SF)
-    _mul3(tipK, Sr, blk.KS)
-    _mul3(Sr, tipK, blk.SrK)
-    _mul3(Sr, blk.KS, blk.SrKS)
-    _mul3(blk.SF, Sr, blk.SFSr)
-    # residual rows: -F and -(r x F); dF = K (dc - [r]x dth); d(r x F) = [r]x dF + [F]x [r]x dth
-    for a in range(3):
-        for b in range(3):
-            Dk[a, b] -= tipK[a, b]
-            Dk[a, 3 + b] += blk.KS[a, b]
-            Dk[3 + a, b] -= blk.SrK[a, b]
-            Dk[3 + a, 3 + b] += blk.SrKS[a, b] - blk.SFSr[a, b]
 
 
 @njit(**HOT, inline="always")
@@ -638,8 +597,16 @@ def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
     # residual is inlined, and each copy costs compile time
     for stage in range(3):
         if stage == 0:
-            _rigid_predict(br, chain, base, it, ws.mot)
+            if extrap == WARM:
+                # a later sweep: this bristle's own solution of the previous sweep
+                _load_chain(
+                    br, chain.pos, chain.rot, ws.sw.warm_pos[br.b0 :], ws.sw.warm_rot[br.b0 :]
+                )
+            else:
+                _rigid_predict(br, chain, base, it, ws.mot)
         elif stage == 1:
+            if extrap == WARM:
+                break
             if extrap < 2 or nrm <= sub.rtol:
                 break
             _save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
@@ -1084,10 +1051,11 @@ def _backup(br, chain, con, bk, save):
 
 
 @njit(**HOT, inline="always")
-def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out):
+def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
     """One bristle over one step h = prm[P_H]: Newton on the whole step, halved recursively on
     failure (down to h / 2**max_levels) and regrown when aligned; restored and flagged
-    NEWTON_FAILED if the smallest sub-step fails."""
+    NEWTON_FAILED if the smallest sub-step fails.  warm: Newton on the whole step starts from
+    ``ws.sw.warm_pos/warm_rot`` (a re-solve in a later sweep) instead of the predictors."""
     b = br.b
     h = prm[P_H]
     maxlev = int(prm[P_MAXLEV])
@@ -1107,7 +1075,9 @@ def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out):
         _base_of_substep(br, model, drive, s, ds, ws)
         # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
         extrap = 0
-        if whole and not sub.static and hist_ok > 0:
+        if whole and warm:
+            extrap = WARM
+        elif whole and not sub.static and hist_ok > 0:
             extrap = 3 if hist_ok >= 2 else 2
         ok, it = _newton(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap)
         tot += it
@@ -1159,19 +1129,140 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     behind each bristle's history, 0, 1 or 2; after a sub-stepped step the history is not on the
     step grid: 0).  con: surfaces, contact laws (Tables 2-3), every tip's node, velocity and radius,
     the tip-tip partner lists (CSR), the scene's mesh, tip arguments and per-contact state.
-    Bristles are solved in order; each one sees its partners' latest tips (one Gauss-Seidel
-    sweep), and its own entry in ``con.tips`` is updated as soon as it has been advanced.
-    Outputs per bristle in ``out``: rootw (force, moment of the root element on the head, at the
-    root node, world), iters (Newton iterations), nsub (sub-steps used), status (OK /
-    NEWTON_FAILED).
+
+    Bristles are coupled only through tip-tip contact (Table 3).  Each is solved with its
+    partners' tips held (``con.tips``), in order (a Gauss-Seidel sweep); before the first sweep
+    every tip is moved on by h v_n, so a partner not yet solved is held near where it is heading.
+    With prm[P_SWEEPS] > 1, while some bristle's touching partners have moved by more than
+    prm[P_TTTOL] since it was solved, the partners are placed where the linearised coupled
+    problem puts them (``coupling.place_partners``) and those bristles are solved again from the
+    step's start, warm-started at their last solution: at convergence both sides of every
+    tip-tip contact see the end-of-step tips (no lag).  Outputs per bristle in ``out``: rootw
+    (force, moment of the root element on the head, at the root node, world), iters (Newton
+    iterations, all sweeps), nsub (sub-steps used), status (OK / NEWTON_FAILED); ws.sw.count =
+    [sweeps run, re-solves, 1 if the partners still moved when the sweeps ran out].
     """
     bstart = model.bstart
-    for b in range(bstart.shape[0] - 1):
-        b0 = bstart[b]
-        n = bstart[b + 1] - b0
-        br = Bristle(b, b0, n, b0 + n - 1)
-        _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out)
-        _tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
+    nb = bstart.shape[0] - 1
+    sw = ws.sw
+    npair = con.pair_idx.shape[0]
+    sweeps = int(prm[P_SWEEPS]) if npair > 0 else 1
+    static = prm[P_STATIC] != 0.0
+    c0_inv_h = 0.0 if static else (1.5 if int(prm[P_METHOD]) == 1 else 1.0) / prm[P_H]
+    if npair > 0 and not static:
+        for b in range(nb):  # partners not yet solved: held where they are heading
+            for a in range(3):
+                con.tips[b, a] += prm[P_H] * con.tips[b, 3 + a]
+    if sweeps > 1:
+        _save_all(chain, con, drive, sw)
+    for b in range(nb):
+        out.iters[b] = 0
+        sw.grouped[b] = 1
+    sw.count[0] = 1
+    sw.count[1] = 0
+    sw.count[2] = 0
+    for sweep in range(sweeps + 1):
+        if sweep > 0:
+            moved = False
+            for b in range(nb):
+                if _partners_moved(b, con, sw.used, prm[P_TTTOL]):
+                    moved = True
+                    break
+            if not moved:
+                break
+            if sweep == sweeps:
+                sw.count[2] = 1  # out of sweeps with partners still moving
+                break
+            sw.count[0] = sweep + 1
+            place_partners(model, chain, con, jc, ws, c0_inv_h)
+        for b in range(nb):
+            b0 = bstart[b]
+            n = bstart[b + 1] - b0
+            br = Bristle(b, b0, n, b0 + n - 1)
+            if sweep > 0:
+                if not _partners_moved(b, con, sw.used, prm[P_TTTOL]):
+                    if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
+                        for a in range(6):
+                            con.tips[b, a] = sw.xs[b, a]
+                    continue
+                sw.count[1] += 1
+                _save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
+                _restore_bristle(br, chain, con, drive, sw)
+            if npair > 0:
+                for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+                    j = con.pair_idx[q]
+                    for a in range(3):
+                        sw.used[q, a] = con.tips[j, a]
+            prev = out.iters[b]
+            _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, sweep > 0)
+            out.iters[b] += prev
+            _tip_node_state(
+                b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips
+            )
+            if sweeps > 1:
+                store_tip_load(b, ws.it, sw)
+
+
+@njit(**HOT, inline="always")
+def _partners_moved(b, con, used, tol):
+    """True if a partner of bristle b that is (or was, when b was solved) within contact reach
+    of b's tip has moved by more than ``tol`` [mm] since b was solved."""
+    tips = con.tips
+    rb = tips[b, 6]
+    for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+        j = con.pair_idx[q]
+        reach = rb + tips[j, 6] + tol
+        dn0 = tips[b, 0] - tips[j, 0]
+        dn1 = tips[b, 1] - tips[j, 1]
+        dn2 = tips[b, 2] - tips[j, 2]
+        du0 = tips[b, 0] - used[q, 0]
+        du1 = tips[b, 1] - used[q, 1]
+        du2 = tips[b, 2] - used[q, 2]
+        if dn0 * dn0 + dn1 * dn1 + dn2 * dn2 > reach * reach and (
+            du0 * du0 + du1 * du1 + du2 * du2 > reach * reach
+        ):
+            continue
+        m0 = tips[j, 0] - used[q, 0]
+        m1 = tips[j, 1] - used[q, 1]
+        m2 = tips[j, 2] - used[q, 2]
+        if m0 * m0 + m1 * m1 + m2 * m2 > tol * tol:
+            return True
+    return False
+
+
+@njit(**HOT, inline="always")
+def _save_all(chain, con, drive, sw):
+    """sw <- every bristle's state at the step's start (chain, contact state, hist_ok)."""
+    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
+    vR = (chain.rot, chain.prot, chain.pprot)
+    for k in range(chain.pos.shape[0]):
+        for a in range(3):
+            for q in range(7):
+                sw.v3[q, k, a] = v3[q][k, a]
+            for c in range(3):
+                for q in range(3):
+                    sw.R[q, k, a, c] = vR[q][k, a, c]
+    for b in range(con.tip_state.shape[0]):
+        for a in range(con.tip_state.shape[1]):
+            sw.tip_state[b, a] = con.tip_state[b, a]
+        sw.hist_ok[b] = drive.hist_ok[b]
+
+
+@njit(**HOT, inline="always")
+def _restore_bristle(br, chain, con, drive, sw):
+    """One bristle <- its state at the step's start (``_save_all``)."""
+    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
+    vR = (chain.rot, chain.prot, chain.pprot)
+    for k in range(br.b0, br.b0 + br.n):
+        for a in range(3):
+            for q in range(7):
+                v3[q][k, a] = sw.v3[q, k, a]
+            for c in range(3):
+                for q in range(3):
+                    vR[q][k, a, c] = sw.R[q, k, a, c]
+    for a in range(con.tip_state.shape[1]):
+        con.tip_state[br.b, a] = sw.tip_state[br.b, a]
+    drive.hist_ok[br.b] = sw.hist_ok[br.b]
 
 
 @njit(**HOT)

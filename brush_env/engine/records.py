@@ -36,6 +36,7 @@ record              fields [unit]
 ``Damp``            element rate terms: ehist (6,), gs, hs (see ``_kernels.element_force``)
 ``History``         constants of a (sub)step (``integrator._prepare``): cm, vm, Lm, thp (n, 3),
                     Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
+``Sweeps``          the Gauss-Seidel sweeps' start state, warm starts and partner tips
 ``Work``            the scratch of ``step_bristles`` (allocated once per Simulator)
 ==================  ========================================================================
 """
@@ -45,6 +46,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
+
+#: largest group of touching bristles the tip-tip coupling solves as one dense system
+MAX_GROUP = 256
 
 # columns of the body parameter table ``bp`` (N, N_BP)
 B_MASS = 0  # [t]
@@ -127,11 +131,56 @@ Iterate = namedtuple(
 )
 #: a bristle's state at the start of the step (restored when every sub-step level fails)
 Backup = namedtuple("Backup", ["v3", "R", "tip_state"])
-Work = namedtuple("Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup"])
+#: the sweeps of ``step_bristles`` and the tip-tip coupling (``coupling.py``): every bristle's
+#: state at the step's start (v3, R, tip_state, hist_ok as in ``Backup``, all bodies), the last
+#: sweep's solution (warm_pos, warm_rot), the partner tips each bristle was solved against (used,
+#: per CSR pair entry), count = [sweeps run, re-solves, 1 if partners still moved when the sweeps
+#: ran out] of the last step; per bristle the tip load of its solution tipF (nb, 3) [N], tipK
+#: (nb, 3, 3) [N/mm], the tip node's stiffness H (nb, 3, 3) [N/mm] and its tip node and velocity
+#: before it was placed xs (nb, 6); groups (parent, grouped, slot, members); the dense system A,
+#: x, piv (3 rows per bristle of a group); scratch A6, piv6, W3, Fc, Kc, f, C, e6
+Sweeps = namedtuple(
+    "Sweeps",
+    [
+        "v3",
+        "R",
+        "tip_state",
+        "hist_ok",
+        "warm_pos",
+        "warm_rot",
+        "used",
+        "count",
+        "tipF",
+        "tipK",
+        "H",
+        "xs",
+        "parent",
+        "grouped",
+        "slot",
+        "members",
+        "A",
+        "x",
+        "piv",
+        "A6",
+        "piv6",
+        "W3",
+        "Fc",
+        "Kc",
+        "f",
+        "C",
+        "e6",
+    ],
+)
+Work = namedtuple(
+    "Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup", "sw"]
+)
 
 
-def make_work(nmax: int, n_tip_state: int) -> Work:
-    """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies)."""
+def make_work(
+    nmax: int, n_tip_state: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries: int = 0
+) -> Work:
+    """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies per
+    bristle; n_bodies, n_bristles, n_pair_entries: the whole brush, for the sweeps)."""
 
     def v(*shape):
         return np.zeros(shape)
@@ -161,7 +210,35 @@ def make_work(nmax: int, n_tip_state: int) -> Work:
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
     mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
     backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), v(n_tip_state))
-    return Work(it, hist, base, v(3), v(3, 3), el, tipw, blk, mot, backup)
+    # the coupling's dense system: only with tip-tip pairs, at most MAX_GROUP bristles
+    n3 = 3 * min(n_bristles, MAX_GROUP) if n_pair_entries else 1
+    sw = Sweeps(
+        v(7, n_bodies, 3),
+        v(3, n_bodies, 3, 3),
+        v(n_bristles, n_tip_state),
+        np.zeros(n_bristles, np.int64),
+        v(n_bodies, 3),
+        v(n_bodies, 3, 3),
+        v(max(n_pair_entries, 1), 3),
+        np.zeros(3, np.int64),
+        v(n_bristles, 3),
+        v(n_bristles, 3, 3),
+        v(n_bristles, 3, 3),
+        v(n_bristles, 6),
+        *(np.zeros(n_bristles, np.int64) for _ in range(4)),
+        v(n3, n3),
+        v(n3),
+        np.zeros(n3, np.int64),
+        v(6, 6),
+        np.zeros(6, np.int64),
+        v(3, 3),
+        v(3),
+        v(3, 3),
+        v(3),
+        v(3, 3),
+        v(6),
+    )
+    return Work(it, hist, base, v(3), v(3, 3), el, tipw, blk, mot, backup, sw)
 
 
 def make_newton_cache(n_bodies: int, n_bristles: int) -> NewtonCache:

@@ -1,0 +1,217 @@
+"""Coupled tip-tip contact: where to hold each bristle's partners so that both sides of every
+tip-tip contact (Table 3) see the end-of-step tips (numba kernels).
+
+``integrator.step_bristles`` solves each bristle with its partners' tips held.  A partner solved
+later in the sweep is held where it was, not where it ends: the tip-tip force lags.  The Table 3
+law is ~10^3-10^4 times stiffer than a bristle's bending, so repeating the sweeps (block
+Gauss-Seidel) converges at a rate close to 1: 50 sweeps do not settle two facing bristles under a
+10 Hz load (tests/engine/test_coupling.py).  Instead, after a sweep, one Newton step of the
+coupled problem condensed onto the tip nodes (the Schur complement of every chain on its tip)
+tells where every touching tip will be:
+
+    H_b dx_b - sum_j C_bj dx_j = dF_b                                         (3 rows per tip)
+
+linearised at the consistent point x* (every tip where its own solve left it): dF_b is the
+change of bristle b's tip-tip force between the partners it was solved against (u_bj) and x*,
+exact, so the right-hand side is the residual every bristle has at x*; C_bj = dF_b/dp_j [N/mm]
+at x* (``contact.pair_law``); H_b [N/mm] the tip node's stiffness, the inverse of
+T A_b^-1 T^T with A_b the tip body's Schur complement of the chain (the Newton factors' jc.S,
+T = [I, -[r]x]) plus the tip's own load block at x* (surface, friction and tip-tip, from the
+load of b's last evaluation corrected to x*).  Everything is taken at one point, so the common
+motion of touching tips, which only the soft bending resists, is not lost in the difference of
+two stiff contact terms.  One dense LU per connected group of touching tips; the partners are
+placed at x* + dx and the group is solved again, warm-started.  At the fixed point every bristle
+was solved against its partners' own solutions (within ``SimSettings.tip_tip_tol``).  H and C
+only steer: the solution is set by the bristles' residuals alone.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ._kernels import HOT, _lu6, _lus6, lu_dense, lus_dense
+from .contact import pair_law
+from .records import B_HALF, MAX_GROUP  # a larger group keeps plain Gauss-Seidel
+from .tipblock import add_tip_block
+
+#: the tip load of one bristle in the form ``add_tip_block`` reads (force [N], dF/dp [N/mm])
+TipLoad = namedtuple("TipLoad", ["tipF", "tipK"])
+
+
+@njit(**HOT)
+def store_tip_load(b, it, sw):
+    """sw.tipF[b], sw.tipK[b] <- the tip load and its tangent of bristle b's last evaluation
+    (its solution)."""
+    for a in range(3):
+        sw.tipF[b, a] = it.tipF[a]
+        for c in range(3):
+            sw.tipK[b, a, c] = it.tipK[a, c]
+
+
+@njit(**HOT, inline="always")
+def _root(parent, b):
+    while parent[b] != b:
+        parent[b] = parent[parent[b]]
+        b = parent[b]
+    return b
+
+
+@njit(**HOT)
+def place_partners(model, chain, con, jc, ws, c0_inv_h):
+    """Solve the condensed coupled equations (module docstring) for every group of touching
+    tips and move their entries in con.tips there (position; velocity by the same change times
+    c0/h).  Marks sw.grouped[b] = 1 for every bristle placed, 0 otherwise; returns how many were
+    placed."""
+    sw = ws.sw
+    tips = con.tips
+    nb = tips.shape[0]
+    parent = sw.parent
+    for b in range(nb):
+        parent[b] = b
+        sw.grouped[b] = 0
+    for b in range(nb):  # groups: connected components of the pairs touching at x* or u
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            if pair_law(b, j, tips[j], con, c0_inv_h, sw.f, sw.C) or pair_law(
+                b, j, sw.used[q], con, c0_inv_h, sw.f, sw.C
+            ):
+                rb = _root(parent, b)
+                rj = _root(parent, j)
+                if rb != rj:
+                    parent[max(rb, rj)] = min(rb, rj)
+    placed = 0
+    for g in range(nb):
+        if _root(parent, g) != g:
+            continue
+        m = 0
+        for b in range(g, nb):  # members in bristle order
+            if _root(parent, b) == g:
+                sw.slot[b] = m
+                sw.members[m] = b
+                m += 1
+        if m < 2 or m > MAX_GROUP:
+            continue
+        placed += _solve_group(model, chain, con, jc, ws, m, c0_inv_h)
+    return placed
+
+
+@njit(**HOT)
+def _tip_stiffness(b, model, chain, jc, ws, load):
+    """sw.H[b] <- the tip node's stiffness [N/mm] of bristle b: (T A^-1 T^T)^-1 with A = jc.S[b]
+    + the tip load block of ``load``.  Returns False if the bristle has no valid factors or A
+    is singular."""
+    sw = ws.sw
+    if jc.key[b] == 0.0:
+        return False
+    il = model.bstart[b + 1] - 1
+    A6 = sw.A6
+    for a in range(6):
+        for c in range(6):
+            A6[a, c] = jc.S[b, a, c]
+    add_tip_block(A6, model.bp, chain.rot, il, load, ws.blk)
+    if not _lu6(A6, sw.piv6):
+        return False
+    hl = model.bp[il, B_HALF]
+    r0 = hl * chain.rot[il, 0, 0]
+    r1 = hl * chain.rot[il, 1, 0]
+    r2 = hl * chain.rot[il, 2, 0]
+    W = sw.W3
+    e6 = sw.e6
+    for c in range(3):
+        for a in range(6):
+            e6[a] = 0.0
+        e6[c] = 1.0  # a unit force along c at the tip node: generalised load (f, r x f)
+        e6[3] = r1 * e6[2] - r2 * e6[1]
+        e6[4] = r2 * e6[0] - r0 * e6[2]
+        e6[5] = r0 * e6[1] - r1 * e6[0]
+        _lus6(A6, sw.piv6, e6)
+        W[0, c] = e6[0] + e6[4] * r2 - e6[5] * r1  # tip node displacement dc + dtheta x r
+        W[1, c] = e6[1] + e6[5] * r0 - e6[3] * r2
+        W[2, c] = e6[2] + e6[3] * r1 - e6[4] * r0
+    return _inv3(W, sw.H[b])
+
+
+@njit(**HOT, inline="always")
+def _inv3(M, out):
+    """out <- M^-1 (3x3); False if singular."""
+    c00 = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+    c01 = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+    c02 = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+    det = M[0, 0] * c00 + M[0, 1] * c01 + M[0, 2] * c02
+    if det == 0.0 or not np.isfinite(det):
+        return False
+    inv = 1.0 / det
+    out[0, 0] = c00 * inv
+    out[1, 0] = c01 * inv
+    out[2, 0] = c02 * inv
+    out[0, 1] = (M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]) * inv
+    out[1, 1] = (M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]) * inv
+    out[2, 1] = (M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]) * inv
+    out[0, 2] = (M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]) * inv
+    out[1, 2] = (M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]) * inv
+    out[2, 2] = (M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]) * inv
+    return True
+
+
+@njit(**HOT)
+def _solve_group(model, chain, con, jc, ws, m, c0_inv_h):
+    """The condensed equations of one group (members sw.members[:m]): dense LU, tips placed.
+    Returns m, or 0 if a stiffness or the system is singular (the tips stay where they are)."""
+    sw = ws.sw
+    tips = con.tips
+    A = sw.A
+    x = sw.x
+    C = sw.C
+    f = sw.f
+    load = TipLoad(sw.Fc, sw.Kc)
+    n = 3 * m
+    for r in range(n):
+        x[r] = 0.0
+        for c in range(n):
+            A[r, c] = 0.0
+    for s in range(m):
+        b = sw.members[s]
+        for a in range(3):
+            sw.Fc[a] = sw.tipF[b, a]
+            for c in range(3):
+                sw.Kc[a, c] = sw.tipK[b, a, c]
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            t = sw.slot[j]
+            if t >= m or sw.members[t] != j:
+                continue  # not in this group (touches b only since another group was placed)
+            # the pair at the partner b was solved against (u): out of b's load and tangent
+            if pair_law(b, j, sw.used[q], con, c0_inv_h, f, C):
+                for a in range(3):
+                    sw.Fc[a] -= f[a]
+                    x[3 * s + a] -= f[a]
+                    for c in range(3):
+                        sw.Kc[a, c] += C[a, c]  # own tangent of the pair is -C
+            # ... and at x*: into the load, the tangent and the coupling blocks
+            if pair_law(b, j, tips[j], con, c0_inv_h, f, C):
+                for a in range(3):
+                    sw.Fc[a] += f[a]
+                    x[3 * s + a] += f[a]
+                    for c in range(3):
+                        sw.Kc[a, c] -= C[a, c]
+                        A[3 * s + a, 3 * t + c] -= C[a, c]
+        if not _tip_stiffness(b, model, chain, jc, ws, load):
+            return 0
+        for a in range(3):
+            for c in range(3):
+                A[3 * s + a, 3 * s + c] += sw.H[b, a, c]
+    if not lu_dense(A, n, sw.piv):
+        return 0
+    lus_dense(A, n, sw.piv, x)
+    for s in range(m):
+        b = sw.members[s]
+        for a in range(6):
+            sw.xs[b, a] = tips[b, a]  # its solution, restored if it is not solved again
+        for a in range(3):
+            tips[b, a] += x[3 * s + a]
+            tips[b, 3 + a] += c0_inv_h * x[3 * s + a]
+        sw.grouped[b] = 1
+    return m
