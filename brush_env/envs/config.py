@@ -103,6 +103,15 @@ class EnvConfig:
         "tip-tip contact (Table 3): scene = the scene file's setting, on, off",
         choices=("scene", "on", "off"),
     )
+    tip_tip_sweeps: int = _f(
+        8,
+        "engine",
+        "count",
+        "most sweeps per solver step for tip-tip contact: >1 solves touching tips coupled "
+        "(action = reaction), 1 holds partners one sweep behind (faster, lags; docs/model.md)",
+        lo=1,
+        hi=100,
+    )
     # --- action -------------------------------------------------------------------------------
     action_mode: str = _f(
         "6d",

@@ -112,6 +112,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | element | "mid" | - | beam element: "mid" (accurate with few bodies) or "paper" |
 | gravity | True | - | gravity on the bristles |
 | tip_tip | "scene" | - | tip-tip contact: the scene file's (on for flat_plate), "on", "off" |
+| tip_tip_sweeps | 8 | count | sweeps per solver step for tip-tip contact (1: one sweep, lags) |
 | action_mode | "6d" | - | "6d" or "3d" |
 | max_linear_speed | (50, 50, 20) | mm/s | velocity at action +-1 |
 | max_angular_speed | (0.5, 0.5, 1.0) | rad/s | angular velocity at action +-1 |
@@ -241,6 +242,7 @@ class BrushEnv(gym.Env):
                 integrator=cfg.integrator,
                 gravity=gravity,
                 element=cfg.element,
+                tip_tip_sweeps=cfg.tip_tip_sweeps,
             ),
         )
         model = self.sim.model
