@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 
 from ..user_errors import add_flag
-from . import branch, compile, contact, convergence, element, engine, env, press
+from . import branch, compile, contact, convergence, element, engine, env, fidelity, press
 
 #: name -> (run function, its options (None: the common ones), one-line help)
 TARGETS = {
@@ -64,6 +64,12 @@ TARGETS = {
         env.bench_env_target,
         env.add_arguments,
         "Gymnasium env steps per second, single and vectorised",
+    ),
+    "fidelity": (
+        fidelity.bench_fidelity,
+        fidelity.add_arguments,
+        "every fidelity level (configs/fidelity) against reference: the paper's turn and "
+        "random-policy env episodes, error and speed, Pareto plot",
     ),
     "compile": (
         compile.bench_compile,

@@ -14,6 +14,7 @@ from .config import (
     load_brush,
     load_materials,
 )
+from .fidelity import Fidelity, load_fidelity
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import (
     PenetrationWarning,
@@ -33,6 +34,8 @@ __all__ = [
     "configs_dir",
     "load_brush",
     "load_materials",
+    "Fidelity",
+    "load_fidelity",
     "SimSettings",
     "PenetrationWarning",
     "SimulationDivergence",

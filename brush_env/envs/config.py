@@ -57,6 +57,14 @@ class EnvConfig:
     """
 
     # --- engine -------------------------------------------------------------------------------
+    fidelity: str = _f(
+        "fast",
+        "engine",
+        "-",
+        "fidelity level (configs/fidelity: reference, paper, balanced, fast) or a TOML path: sets "
+        "bodies_per_bristle, engine_max_substep, element, integrator, tip_tip_sweeps unless "
+        "those are keywords of the same call; empty: those keys as written",
+    )
     brush: str = _f("default", "engine", "-", "brush: a name in configs/brushes or a TOML path")
     scene: str = _f(
         "flat_plate",
@@ -104,7 +112,7 @@ class EnvConfig:
         choices=("scene", "on", "off"),
     )
     tip_tip_sweeps: int = _f(
-        8,
+        1,
         "engine",
         "count",
         "most sweeps per solver step for tip-tip contact: >1 solves touching tips coupled "
@@ -312,6 +320,8 @@ class EnvConfig:
         self._cross_checks()
 
     def _cross_checks(self) -> None:
+        if self.fidelity:
+            fidelity_settings(self.fidelity)  # an unknown level or bad file names itself
         for name in ("tip_force_window", "workspace_height", "start_height"):
             lo, hi = getattr(self, name)
             if lo > hi:
@@ -492,11 +502,34 @@ def load_env_config(
         flat.update(table)
     _check_names(overrides, "override")
     flat.update(overrides)
+    if flat.get("fidelity"):
+        # the level's settings replace the file's; keywords of this call still win
+        for key, value in fidelity_settings(flat["fidelity"]).items():
+            if key not in overrides:
+                flat[key] = value
     try:
         return EnvConfig(**flat)
     except ConfigError as e:
         src = str(path) + (f" with overrides {overrides!r}" if overrides else "")
         raise ConfigError(f"{src}: {e}") from None
+
+
+#: EnvConfig keys a fidelity level sets, and the Fidelity field each comes from
+FIDELITY_KEYS = {
+    "bodies_per_bristle": "bodies_per_bristle",
+    "engine_max_substep": "max_substep",
+    "element": "element",
+    "integrator": "integrator",
+    "tip_tip_sweeps": "tip_tip_sweeps",
+}
+
+
+def fidelity_settings(level) -> dict:
+    """The EnvConfig values of a fidelity level (``FIDELITY_KEYS``)."""
+    from brush_env.engine.fidelity import load_fidelity
+
+    fid = load_fidelity(level)
+    return {key: getattr(fid, attr) for key, attr in FIDELITY_KEYS.items()}
 
 
 def arguments_table() -> str:

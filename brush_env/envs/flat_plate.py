@@ -102,6 +102,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 
 | Parameter | Default | Unit | Meaning |
 |---|---|---|---|
+| fidelity | "fast" | - | fidelity level (configs/fidelity); sets the five engine keys it names |
 | brush | "default" | - | brush name in configs/brushes or a TOML path |
 | scene | "flat_plate" | - | scene name in configs/scenes or a TOML path |
 | bodies_per_bristle | 3 | count | bodies per bristle (0: the brush file's) |
@@ -112,7 +113,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | element | "mid" | - | beam element: "mid" (accurate with few bodies) or "paper" |
 | gravity | True | - | gravity on the bristles |
 | tip_tip | "scene" | - | tip-tip contact: the scene file's (on for flat_plate), "on", "off" |
-| tip_tip_sweeps | 8 | count | sweeps per solver step for tip-tip contact (1: one sweep, lags) |
+| tip_tip_sweeps | 1 | count | sweeps per solver step for tip-tip contact (1: one sweep, lags; >1 coupled) |
 | action_mode | "6d" | - | "6d" or "3d" |
 | max_linear_speed | (50, 50, 20) | mm/s | velocity at action +-1 |
 | max_angular_speed | (0.5, 0.5, 1.0) | rad/s | angular velocity at action +-1 |

@@ -65,6 +65,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="beam element: mid (default; accurate with few bodies in buckled contact) or paper "
         "(the paper's element, to reproduce it); docs/model.md",
     )
+    parser.add_argument(
+        "--fidelity",
+        default=None,
+        help="fidelity level: reference, paper, balanced, fast (configs/fidelity) or a TOML "
+        "path; sets bodies, element, integrator, solver step limit and tip-tip solve "
+        "(--bodies, --element, --integrator given explicitly still win)",
+    )
     parser.add_argument("--speed", type=float, default=d["speed"], help="tool speed [mm/s]")
     parser.add_argument(
         "--accel", type=float, default=d["accel"], help="tool acceleration [mm/s^2]"
@@ -107,6 +114,7 @@ def run(args) -> int:
         bodies=args.bodies,
         integrator=args.integrator,
         element=args.element,
+        fidelity=args.fidelity,
         speed=args.speed,
         accel=args.accel,
         progress=not args.no_progress,

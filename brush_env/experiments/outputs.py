@@ -254,6 +254,8 @@ def settings_info(plan, settings, args: dict) -> dict:
         scene=dict(name=scene.name, tip_tip=scene.tip_tip, plate_z_mm=plan.plate_z),
         dt_s=settings.dt,
         max_substep_s=settings.max_substep,
+        fidelity=args.get("fidelity"),
+        tip_tip_sweeps=settings.tip_tip_sweeps,
         integrator=settings.integrator,
         element=settings.element,
         bodies=sorted({b.bodies for b in brush_cfg.bristles}),

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from ..engine import SimSettings
+from ..engine.fidelity import load_fidelity
 from ..engine.warmup import ensure_compiled
 from .analysis import PAPER_JAMMING_ANGLES, analyse_run, pitch_asymmetry
 from .outputs import (
@@ -54,6 +55,7 @@ def run_reference(
     p0_angle_deg: float = DEFAULTS["p0_angle_deg"],
     clockwise: bool = DEFAULTS["clockwise"],
     max_substep: float | None = None,
+    fidelity=None,
     radius: float = DEFAULTS["radius"],
     press_depth: float = DEFAULTS["press_depth"],
     press_time: float = DEFAULTS["press_time"],
@@ -74,14 +76,27 @@ def run_reference(
     the set-up the paper leaves open: ``head_yaw_deg`` (the head turned on the flange about TCP
     z, default 90: handle along TCP y), ``p0_angle_deg`` (P0's polar angle about the centre,
     default 180), ``clockwise`` (default False); ``max_substep`` [s]: SimSettings.max_substep
-    (None: its default, 1 ms).
+    (None: its default, 1 ms); ``fidelity``: a fidelity level (name in configs/fidelity, path or
+    ``Fidelity``, ``brush_env.engine.fidelity``) that sets the bodies per bristle, element,
+    integrator, solver step limit and tip-tip solve; ``bodies`` and ``max_substep``, if given,
+    still override it, and so do ``integrator``/``element`` when they differ from DEFAULTS.
     Files: docs/reference_experiment.md.
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
     check_run_args(args)
     extra = {} if max_substep is None else {"max_substep": float(max_substep)}
-    settings = SimSettings(dt=float(dt), integrator=integrator, element=element, **extra)
+    if fidelity is None:
+        settings = SimSettings(dt=float(dt), integrator=integrator, element=element, **extra)
+    else:
+        fid = load_fidelity(fidelity)
+        for key in ("integrator", "element"):
+            if args[key] != DEFAULTS[key]:
+                extra[key] = args[key]
+        settings = fid.settings(dt=float(dt), **extra)
+        bodies = fid.bodies_per_bristle if bodies is None else bodies
+        args["bodies"] = bodies
+        args["fidelity"] = fid.name
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)  # inputs valid past here
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()

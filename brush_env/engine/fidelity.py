@@ -1,0 +1,158 @@
+"""Named fidelity levels: how finely a brush is modelled and solved, as data (issue 12).
+
+A fidelity level is a file ``configs/fidelity/<name>.toml`` with a ``[settings]`` table (what the
+level sets) and a ``[measured]`` table that ``brush-env bench fidelity --write`` fills in (its
+error against ``reference`` and its speed; never edited by hand).  Levels shipped:
+
+=============  ==============================================================================
+``reference``  converged: 24 mid-element bodies, 0.125 ms solver steps (validation)
+``paper``      the paper's model: its element (Adams FIELD) and 6 bodies, 1 ms
+``balanced``   6 mid-element bodies, 1 ms (experiments, design studies)
+``fast``       3 mid-element bodies, 1 ms, one tip-tip sweep (RL)
+=============  ==============================================================================
+
+Use::
+
+    fid = load_fidelity("balanced")
+    sim = Simulator(fid.apply(scene), fid.settings(dt=4e-3))
+
+``settings(**overrides)`` gives the ``SimSettings`` (the level sets ``max_substep``, ``element``,
+``integrator``, ``tip_tip_sweeps``, ``newton_rtol``; ``dt``, the caller's step, and anything
+else come from the overrides); ``apply(scene)`` the scene with the level's bodies per bristle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .checks import ConfigError, Limit, check_choice, check_int, check_real, did_you_mean
+from .config import _read_toml, configs_dir
+
+#: the levels shipped in configs/fidelity, most to least accurate
+LEVELS = ("reference", "paper", "balanced", "fast")
+#: what a level's [settings] table may set (bodies per bristle and SimSettings fields)
+SETTING_KEYS = (
+    "bodies_per_bristle",
+    "max_substep",
+    "element",
+    "integrator",
+    "tip_tip_sweeps",
+    "newton_rtol",
+)
+MEASURED_MARK = "# --- measured by `brush-env bench fidelity --write` (not edited by hand) ---"
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """One fidelity level (module docstring).  bodies_per_bristle [count]; max_substep [s] the
+    longest solver step; element "mid" | "paper"; integrator "bdf2" | "euler"; tip_tip_sweeps
+    [count] (1: partners one sweep behind, >1: coupled); newton_rtol [-] relative to each
+    bristle's force scale; measured: the bench's figures (errors [-], speeds) or empty."""
+
+    name: str
+    description: str
+    bodies_per_bristle: int
+    max_substep: float
+    element: str = "mid"
+    integrator: str = "bdf2"
+    tip_tip_sweeps: int = 8
+    newton_rtol: float = 1e-7
+    measured: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    def __post_init__(self):
+        p = f"fidelity {self.name!r}: settings."
+        check_int(p + "bodies_per_bristle", self.bodies_per_bristle, Limit("count", ge=1, le=64))
+        # the rest is checked by SimSettings; build one now so a bad file fails at load
+        self.settings()
+
+    def settings(self, **overrides: Any):
+        """``SimSettings`` of this level; ``overrides`` (e.g. ``dt``) win over the level."""
+        from .simulator import SimSettings
+
+        kw = dict(
+            max_substep=self.max_substep,
+            element=self.element,
+            integrator=self.integrator,
+            tip_tip_sweeps=self.tip_tip_sweeps,
+            newton_rtol=self.newton_rtol,
+        )
+        kw.update(overrides)
+        kw.setdefault("dt", min(1e-3, kw["max_substep"]))
+        return SimSettings(**kw)
+
+    def apply(self, scene):
+        """``scene`` with every bristle of its brush discretised into this level's bodies."""
+        return dataclasses.replace(scene, brush=scene.brush.with_bodies(self.bodies_per_bristle))
+
+    def describe(self) -> str:
+        """One line: the level's name and what it sets."""
+        return (
+            f"{self.name}: {self.bodies_per_bristle} {self.element}-element bodies per bristle, "
+            f"solver steps <= {self.max_substep * 1e3:g} ms ({self.integrator}), tip-tip "
+            + ("coupled" if self.tip_tip_sweeps > 1 else "one sweep")
+        )
+
+
+def fidelity_path(name_or_path: str | os.PathLike) -> Path:
+    """``configs/fidelity/<name>.toml`` for a bare name, else the path itself."""
+    s = os.fspath(name_or_path)
+    if not s.endswith(".toml") and "/" not in s and os.sep not in s:
+        p = configs_dir() / "fidelity" / f"{s}.toml"
+        if not p.is_file():
+            known = sorted(q.stem for q in (configs_dir() / "fidelity").glob("*.toml"))
+            raise ConfigError(
+                f"fidelity = {s!r} is not a known level{did_you_mean(s, known)} "
+                f"(allowed: {', '.join(known)}, or a path to a .toml file)"
+            )
+        return p
+    p = Path(s)
+    if not p.is_file():
+        raise ConfigError(f"fidelity = {s!r}: no such file")
+    return p
+
+
+def load_fidelity(name_or_path: str | os.PathLike | Fidelity) -> Fidelity:
+    """The fidelity level ``name_or_path`` (a name in configs/fidelity or a TOML path)."""
+    if isinstance(name_or_path, Fidelity):
+        return name_or_path
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ConfigError(
+            f"fidelity = {name_or_path!r}: must be a level name ({', '.join(LEVELS)}) or a path"
+        )
+    path = fidelity_path(name_or_path)
+    data = _read_toml(path)
+    unknown = set(data) - {"name", "description", "settings", "measured"}
+    if unknown:
+        raise ConfigError(
+            f"{path}: unknown top-level keys {sorted(unknown)} "
+            "(allowed: name, description, [settings], [measured])"
+        )
+    st = data.get("settings", {})
+    bad = set(st) - set(SETTING_KEYS)
+    if bad:
+        key = sorted(bad)[0]
+        raise ConfigError(
+            f"{path}: settings.{key} is not a fidelity setting{did_you_mean(key, SETTING_KEYS)} "
+            f"(allowed: {', '.join(SETTING_KEYS)})"
+        )
+    for key in ("bodies_per_bristle", "max_substep"):
+        if key not in st:
+            raise ConfigError(f"{path}: settings.{key} is missing")
+    name = data.get("name", path.stem)
+    check_choice(f"{path}: settings.element", st.get("element", "mid"), ("mid", "paper"))
+    check_real(f"{path}: settings.max_substep", st["max_substep"], Limit("s", gt=0, le=0.1))
+    try:
+        return Fidelity(
+            name=name,
+            description=data.get("description", ""),
+            measured=dict(data.get("measured", {})),
+            path=path,
+            **st,
+        )
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
