@@ -1140,94 +1140,130 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     tip-tip contact see the end-of-step tips (no lag).  Outputs per bristle in ``out``: rootw
     (force, moment of the root element on the head, at the root node, world), iters (Newton
     iterations, all sweeps), nsub (sub-steps used), status (OK / NEWTON_FAILED); ws.sw.count =
-    [sweeps run, re-solves, 1 if the partners still moved when the sweeps ran out].
+    [sweeps run, re-solves, 0 settled / 1 out of sweeps with partners still moving by less than
+    FALLBACK_MOVE / 2 fell back to the plain sweep].
     """
-    bstart = model.bstart
-    nb = bstart.shape[0] - 1
+    nb = model.bstart.shape[0] - 1
     sw = ws.sw
     npair = con.pair_idx.shape[0]
     sweeps = int(prm[P_SWEEPS]) if npair > 0 else 1
     static = prm[P_STATIC] != 0.0
     c0_inv_h = 0.0 if static else (1.5 if int(prm[P_METHOD]) == 1 else 1.0) / prm[P_H]
-    if npair > 0 and not static:
-        for b in range(nb):  # partners not yet solved: held where they are heading
-            for a in range(3):
-                con.tips[b, a] += prm[P_H] * con.tips[b, 3 + a]
-    if sweeps > 1:
-        _save_all(chain, con, drive, sw)
     for b in range(nb):
         out.iters[b] = 0
-        sw.grouped[b] = 1
+        for a in range(6):
+            sw.tips0[b, a] = con.tips[b, a]
+    if sweeps > 1:
+        _save_all(chain, con, drive, sw)
     sw.count[0] = 1
     sw.count[1] = 0
     sw.count[2] = 0
-    for sweep in range(sweeps + 1):
-        if sweep > 0:
-            moved = False
-            for b in range(nb):
-                if _partners_moved(b, con, sw.used, prm[P_TTTOL]):
-                    moved = True
-                    break
-            if not moved:
-                break
-            if sweep == sweeps:
-                sw.count[2] = 1  # out of sweeps with partners still moving
-                break
-            sw.count[0] = sweep + 1
-            place_partners(model, chain, con, jc, ws, c0_inv_h)
+    _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)
+    for sweep in range(1, sweeps + 1):
+        moved = _max_partner_move(nb, con, sw.used)
+        if moved <= prm[P_TTTOL]:
+            break
+        if sweep == sweeps:
+            sw.count[2] = 1  # out of sweeps with partners still moving
+            if sweeps > 1 and moved > FALLBACK_MOVE:
+                # far from settled (the coupled step went astray): the plain sweep instead
+                sw.count[2] = 2
+                _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+            break
+        sw.count[0] = sweep + 1
+        place_partners(model, chain, con, jc, ws, c0_inv_h)
+        _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)
+
+
+#: modes of ``_sweep``
+SWEEP_FIRST = 0  # every bristle, from the step's start
+SWEEP_AGAIN = 1  # the bristles whose partners moved (or were placed), warm-started
+SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back where they head
+#: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
+#: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
+FALLBACK_MOVE = 1e-4
+
+
+@njit(**HOT)
+def _sweep(model, chain, drive, prm, con, jc, ws, out, mode):
+    """One pass over the bristles in order (``step_bristles``); ``mode``: SWEEP_*."""
+    bstart = model.bstart
+    nb = bstart.shape[0] - 1
+    sw = ws.sw
+    npair = con.pair_idx.shape[0]
+    coupled = int(prm[P_SWEEPS]) > 1 and npair > 0
+    if mode == SWEEP_PLAIN:
         for b in range(nb):
-            b0 = bstart[b]
-            n = bstart[b + 1] - b0
-            br = Bristle(b, b0, n, b0 + n - 1)
-            if sweep > 0:
-                if not _partners_moved(b, con, sw.used, prm[P_TTTOL]):
-                    if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
-                        for a in range(6):
-                            con.tips[b, a] = sw.xs[b, a]
-                    continue
-                sw.count[1] += 1
-                _save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
-                _restore_bristle(br, chain, con, drive, sw)
-            if npair > 0:
-                for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-                    j = con.pair_idx[q]
-                    for a in range(3):
-                        sw.used[q, a] = con.tips[j, a]
-            prev = out.iters[b]
-            _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, sweep > 0)
-            out.iters[b] += prev
-            _tip_node_state(
-                b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips
-            )
-            if sweeps > 1:
-                store_tip_load(b, ws.it, sw)
+            for a in range(6):
+                con.tips[b, a] = sw.tips0[b, a]
+    for b in range(nb):
+        b0 = bstart[b]
+        n = bstart[b + 1] - b0
+        br = Bristle(b, b0, n, b0 + n - 1)
+        if mode == SWEEP_AGAIN:
+            if not _partners_moved(b, con, sw.used, prm[P_TTTOL]):
+                if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
+                    for a in range(6):
+                        con.tips[b, a] = sw.xs[b, a]
+                continue
+            sw.count[1] += 1
+            _save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
+        if mode != SWEEP_FIRST:
+            _restore_bristle(br, chain, con, drive, sw)
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            for a in range(3):
+                sw.used[q, a] = con.tips[j, a]
+        prev = out.iters[b]
+        _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
+        out.iters[b] += prev
+        _tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
+        if coupled:
+            store_tip_load(b, ws.it, sw)
+
+
+@njit(**HOT, inline="always")
+def _max_partner_move(nb, con, used):
+    """The largest move [mm] of a partner within contact reach of a bristle since that bristle
+    was solved (``_partners_moved``), over all bristles."""
+    m = 0.0
+    for b in range(nb):
+        m = max(m, _partner_move(b, con, used))
+    return m
 
 
 @njit(**HOT, inline="always")
 def _partners_moved(b, con, used, tol):
     """True if a partner of bristle b that is (or was, when b was solved) within contact reach
     of b's tip has moved by more than ``tol`` [mm] since b was solved."""
+    return _partner_move(b, con, used) > tol
+
+
+@njit(**HOT)
+def _partner_move(b, con, used):
+    """The largest move [mm] since bristle b was solved of a partner that is (or was, when b was
+    solved) within contact reach of b's tip."""
     tips = con.tips
     rb = tips[b, 6]
+    m = 0.0
     for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
         j = con.pair_idx[q]
-        reach = rb + tips[j, 6] + tol
+        reach = rb + tips[j, 6]
         dn0 = tips[b, 0] - tips[j, 0]
         dn1 = tips[b, 1] - tips[j, 1]
         dn2 = tips[b, 2] - tips[j, 2]
         du0 = tips[b, 0] - used[q, 0]
         du1 = tips[b, 1] - used[q, 1]
         du2 = tips[b, 2] - used[q, 2]
-        if dn0 * dn0 + dn1 * dn1 + dn2 * dn2 > reach * reach and (
-            du0 * du0 + du1 * du1 + du2 * du2 > reach * reach
-        ):
-            continue
         m0 = tips[j, 0] - used[q, 0]
         m1 = tips[j, 1] - used[q, 1]
         m2 = tips[j, 2] - used[q, 2]
-        if m0 * m0 + m1 * m1 + m2 * m2 > tol * tol:
-            return True
-    return False
+        mv = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        r2 = (reach + mv) * (reach + mv)
+        if dn0 * dn0 + dn1 * dn1 + dn2 * dn2 > r2 and du0 * du0 + du1 * du1 + du2 * du2 > r2:
+            continue
+        m = max(m, mv)
+    return m
 
 
 @njit(**HOT, inline="always")

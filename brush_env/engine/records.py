@@ -134,11 +134,12 @@ Backup = namedtuple("Backup", ["v3", "R", "tip_state"])
 #: the sweeps of ``step_bristles`` and the tip-tip coupling (``coupling.py``): every bristle's
 #: state at the step's start (v3, R, tip_state, hist_ok as in ``Backup``, all bodies), the last
 #: sweep's solution (warm_pos, warm_rot), the partner tips each bristle was solved against (used,
-#: per CSR pair entry), count = [sweeps run, re-solves, 1 if partners still moved when the sweeps
-#: ran out] of the last step; per bristle the tip load of its solution tipF (nb, 3) [N], tipK
-#: (nb, 3, 3) [N/mm], the tip node's stiffness H (nb, 3, 3) [N/mm] and its tip node and velocity
-#: before it was placed xs (nb, 6); groups (parent, grouped, slot, members); the dense system A,
-#: x, piv (3 rows per bristle of a group); scratch A6, piv6, W3, Fc, Kc, f, C, e6
+#: per CSR pair entry), count = [sweeps run, re-solves, 0 settled / 1 unsettled / 2 fell back]
+#: of the last step; per bristle the tip load of its solution tipF (nb, 3) [N], tipK (nb, 3, 3)
+#: [N/mm], the tip node's stiffness H (nb, 3, 3) [N/mm], its tip node and velocity before it was
+#: placed xs (nb, 6) and where the first sweep holds it tips0 (nb, 6); groups (parent, grouped,
+#: slot, members); the dense system A, x, piv (3 rows per bristle of a group); scratch A6, piv6,
+#: W3, Fc, Kc, f, C, e6
 Sweeps = namedtuple(
     "Sweeps",
     [
@@ -154,6 +155,7 @@ Sweeps = namedtuple(
         "tipK",
         "H",
         "xs",
+        "tips0",
         "parent",
         "grouped",
         "slot",
@@ -224,6 +226,7 @@ def make_work(
         v(n_bristles, 3),
         v(n_bristles, 3, 3),
         v(n_bristles, 3, 3),
+        v(n_bristles, 6),
         v(n_bristles, 6),
         *(np.zeros(n_bristles, np.int64) for _ in range(4)),
         v(n3, n3),

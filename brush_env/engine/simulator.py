@@ -684,6 +684,7 @@ class Simulator:
                 "sweeps": int(self._ws.sw.count[0]),
                 "resolves": int(self._ws.sw.count[1]),
                 "tip_tip_settled": bool(self._ws.sw.count[2] == 0),
+                "tip_tip_fallback": bool(self._ws.sw.count[2] == 2),
             },
         )
 
