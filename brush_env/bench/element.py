@@ -38,7 +38,11 @@ from .harness import _best_of, emit, machine_info, markdown_table, open_log
 REFERENCE_FILE = (
     Path(__file__).resolve().parents[2] / "tests" / "data" / "flat_plate_turn_reference.npz"
 )
-REFERENCE_SETTINGS = dict(element="mid", bodies=24, dt=1.25e-4, integrator="bdf2", tip_tip=True)
+REFERENCE_SETTINGS = dict(
+    element="mid", bodies=24, dt=1.25e-4, integrator="bdf2", tip_tip=True, tip_tip_sweeps=8
+)
+#: every row solves tip-tip contact coupled, as the reference (docs/model.md)
+COUPLED = dict(tip_tip_sweeps=REFERENCE_SETTINGS["tip_tip_sweeps"])
 ELEMENT_GRID_FULL = dict(elements=("paper", "mid"), bodies=(3, 6), dts=(1e-3, 2.5e-4))
 ELEMENT_GRID_QUICK = dict(elements=("paper", "mid"), bodies=(3,), dts=(1e-3,))
 SAMPLE = 5e-3  # [s] comparison grid
@@ -69,18 +73,22 @@ def write_reference(path: Path = REFERENCE_FILE) -> dict:
     every 1 ms (compressed), with its settings, machine and commit."""
     s = REFERENCE_SETTINGS
     run = simulate_contact(
-        s["bodies"], s["dt"], s["integrator"], s["tip_tip"], *_motion(False), element=s["element"]
+        s["bodies"],
+        s["dt"],
+        s["integrator"],
+        s["tip_tip"],
+        *_motion(False),
+        element=s["element"],
+        **COUPLED,
     )
     if run.status != "ok":
         raise RuntimeError(f"the converged reference did not finish: {run.status}")
     every = int(round(1e-3 / s["dt"]))
     from ..engine import SimSettings
 
-    d = SimSettings()
     meta = dict(
         s,
-        tip_tip_sweeps=d.tip_tip_sweeps,
-        tip_tip_tol_mm=d.tip_tip_tol,
+        tip_tip_tol_mm=SimSettings().tip_tip_tol,
         motion="bench contact (full): press 0.5 s, hold 0.25 s, one turn",
         **machine_info(),
     )
@@ -130,7 +138,7 @@ def bench_element(args) -> int:
                 run = _best_of(
                     args,
                     lambda e=element, b=bodies, h=dt: simulate_contact(
-                        b, h, "bdf2", True, *motion, element=e
+                        b, h, "bdf2", True, *motion, element=e, **COUPLED
                     ),
                 )
                 whole = circ = math.nan
@@ -175,7 +183,16 @@ def slip_events(bodies: int, dt: float = 2.5e-4, element: str = "mid") -> dict:
             samples.append((t, out.tcp_force.copy()))
 
     run = simulate_contact(
-        bodies, dt, "bdf2", True, press, hold, EVENT_END - press - hold, element, observe=observe
+        bodies,
+        dt,
+        "bdf2",
+        True,
+        press,
+        hold,
+        EVENT_END - press - hold,
+        element,
+        observe=observe,
+        **COUPLED,
     )
     times = sorted(set(first.values()))
     groups = [(t, sum(1 for v in first.values() if v == t)) for t in times]

@@ -1131,8 +1131,8 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     the tip-tip partner lists (CSR), the scene's mesh, tip arguments and per-contact state.
 
     Bristles are coupled only through tip-tip contact (Table 3).  Each is solved with its
-    partners' tips held (``con.tips``), in order (a Gauss-Seidel sweep); before the first sweep
-    every tip is moved on by h v_n, so a partner not yet solved is held near where it is heading.
+    partners' tips held (``con.tips``), in order (a Gauss-Seidel sweep): a partner solved earlier
+    in the sweep at its new tip, one solved later at its start-of-step tip.
     With prm[P_SWEEPS] > 1, while some bristle's touching partners have moved by more than
     prm[P_TTTOL] since it was solved, the partners are placed where the linearised coupled
     problem puts them (``coupling.place_partners``) and those bristles are solved again from the
@@ -1178,7 +1178,7 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
 #: modes of ``_sweep``
 SWEEP_FIRST = 0  # every bristle, from the step's start
 SWEEP_AGAIN = 1  # the bristles whose partners moved (or were placed), warm-started
-SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back where they head
+SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at their start
 #: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
 #: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
 FALLBACK_MOVE = 1e-4

@@ -93,12 +93,14 @@ class SimSettings:
     the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
     accurate with few bodies in buckled contact; docs/model.md);
     tip_tip_sweeps: most sweeps over the bristles per (internal) step for tip-tip contact
-    (Table 3): after the first, the touching tips are placed by the coupled solve
+    (Table 3).  1 (default): one sweep, the partners solved later in the sweep held at their
+    start-of-step tips (the tip-tip force lags: 6 % on the flat-plate turn even at 0.125 ms).
+    > 1: after the first sweep the touching tips are placed by the coupled solve
     (``coupling.py``) and the bristles whose partners moved by more than tip_tip_tol [mm] since
     they were solved are solved again, so both sides of every tip-tip contact see the
-    end-of-step tips (action = reaction within 2 k tol).  1: one sweep, the partners solved later
-    in the sweep held where they were heading (faster, but the tip-tip force lags: 6 % on the
-    flat-plate turn even at 0.125 ms, docs/model.md).
+    end-of-step tips (action = reaction within 2 k tol); +50 % wall on the flat-plate turn at
+    1 ms, but up to ~7x on the four-turn reference experiment (docs/model.md); the fidelity
+    levels reference, paper and balanced use 8.
     """
 
     dt: float = 1e-3
@@ -112,7 +114,7 @@ class SimSettings:
     gravity: tuple = (0.0, 0.0, -G_EARTH)
     jacobian_max_age: int = 25
     element: str = "mid"
-    tip_tip_sweeps: int = 8
+    tip_tip_sweeps: int = 1
     tip_tip_tol: float = 1e-6
 
     @property

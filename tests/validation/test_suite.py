@@ -373,7 +373,7 @@ def test_cli_bench_convergence_quick(capsys):
     docs/model.md) the error against the finest run shrinks as dt is refined; the body series
     compares against its most refined run."""
     rows = _bench_rows(capsys, "convergence")
-    assert {r["series"] for r in rows} == {"dt", "bodies"}
+    assert {r["series"] for r in rows} == {"dt", "bodies", "lag"}
     dt_rows = sorted((r for r in rows if r["series"] == "dt"), key=lambda r: -r["dt"])
     assert all(r["status"] == "ok" for r in dt_rows)
     finest = dt_rows[-1]
@@ -381,6 +381,10 @@ def test_cli_bench_convergence_quick(capsys):
     errs = [r["rms_force_error"] for r in dt_rows if 0.0 < r["dt"] <= 1e-3 and r is not finest]
     assert len(errs) >= 2 and all(e > 0.0 for e in errs)
     assert all(a > b for a, b in zip(errs, errs[1:])), errs  # refining dt reduces the error
+    # the one-sweep (lag) series is held to the coupled finest run, and starts from the same step
+    lag_rows = [r for r in rows if r["series"] == "lag"]
+    assert all(r["against"] == finest["against"] and r["tip_tip_sweeps"] == 1 for r in lag_rows)
+    assert {r["dt"] for r in lag_rows} == {r["dt"] for r in dt_rows}
     body_rows = [r for r in rows if r["series"] == "bodies"]
     most = max(body_rows, key=lambda r: r["bodies"])
     assert all(r["against"] == f"{most['bodies']} bodies, dt={most['dt']:g}" for r in body_rows)
