@@ -106,7 +106,7 @@ def place_partners(model, chain, con, jc, ws, c0_inv_h):
 
 @njit(**HOT)
 def _tip_stiffness(b, model, chain, jc, ws, load):
-    """sw.H[b] <- the tip node's stiffness [N/mm] of bristle b: (T A^-1 T^T)^-1 with A = jc.S[b]
+    """sw.H <- the tip node's stiffness [N/mm] of bristle b: (T A^-1 T^T)^-1 with A = jc.S[b]
     + the tip load block of ``load``.  Returns False if the bristle has no valid factors or A
     is singular."""
     sw = ws.sw
@@ -137,7 +137,7 @@ def _tip_stiffness(b, model, chain, jc, ws, load):
         W[0, c] = e6[0] + e6[4] * r2 - e6[5] * r1  # tip node displacement dc + dtheta x r
         W[1, c] = e6[1] + e6[5] * r0 - e6[3] * r2
         W[2, c] = e6[2] + e6[3] * r1 - e6[4] * r0
-    return _inv3(W, sw.H[b])
+    return _inv3(W, sw.H)
 
 
 @njit(**HOT, inline="always")
@@ -208,7 +208,7 @@ def _solve_group(model, chain, con, jc, ws, m, c0_inv_h):
             return 0
         for a in range(3):
             for c in range(3):
-                A[3 * s + a, 3 * s + c] += sw.H[b, a, c]
+                A[3 * s + a, 3 * s + c] += sw.H[a, c]
     if not lu_dense(A, n, sw.piv):
         return 0
     lus_dense(A, n, sw.piv, x)

@@ -136,9 +136,9 @@ Backup = namedtuple("Backup", ["v3", "R", "tip_state"])
 #: sweep's solution (warm_pos, warm_rot), the partner tips each bristle was solved against (used,
 #: per CSR pair entry), count = [sweeps run, re-solves, 0 settled / 1 unsettled / 2 fell back]
 #: of the last step; per bristle the tip load of its solution tipF (nb, 3) [N], tipK (nb, 3, 3)
-#: [N/mm], the tip node's stiffness H (nb, 3, 3) [N/mm], its tip node and velocity before it was
-#: placed xs (nb, 6) and where the first sweep holds it tips0 (nb, 6); groups (parent, grouped,
-#: slot, members); the dense system A, x, piv (3 rows per bristle of a group); scratch A6, piv6,
+#: [N/mm], its tip node and velocity before it was placed xs (nb, 6) and where the first sweep
+#: holds it tips0 (nb, 6); groups (parent, grouped, slot, members); the dense system A, x, piv
+#: (3 rows per bristle of a group); scratch: one tip node's stiffness H (3, 3) [N/mm], A6, piv6,
 #: W3, Fc, Kc, f, C, e6
 Sweeps = namedtuple(
     "Sweeps",
@@ -225,7 +225,7 @@ def make_work(
         np.zeros(3, np.int64),
         v(n_bristles, 3),
         v(n_bristles, 3, 3),
-        v(n_bristles, 3, 3),
+        v(3, 3),
         v(n_bristles, 6),
         v(n_bristles, 6),
         *(np.zeros(n_bristles, np.int64) for _ in range(4)),
