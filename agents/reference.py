@@ -26,7 +26,10 @@ from __future__ import annotations
 import numpy as np
 
 from brush_env.envs.action import make_action_type
-from brush_env.envs.reference import CircleReference
+from brush_env.envs.reference import CircleReference, ScrubReference
+
+#: the env's ``reference_motion`` -> its reference controller (FlatPlate-v0: the paper's circle)
+CONTROLLERS = {"circle": CircleReference, "scrub": ScrubReference}
 
 __all__ = ["ReferencePolicy", "RandomPolicy"]
 
@@ -38,28 +41,35 @@ def _env_facts(env):
     wrapper, which ``gym.make(..., max_episode_steps=N)`` sets), else the config's: the same
     number ``BrushEnv.horizon`` finds at reset."""
     if hasattr(env, "get_attr") and hasattr(env, "num_envs"):  # SB3 VecEnv
-        layout, config, dt, spec = (
-            env.get_attr(k, [0])[0] for k in ("layout", "config", "dt", "spec")
+        layout, config, dt, spec, motion = (
+            env.get_attr(k, [0])[0] for k in ("layout", "config", "dt", "spec", "reference_motion")
         )
     else:
         u = env.unwrapped
         layout, config, dt, spec = u.layout, u.config, u.dt, env.spec
+        motion = getattr(u, "reference_motion", "circle")
     steps = spec.max_episode_steps if spec is not None else None
-    return layout, config, dt, int(steps or config.max_episode_steps)
+    return layout, config, dt, int(steps or config.max_episode_steps), motion
 
 
 class ReferencePolicy:
-    """Press-then-circle tracking policy (see the module docstring); ``**kwargs`` go to
-    :class:`~brush_env.envs.reference.CircleReference` (radius, speed, accel, press_depth, hover,
-    approach_time, press_time, center, start_angle, clockwise, kp, kr)."""
+    """The env's reference tracking policy (see the module docstring): ``motion="circle"``
+    (FlatPlate-v0) plans :class:`~brush_env.envs.reference.CircleReference` (``**kwargs``: radius,
+    speed, accel, press_depth, hover, approach_time, press_time, center, start_angle, clockwise,
+    kp, kr); ``"scrub"`` (ToothRow-v0) :class:`~brush_env.envs.reference.ScrubReference`
+    (x_range, y_levels, speed, press_depth, hover, approach_time, press_time, kp, kr).
+    ``for_env`` takes the env's ``reference_motion``."""
 
-    def __init__(self, layout, config, dt: float, horizon: int, **kwargs):
+    def __init__(self, layout, config, dt: float, horizon: int, motion: str = "circle", **kwargs):
+        if motion not in CONTROLLERS:
+            raise ValueError(f"motion = {motion!r}: must be one of {sorted(CONTROLLERS)}")
         self.layout = layout
         self.action_type = make_action_type(config)
         self.dt, self.horizon = float(dt), int(horizon)
         self.kwargs = kwargs
+        self._make = CONTROLLERS[motion]
         self._controllers: list[CircleReference] = []
-        CircleReference(layout, self.action_type, dt, horizon, **kwargs)  # validate now
+        self._make(layout, self.action_type, dt, horizon, **kwargs)  # validate now
 
     @classmethod
     def for_env(cls, env, **kwargs) -> ReferencePolicy:
@@ -68,7 +78,7 @@ class ReferencePolicy:
     def _controller(self, i: int) -> CircleReference:
         while len(self._controllers) <= i:
             self._controllers.append(
-                CircleReference(self.layout, self.action_type, self.dt, self.horizon, **self.kwargs)
+                self._make(self.layout, self.action_type, self.dt, self.horizon, **self.kwargs)
             )
         return self._controllers[i]
 

@@ -21,6 +21,7 @@ __version__ = "0.1.0"
 #: (``BrushEnv.set_horizon``), so ``gym.make(id, max_episode_steps=N)`` sets both.
 ENV_IDS = {
     "brush_env/FlatPlate-v0": ("brush_env.envs.flat_plate:BrushEnv", 300),
+    "brush_env/ToothRow-v0": ("brush_env.envs.tooth_row:ToothRowEnv", 300),
 }
 
 #: The wrapper ``gym.make`` adds outside the TimeLimit of every registered id.

@@ -4,7 +4,8 @@
 + one circle turn), ``convergence`` (self-convergence of the contact run in dt and bodies),
 ``element`` (both beam elements against the converged turn), ``press`` (the 3 mm press's hold
 force at every step size), ``branch`` (hold direction and jamming angles over step sizes),
-``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``compile``
+``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``teeth``
+(tooth row vs plate speed, SDF vs exact mesh), ``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -15,7 +16,7 @@ from __future__ import annotations
 import argparse
 
 from ..user_errors import add_flag
-from . import branch, compile, contact, convergence, element, engine, env, fidelity, press
+from . import branch, compile, contact, convergence, element, engine, env, fidelity, press, teeth
 
 #: name -> (run function, its options (None: the common ones), one-line help)
 TARGETS = {
@@ -70,6 +71,12 @@ TARGETS = {
         fidelity.add_arguments,
         "every fidelity level (configs/fidelity) against reference: the paper's turn and "
         "random-policy env episodes, error and speed, Pareto plot",
+    ),
+    "teeth": (
+        teeth.bench_teeth,
+        teeth.add_arguments,
+        "tooth row against the plate (same press-and-scrub motion and fidelity: speed ratio) "
+        "and the crowns' SDF grids against the exact mesh query (error, normals)",
     ),
     "compile": (
         compile.bench_compile,

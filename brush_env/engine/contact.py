@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
+from .sdf import FAR, capsule_gap, ellipsoid_gap, grid_gap, sphere_gap
 
 # --- tip_args row (per bristle, float64)
 A_FEXT = 0  # 0:3 external dead force [N, world]
@@ -49,7 +50,9 @@ S_DNEW = 18  # 18:21 trial stiction deformation of the last evaluation
 S_FTT = 21  # tip-tip normal force magnitude (sum) [N]
 S_BETA = 22  # beta of the step start (committed), see tip_load
 S_BNEW = 23  # beta at the slip speed of the last evaluation
-N_TIP_STATE = 24
+S_SURF = 24  # index of the deepest surface the tip touched at the last evaluation (-1: none)
+S_FSURF = 25  # the surface friction acts with in this step: S_SURF of the step start (committed)
+N_TIP_STATE = 26
 
 # --- contact parameter vector cp (per scene: scene.ContactParams.as_array(), Tables 2-3)
 C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
@@ -61,6 +64,10 @@ N_CP = 15
 SURF_PLANE = 0.0
 SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
 SURF_MESH = 2.0  # the scene's triangle mesh (ctx mesh arrays); row: kind, search radius [mm]
+SURF_SPHERE = 3.0  # sdf.sphere_gap: centre (3), -, -, -, radius
+SURF_CAPSULE = 4.0  # sdf.capsule_gap: end a (3), end b (3), radius
+SURF_ELLIPSOID = 5.0  # sdf.ellipsoid_gap: centre (3), semi-axes (3), -
+SURF_GRID = 6.0  # a baked SDF grid (ctx sdf arrays); row: kind, grid index
 N_SURF = 8
 
 PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
@@ -203,11 +210,20 @@ def _mesh_gap(pt, search, mesh, nrm, cpt):
 
 
 @njit(**HOT)
-def _surface_gap(surf, pt, nrm, cpt, mesh):
-    """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point."""
+def _surface_gap(surf, pt, nrm, cpt, mesh, sdf):
+    """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point
+    (plane, cylinder, triangle mesh here; the SDF kinds in ``sdf.py``)."""
     kind = surf[0]
     if kind == SURF_MESH:
         return _mesh_gap(pt, surf[1], mesh, nrm, cpt)
+    if kind == SURF_GRID:
+        return grid_gap(int(surf[1]), sdf, pt, nrm, cpt)
+    if kind == SURF_SPHERE:
+        return sphere_gap(surf, pt, nrm, cpt)
+    if kind == SURF_CAPSULE:
+        return capsule_gap(surf, pt, nrm, cpt)
+    if kind == SURF_ELLIPSOID:
+        return ellipsoid_gap(surf, pt, nrm, cpt)
     if kind == SURF_PLANE:
         for a in range(3):
             nrm[a] = surf[4 + a]
@@ -274,6 +290,7 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
     state[S_PEN] = 0.0
     state[S_FTT] = 0.0
     state[S_BNEW] = 0.0
+    state[S_SURF] = -1.0
     for a in range(3):
         state[S_DNEW + a] = 0.0
         state[S_CP + a] = pt[a]
@@ -283,29 +300,36 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
 
 @njit(**HOT, inline="always")
 def _surface_load(pt, R, sub, con, state, F, Kt, tw):
-    """Tip-surface contact with the deepest surface: the penalty normal force of eq 6 and its
-    tangent, then friction (eq 7-10, ``_friction_load``)."""
+    """Tip-surface contact: the penalty normal force of eq 6 and its tangent, then friction
+    (eq 7-10, ``_friction_load``).
+
+    One surface (the plate): its contact.  Several surfaces (``_several_surfaces``): the normal
+    force of every touched surface whose contact point is not inside another one (a tip in the
+    gap between two crowns feels both walls; the gum inside a crown is hidden), and friction with
+    one of them: the surface the tip touched deepest at the step start while it still touches,
+    else the deepest now -- so the friction surface does not switch between Newton iterates."""
     surf = con.surf
     cp = con.cp
     vt = tw.vt
     nrm = tw.nrm
     cpt = tw.cpt
-    best = 1e300
-    ibest = -1
-    for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh)
-        if gap < best:
-            best = gap
-            ibest = s
-    if ibest < 0 or best >= R:
+    if surf.shape[0] > 1:
+        Fn, kk = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
+        if Fn > 0.0 and (cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0):
+            _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
         return
-    _surface_gap(surf[ibest], pt, nrm, cpt, con.mesh)
+    if surf.shape[0] == 0:
+        return
+    best = _surface_gap(surf[0], pt, nrm, cpt, con.mesh, con.sdf)
+    if best >= R:
+        return
     delta = R - best
     vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
     Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])  # eq 6
     for a in range(3):
         state[S_CP + a] = cpt[a]
     state[S_PEN] = delta
+    state[S_SURF] = 0.0
     if Fn <= 0.0:
         return
     state[S_FN] = Fn
@@ -318,6 +342,69 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
             Kt[a, bb] -= kk * nrm[a] * nrm[bb]
     if cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0:
         _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
+
+
+@njit(**HOT)
+def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
+    """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
+    inside another surface is hidden in their union); adds them to F, Kt, stores the total in
+    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the friction surface's normal and contact
+    point in tw.nrm, tw.cpt and returns its (Fn, normal tangent kk); Fn = 0: no friction."""
+    surf = con.surf
+    cp = con.cp
+    vt = tw.vt
+    nrm = tw.pnrm
+    cpt = tw.pcpt
+    fsurf = int(state[S_FSURF])
+    best = FAR
+    ibest = -1
+    for s in range(surf.shape[0]):
+        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
+        if gap < best:
+            best = gap
+            ibest = s
+    if ibest < 0 or best >= R:
+        return 0.0, 0.0
+    ffric = -1  # the friction surface: the step start's while it touches, else the deepest
+    total = 0.0
+    f_fric = 0.0
+    k_fric = 0.0
+    for s in range(surf.shape[0]):
+        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
+        if gap >= R:
+            continue
+        if s != ibest:
+            hidden = False
+            for o in range(surf.shape[0]):
+                if o != s and _surface_gap(surf[o], cpt, tw.vs, tw.dn, con.mesh, con.sdf) < -1e-3:
+                    hidden = True
+                    break
+            if hidden:
+                continue
+        vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
+        Fn, kn, cn = normal_law(R - gap, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])
+        if s == ibest:
+            for a in range(3):
+                state[S_CP + a] = cpt[a]
+            state[S_PEN] = R - gap
+            state[S_SURF] = s
+        if Fn <= 0.0:
+            continue
+        kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
+        for a in range(3):
+            F[a] += Fn * nrm[a]
+            for bb in range(3):
+                Kt[a, bb] -= kk * nrm[a] * nrm[bb]
+        total += Fn
+        if s == fsurf or (s == ibest and ffric != fsurf):
+            ffric = s
+            f_fric = Fn
+            k_fric = kk
+            for a in range(3):
+                tw.nrm[a] = nrm[a]
+                tw.cpt[a] = cpt[a]
+    state[S_FN] = total
+    return f_fric, k_fric
 
 
 @njit(**HOT, inline="always")
@@ -502,7 +589,7 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
     pair_ptr = con.pair_ptr
     amax = 1.0
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh) - R  # < 0: penetrating
+        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf) - R  # < 0: penetrating
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
@@ -633,3 +720,22 @@ def build_mesh(vertices, triangles, cell: float | None = None):
     flat = np.array([t for bk in buckets for t in bk], np.int64)
     gf = np.array([lo[0], lo[1], lo[2], cell, dims[0], dims[1], dims[2]], float)
     return (V, T, n, gf, start, flat)
+
+
+@njit(cache=True)
+def _mesh_query_many(mesh, P, search):
+    d = np.empty(P.shape[0])
+    N = np.zeros((P.shape[0], 3))
+    nrm = np.zeros(3)
+    cpt = np.zeros(3)
+    for i in range(P.shape[0]):
+        d[i] = _mesh_gap(P[i], search, mesh, nrm, cpt)
+        N[i] = nrm
+    return d, N
+
+
+def mesh_query(mesh, points, search: float = 1.0):
+    """(d (n,), normal (n, 3)) at points (n, 3) [mm] by the exact closest-triangle search over
+    the triangles within ``search`` [mm] (1e300 beyond): the validation path of sdf grids."""
+    P = np.ascontiguousarray(np.atleast_2d(points), dtype=float)
+    return _mesh_query_many(mesh, P, float(search))

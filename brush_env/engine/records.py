@@ -18,7 +18,8 @@ record              fields [unit]
 ``ContactScene``    surf (ns, 8) surface rows; cp (15,) contact laws (Tables 2-3, ``C_*``); tips
                     (nb, 7) every tip's node, velocity and radius; pair_ptr, pair_idx tip-tip pairs
                     (CSR); mesh (the scene's triangle mesh); tip_args (nb, 4) and tip_state
-                    (nb, 24) per tip (``A_*``, ``S_*`` in contact.py)
+                    (nb, 25) per tip (``A_*``, ``S_*`` in contact.py); sdf (hdr, vals) the
+                    scene's baked SDF grids (sdf.py)
 ``NewtonCache``     per-bristle factored Newton matrices kept across steps: D, G, L (N, 6, 6),
                     piv (N, 6), key (nb,) the c0/h they were built for, age (nb,) steps,
                     S (nb, 6, 6) the tip body's Schur complement without the tip load
@@ -66,7 +67,7 @@ Chain = namedtuple(
 Drive = namedtuple("Drive", ["hist_ok", "tcp_p", "tcp_R"])
 ContactScene = namedtuple(
     "ContactScene",
-    ["surf", "cp", "tips", "pair_ptr", "pair_idx", "mesh", "tip_args", "tip_state"],
+    ["surf", "cp", "tips", "pair_ptr", "pair_idx", "mesh", "tip_args", "tip_state", "sdf"],
 )
 NewtonCache = namedtuple("NewtonCache", ["D", "G", "L", "piv", "key", "age", "S"])
 StepOut = namedtuple("StepOut", ["rootw", "iters", "nsub", "status"])

@@ -6,10 +6,23 @@ Scene files live in ``configs/scenes/*.toml``::
     brush = "default"                 # name in configs/brushes or a path
     tip_tip = true                    # tip-tip contact between neighbouring bristles (Table 3)
     [[surface]]
-    kind = "plane"                    # "plane" | "mesh_plate" | "cylinder"
+    kind = "plane"                    # see SURFACE_KINDS
     point_mm = [0, 0, 0]
     normal = [0, 0, 1]
 
+Surface kinds and their keys (mm):
+
+* ``plane`` point_mm, normal; ``cylinder`` point_mm, axis, radius_mm; ``mesh_plate`` point_mm,
+  size_mm, divisions (an exact closest-triangle query);
+* signed distance fields (``sdf.py``): ``sphere`` center_mm, radius_mm; ``capsule`` a_mm, b_mm,
+  radius_mm; ``ellipsoid`` center_mm, semi_axes_mm; ``mesh`` file (relative to the scene file),
+  units ("mm"), cell_mm (0.15), band_mm (1.0), place ("auto": bounding box centred in x, y and
+  its top at z = 0; "as_is"), baked into a grid;
+* ``tooth_row`` (``teeth.py``): teeth (["PM1", "PM2", "M1", "M2"]), gap_mm (0.7), cell_mm, band_mm,
+  gum (true), gum_radius_mm (8): one baked crown per tooth and a gum capsule.
+
+Several surfaces form their union (the tip touches the deepest).  Each surface has a ``label``
+(``StepResult.extra["tip_surface"]`` gives the index of the surface each tip touches).
 Contact laws default to the paper's Tables 2 and 3 (see ``contact.py``).
 """
 
@@ -23,6 +36,7 @@ import tomllib
 
 from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
+from .sdf import bake_mesh_cached
 
 
 @dataclass(frozen=True)
@@ -84,6 +98,76 @@ class MeshPlate:
         )
         T = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])  # normals +z
         return V, T
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Outside of a sphere: ``center`` [mm], ``radius`` [mm] (analytic SDF)."""
+
+    center: tuple = (0.0, 0.0, -5.0)
+    radius: float = 5.0
+    label: str = "sphere"
+
+    def kernel_row(self):
+        return np.r_[3.0, self.center, 0.0, 0.0, 0.0, self.radius]
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """Points within ``radius`` [mm] of the segment ``a``-``b`` [mm] (analytic SDF)."""
+
+    a: tuple = (-10.0, 0.0, -5.0)
+    b: tuple = (10.0, 0.0, -5.0)
+    radius: float = 5.0
+    label: str = "capsule"
+
+    def kernel_row(self):
+        return np.r_[4.0, self.a, self.b, self.radius]
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """Axis-aligned ellipsoid: ``center`` [mm], ``semi_axes`` [mm] (exact distance, sdf.py)."""
+
+    center: tuple = (0.0, 0.0, -5.0)
+    semi_axes: tuple = (8.0, 6.0, 5.0)
+    label: str = "ellipsoid"
+
+    def kernel_row(self):
+        return np.r_[5.0, self.center, self.semi_axes, 0.0]
+
+
+@dataclass(frozen=True, eq=False)
+class MeshSurface:
+    """A closed triangle mesh (``vertices`` [mm], ``triangles``), baked into a narrow-band SDF grid
+    of cell ``cell`` [mm] and half-width ``band`` [mm] (sdf.py; cached on disk)."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    cell: float = 0.15
+    band: float = 1.0
+    label: str = "mesh"
+
+    def __post_init__(self):
+        if not (0.01 <= self.cell <= 2.0):
+            raise ConfigError(f"{self.label}: cell_mm = {self.cell!r}: must be in [0.01, 2] (mm)")
+        if not (2 * self.cell <= self.band <= 10.0):
+            raise ConfigError(
+                f"{self.label}: band_mm = {self.band!r}: must be in [2 cell_mm, 10] (mm)"
+            )
+
+    def sdf_grid(self):
+        return bake_mesh_cached(self.vertices, self.triangles, self.cell, self.band)
+
+    def exact_query(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """(d (n,), normal (n, 3)) at points (n, 3) [mm] by the exact closest-triangle search
+        (``contact._mesh_gap``): the validation path of the baked grid."""
+        from .contact import build_mesh, mesh_query
+
+        return mesh_query(build_mesh(self.vertices, self.triangles), points, self.band)
+
+
+SDF_KINDS = (Sphere, Capsule, Ellipsoid, MeshSurface)
 
 
 @dataclass(frozen=True)
@@ -177,33 +261,11 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
     elif not isinstance(brush, BrushConfig):
         brush = load_brush(brush)
     surfaces = []
-    for j, s in enumerate(data.get("surface", [])):
-        kind = s.get("kind", "plane")
-        if kind == "plane":
-            surfaces.append(
-                Plane(tuple(s.get("point_mm", (0, 0, 0))), tuple(s.get("normal", (0, 0, 1))))
-            )
-        elif kind == "mesh_plate":
-            surfaces.append(
-                MeshPlate(
-                    tuple(s.get("point_mm", (0, 0, 0))),
-                    float(s.get("size_mm", 80.0)),
-                    int(s.get("divisions", 16)),
-                )
-            )
-        elif kind == "cylinder":
-            surfaces.append(
-                Cylinder(
-                    tuple(s.get("point_mm", (0, 0, -5))),
-                    tuple(s.get("axis", (1, 0, 0))),
-                    float(s.get("radius_mm", 5.0)),
-                )
-            )
-        else:
-            raise ConfigError(
-                f"{p}: surface[{j}].kind = {kind!r}: must be one of "
-                "['plane', 'mesh_plate', 'cylinder']"
-            )
+    for j, srf in enumerate(data.get("surface", [])):
+        try:
+            surfaces.extend(surfaces_from_table(srf, p.parent, f"surface[{j}]"))
+        except (ConfigError, ValueError, TypeError) as e:
+            raise ConfigError(f"{p}: {e}") from None
     return Scene(
         brush,
         tuple(surfaces),
@@ -211,3 +273,149 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
         data.get("name", p.stem),
         contact=contact,
     )
+
+
+SURFACE_KEYS = {
+    "plane": ("point_mm", "normal"),
+    "mesh_plate": ("point_mm", "size_mm", "divisions"),
+    "cylinder": ("point_mm", "axis", "radius_mm"),
+    "sphere": ("center_mm", "radius_mm"),
+    "capsule": ("a_mm", "b_mm", "radius_mm"),
+    "ellipsoid": ("center_mm", "semi_axes_mm"),
+    "mesh": ("file", "units", "cell_mm", "band_mm", "place"),
+    "tooth_row": ("teeth", "gap_mm", "cell_mm", "band_mm", "gum", "gum_radius_mm"),
+}
+_POS = Limit("mm", gt=0, le=1e4)
+
+
+def _vec3(where: str, value) -> tuple:
+    v = np.asarray(value, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ConfigError(f"{where} = {value!r}: must be 3 finite numbers")
+    return tuple(float(x) for x in v)
+
+
+def surfaces_from_table(t: dict, base: Path, where: str = "surface") -> list:
+    """The surface(s) one ``[[surface]]`` table describes (a tooth row gives several)."""
+    kind = t.get("kind", "plane")
+    if kind not in SURFACE_KEYS:
+        raise ConfigError(f"{where}.kind = {kind!r}: must be one of {sorted(SURFACE_KEYS)}")
+    check_keys(where, t, ("kind", "label", *SURFACE_KEYS[kind]))
+    label = str(t.get("label", kind))
+    if kind == "plane":
+        return [
+            Plane(
+                _vec3(f"{where}.point_mm", t.get("point_mm", (0, 0, 0))),
+                _vec3(f"{where}.normal", t.get("normal", (0, 0, 1))),
+            )
+        ]
+    if kind == "mesh_plate":
+        return [
+            MeshPlate(
+                _vec3(f"{where}.point_mm", t.get("point_mm", (0, 0, 0))),
+                float(t.get("size_mm", 80.0)),
+                int(t.get("divisions", 16)),
+            )
+        ]
+    if kind == "cylinder":
+        return [
+            Cylinder(
+                _vec3(f"{where}.point_mm", t.get("point_mm", (0, 0, -5))),
+                _vec3(f"{where}.axis", t.get("axis", (1, 0, 0))),
+                check_real(f"{where}.radius_mm", t.get("radius_mm", 5.0), _POS),
+            )
+        ]
+    if kind == "sphere":
+        return [
+            Sphere(
+                _vec3(f"{where}.center_mm", t.get("center_mm", (0, 0, -5))),
+                check_real(f"{where}.radius_mm", t.get("radius_mm", 5.0), _POS),
+                label,
+            )
+        ]
+    if kind == "capsule":
+        return [
+            Capsule(
+                _vec3(f"{where}.a_mm", t.get("a_mm", (-10, 0, -5))),
+                _vec3(f"{where}.b_mm", t.get("b_mm", (10, 0, -5))),
+                check_real(f"{where}.radius_mm", t.get("radius_mm", 5.0), _POS),
+                label,
+            )
+        ]
+    if kind == "ellipsoid":
+        ax = _vec3(f"{where}.semi_axes_mm", t.get("semi_axes_mm", (8, 6, 5)))
+        for a in ax:
+            check_real(f"{where}.semi_axes_mm", a, _POS)
+        return [Ellipsoid(_vec3(f"{where}.center_mm", t.get("center_mm", (0, 0, -5))), ax, label)]
+    cell = check_real(f"{where}.cell_mm", t.get("cell_mm", 0.15), Limit("mm", ge=0.01, le=2.0))
+    band = check_real(f"{where}.band_mm", t.get("band_mm", 1.0), Limit("mm", ge=2 * cell, le=10))
+    if kind == "mesh":
+        if "file" not in t:
+            raise ConfigError(f"{where}: kind 'mesh' needs file = PATH")
+        path = Path(t["file"])
+        path = path if path.is_absolute() else base / path
+        return [
+            mesh_surface(
+                path,
+                t.get("units", "mm"),
+                cell,
+                band,
+                t.get("place", "auto"),
+                label if "label" in t else "mesh",
+            )
+        ]
+    return tooth_row_surfaces(
+        teeth=tuple(t.get("teeth", ("PM1", "PM2", "M1", "M2"))),
+        gap_mm=check_real(f"{where}.gap_mm", t.get("gap_mm", 0.7), Limit("mm", ge=0.0, le=5.0)),
+        cell=cell,
+        band=band,
+        gum=bool(t.get("gum", True)),
+        gum_radius=check_real(
+            f"{where}.gum_radius_mm", t.get("gum_radius_mm", 8.0), Limit("mm", ge=2.0, le=50.0)
+        ),
+    )
+
+
+def mesh_surface(path, units="mm", cell=0.15, band=1.0, place="auto", label="mesh"):
+    """A user's closed mesh file as a baked SDF surface; ``place="auto"`` centres its bounding box
+    in x, y and puts its highest point at z = 0 (where the brush starts over a plate)."""
+    from .meshes import load_mesh_file
+
+    if place not in ("auto", "as_is"):
+        raise ConfigError(f"mesh place = {place!r}: must be 'auto' or 'as_is'")
+    V, T = load_mesh_file(path, units)
+    if place == "auto":
+        lo, hi = V.min(axis=0), V.max(axis=0)
+        V = V - np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), hi[2]])
+    return MeshSurface(V, T, cell, band, label)
+
+
+def tooth_row_surfaces(
+    teeth=("PM1", "PM2", "M1", "M2"), gap_mm=0.7, cell=0.15, band=1.0, gum=True, gum_radius=8.0
+) -> list:
+    """The procedural tooth row of ``teeth.py``: one baked crown per tooth (label
+    ``tooth:<name>``) and the gum capsule (label ``gum``)."""
+    from . import teeth as tt
+
+    specs = tt.row_specs(teeth, gap_mm)
+    out = [MeshSurface(*tt.tooth_mesh(s), cell, band, f"tooth:{s.name}") for s in specs]
+    if gum:
+        a, b, r = tt.gum_capsule(specs, gum_radius)
+        out.append(Capsule(a, b, r, "gum"))
+    return out
+
+
+def surface_labels(scene) -> list[str]:
+    """Label of each surface of ``scene`` (its kind where it has none)."""
+    return [getattr(s, "label", type(s).__name__.lower()) for s in scene.surfaces]
+
+
+def with_mesh(scene, path, units="mm", cell=0.15, band=1.0) -> Scene:
+    """``scene`` with its tooth crowns (labels ``tooth:*``, or every SDF mesh) replaced by the
+    user's mesh file, placed as ``mesh_surface(place="auto")`` does; the gum and other surfaces
+    stay."""
+    from dataclasses import replace
+
+    keep = [s for s in scene.surfaces if not isinstance(s, MeshSurface)]
+    user = mesh_surface(path, units, cell, band, "auto", "tooth:user")
+    return replace(scene, surfaces=tuple([user, *keep]))

@@ -34,7 +34,8 @@ from .checks import ConfigError, Limit, check_choice, check_int, check_real
 from .config import BrushConfig
 from .contact import N_TIP_ARGS, N_TIP_STATE
 from .rotation import expmap, logmap, pose_ok
-from .scene import Scene
+from .scene import MeshPlate, Scene
+from .sdf import pack_grids
 
 G_EARTH = 9810.0  # [mm/s^2]
 INTEGRATORS = {"euler": 0, "bdf2": 1}
@@ -311,8 +312,9 @@ class Simulator:
         self.tip_args = np.zeros((nb, N_TIP_ARGS))
         self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
         self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
-        self.surfaces = _surface_rows(scene.surfaces)
-        meshes = [srf for srf in scene.surfaces if hasattr(srf, "triangles")]
+        self.surfaces, grids = _surface_rows(scene.surfaces)
+        self.sdf = pack_grids(grids)
+        meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
         if len(meshes) > 1:
             raise ConfigError(
                 f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
@@ -389,7 +391,7 @@ class Simulator:
             np.zeros(nb, np.int64),
             np.stack([tcp_p] * 4),
             np.stack([tcp_R] * 4),
-            np.zeros((nb, N_TIP_STATE)),
+            _fresh_tip_state(nb),
             time,
             0,
             rec.make_newton_cache(N, nb),
@@ -600,6 +602,7 @@ class Simulator:
             self.mesh,
             self.tip_args,
             self.state.tip_state,
+            self.sdf,
         )
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
@@ -681,6 +684,8 @@ class Simulator:
             ts[:, ct.S_CP : ct.S_CP + 3].copy(),
             extra={
                 "tip_tip_force": ts[:, ct.S_FTT].copy(),
+                # index of the surface each tip touches deepest (-1: none; Scene.surfaces order)
+                "tip_surface": np.where(fn > 0.0, ts[:, ct.S_SURF], -1.0).astype(np.int64),
                 # sweeps and bristle re-solves of the (last internal) step, and whether its
                 # tip-tip partners settled within tip_tip_tol before the sweeps ran out
                 "sweeps": int(self._ws.sw.count[0]),
@@ -710,12 +715,26 @@ _STATE_ARRAYS = (
 )
 
 
-def _surface_rows(surfaces) -> np.ndarray:
-    """Kernel rows (kind, point, normal/axis, radius) of the scene's surfaces."""
+def _fresh_tip_state(nb: int) -> np.ndarray:
+    """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
+    ts = np.zeros((nb, N_TIP_STATE))
+    ts[:, ct.S_SURF] = -1.0
+    ts[:, ct.S_FSURF] = -1.0
+    return ts
+
+
+def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
+    """Kernel rows (kind, then the kind's numbers: contact.SURF_*) of the scene's surfaces, and
+    the baked SDF grids that rows of kind SURF_GRID index (in their order)."""
     rows = np.zeros((len(surfaces), ct.N_SURF))
+    grids = []
     for j, srf in enumerate(surfaces):
-        rows[j] = srf.kernel_row()
-    return rows
+        if hasattr(srf, "sdf_grid"):
+            rows[j, 0], rows[j, 1] = ct.SURF_GRID, len(grids)
+            grids.append(srf.sdf_grid())
+        else:
+            rows[j] = srf.kernel_row()
+    return rows, grids
 
 
 def tip_pairs(model: Model, scene, travel_fraction: float | None = None):

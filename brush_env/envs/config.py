@@ -227,6 +227,23 @@ class EnvConfig:
         lo=0.0,
         hi=1e6,
     )
+    gum_force_limit: float = _f(
+        1.0,
+        "reward",
+        "N",
+        "safe total normal force on surfaces labelled 'gum' (ToothRow-v0; no gum on the plate)",
+        lo=0.0,
+        hi=1e3,
+        lo_open=True,
+    )
+    gum_force_weight: float = _f(
+        100.0,
+        "reward",
+        "1/(N*s)",
+        "penalty rate per N of gum force above the gum limit",
+        lo=0.0,
+        hi=1e6,
+    )
     termination_penalty: float = _f(
         10.0, "reward", "-", "one-off penalty when an episode is terminated", lo=0.0, hi=1e6
     )

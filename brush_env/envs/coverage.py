@@ -17,7 +17,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["CoverageMap"]
+from brush_env.engine.scrub import SurfaceCoverage  # curved surfaces (ToothRow-v0)
+
+__all__ = ["CoverageMap", "SurfaceCoverage"]
 
 
 class CoverageMap:
@@ -48,14 +50,14 @@ class CoverageMap:
         self.count = 0
 
     def stamp(self, start: np.ndarray, end: np.ndarray) -> int:
-        """Clean along segments ``start[k] -> end[k]`` ((m, 2) plate x, y in mm, patch-centred);
-        returns the number of newly cleaned cells."""
+        """Clean along segments ``start[k] -> end[k]`` ((m, 2) or (m, 3) contact points in mm,
+        patch-centred; only x, y are used); returns the number of newly cleaned cells."""
         if len(end) == 0:
             return 0
         new = _stamp_segments(
             self.cleaned,
-            np.ascontiguousarray(start, dtype=np.float64),
-            np.ascontiguousarray(end, dtype=np.float64),
+            np.ascontiguousarray(np.asarray(start)[:, :2], dtype=np.float64),
+            np.ascontiguousarray(np.asarray(end)[:, :2], dtype=np.float64),
             self.patch_size,
             self.cell,
             self.clean_radius,

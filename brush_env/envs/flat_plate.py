@@ -169,6 +169,7 @@ from brush_env.engine import (
     load_scene,
 )
 from brush_env.engine.rotation import expmap, rot_axis
+from brush_env.engine.scene import surface_labels
 from brush_env.motion import R0
 
 from .action import make_action_type
@@ -198,6 +199,7 @@ class BrushEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array", "human"]}
+    reference_motion = "circle"  # agents/reference.py: the paper's press-then-circle
 
     def __init__(
         self,
@@ -222,18 +224,10 @@ class BrushEnv(gym.Env):
         scene = load_scene(cfg.scene, brush=brush)
         if cfg.tip_tip != "scene":
             scene = dataclasses.replace(scene, tip_tip=cfg.tip_tip == "on")
-        planes = [
-            s
-            for s in scene.surfaces
-            if isinstance(s, Plane)
-            and np.allclose(np.asarray(s.normal) / np.linalg.norm(s.normal), [0, 0, 1])
-        ]
-        if not planes:
-            raise ConfigError(
-                f"scene = {cfg.scene!r} has no plane with normal +z: BrushEnv needs "
-                "a flat plate (e.g. configs/scenes/flat_plate.toml)"
-            )
-        self.plate_z = float(planes[0].point[2])
+        self.scene = scene
+        self.plate_z = self._surface_height(scene)
+        # surfaces whose contact force has a limit of its own (the gum of a tooth row)
+        self._gum = np.array([s == "gum" for s in surface_labels(scene)], bool)
         gravity = SimSettings().gravity if cfg.gravity else (0.0, 0.0, 0.0)
         self.sim = Simulator(
             scene,
@@ -257,9 +251,7 @@ class BrushEnv(gym.Env):
         self.layout = ObservationLayout(cfg, self.n_bristles, self.L, self.touch_height)
         self.observation_type = make_observation_type(cfg, self.layout)
         self.observation_space = self.observation_type.space()
-        self.coverage = CoverageMap(
-            cfg.patch_size, cfg.cell_size, cfg.clean_radius, cfg.coarse_map_size
-        )
+        self.coverage = self._make_coverage()
         # render_fps depends on the configured dt, hence per instance (Gymnasium MuJoCo style)
         self.metadata = {**BrushEnv.metadata, "render_fps": 1.0 / self.dt}
         # chains for the side view: body indices per bristle, padded with the bristle's last body
@@ -272,6 +264,25 @@ class BrushEnv(gym.Env):
         self._horizon = cfg.max_episode_steps
         self._started = False
         self._done = False
+
+    def _surface_height(self, scene) -> float:
+        """z [mm] of the surface the brush works on at the nominal pose: the plate's."""
+        planes = [
+            s
+            for s in scene.surfaces
+            if isinstance(s, Plane)
+            and np.allclose(np.asarray(s.normal) / np.linalg.norm(s.normal), [0, 0, 1])
+        ]
+        if not planes:
+            raise ConfigError(
+                f"scene = {self.config.scene!r} has no plane with normal +z: FlatPlate-v0 needs "
+                "a flat plate (e.g. configs/scenes/flat_plate.toml; teeth: ToothRow-v0)"
+            )
+        return float(planes[0].point[2])
+
+    def _make_coverage(self):
+        cfg = self.config
+        return CoverageMap(cfg.patch_size, cfg.cell_size, cfg.clean_radius, cfg.coarse_map_size)
 
     # ------------------------------------------------------------------ timing
     @property
@@ -327,7 +338,7 @@ class BrushEnv(gym.Env):
         self._rest_tips = (self._last.tip_pos - self._p) @ self._R
         self.coverage.reset()
         self._prev_eff = np.zeros(self.n_bristles, bool)
-        self._prev_cp = np.zeros((self.n_bristles, 2))
+        self._prev_cp = np.zeros((self.n_bristles, 3))
         self._steps = 0
         self._total_force = 0.0
         self._started, self._done = True, False
@@ -380,8 +391,8 @@ class BrushEnv(gym.Env):
         dR = expmap(self._w * dte)
         lo, hi = cfg.tip_force_window
         starts, ends = [], []
-        total_int = tip_int = above_t = 0.0
-        peak_total = peak_tip = 0.0
+        total_int = tip_int = above_t = gum_int = 0.0
+        peak_total = peak_tip = peak_gum = 0.0
         termination = divergence = None
         for _ in range(cfg.frame_skip):
             p_new = self._p + self._v * dte
@@ -399,9 +410,14 @@ class BrushEnv(gym.Env):
             above_t += dte if fn > cfg.total_force_limit else 0.0
             peak_total = max(peak_total, fn)
             peak_tip = max(peak_tip, float(f.max()))
+            if self._gum.any():
+                surf = out.extra["tip_surface"]
+                fg = float(f[(surf >= 0) & self._gum[np.maximum(surf, 0)]].sum())
+                gum_int += dte * max(0.0, fg - cfg.gum_force_limit)
+                peak_gum = max(peak_gum, fg)
             eff = out.tip_in_contact & (f >= lo) & (f <= hi)
             if eff.any():
-                cp = out.tip_contact_point[eff, :2]
+                cp = out.tip_contact_point[eff]
                 both = self._prev_eff[eff]
                 starts.append(np.where(both[:, None], self._prev_cp[eff], cp))
                 ends.append(cp)
@@ -421,6 +437,8 @@ class BrushEnv(gym.Env):
             total_int=total_int,
             tip_int=tip_int,
             time_above=above_t,
+            gum_int=gum_int,
+            peak_gum=peak_gum,
             peak_total=peak_total,
             peak_tip=peak_tip,
             termination=termination,

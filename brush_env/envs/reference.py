@@ -36,7 +36,7 @@ from brush_env.motion import Approach, Circle, Press, Sequence
 from .action import TcpVelocityAction
 from .observation import ObservationLayout
 
-__all__ = ["CircleReference"]
+__all__ = ["CircleReference", "ScrubReference"]
 
 
 class CircleReference:
@@ -158,3 +158,94 @@ class CircleReference:
             else np.zeros(3)
         )
         return self.action_type.normalise(v, w)
+
+
+class ScrubReference(CircleReference):
+    """The horizontal scrub on a tooth row (ToothRow-v0's reference policy): approach to ``hover``
+    mm above the first stroke's start, press ``press_depth`` mm past the crowns' buccal plane
+    (the touch height, as on the plate), then strokes along the row (x) between ``x_range`` at
+    ``speed`` (quintic rest-to-rest: peak ``speed``), the stroke's height on the crowns (y)
+    cycling through ``y_levels`` so that the cervical third, the middle and the occlusal third
+    are each scrubbed.  The horizontal scrub is the stroke most uninstructed adults use (Ganss et
+    al., Clin Oral Investig 13, 2009, 203-208); docs/env.md ("ToothRow-v0").  Tracking law and
+    action as :class:`CircleReference`.  Units: mm, mm/s, s, 1/s.
+    """
+
+    def __init__(
+        self,
+        layout: ObservationLayout,
+        action_type: TcpVelocityAction,
+        dt: float,
+        horizon: int,
+        *,
+        x_range=(-9.0, 9.0),
+        y_levels=(3.5, 1.5, 5.5),
+        speed: float = 30.0,
+        press_depth: float = 2.0,
+        hover: float = 1.0,
+        approach_time: float = 1.5,
+        press_time: float = 1.0,
+        kp: float = 5.0,
+        kr: float = 5.0,
+    ):
+        for name, val in (
+            ("speed", speed),
+            ("approach_time", approach_time),
+            ("press_time", press_time),
+            ("dt", dt),
+        ):
+            if not (math.isfinite(val) and val > 0):
+                raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
+        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp), ("kr", kr)):
+            if not (math.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
+        if not (len(x_range) == 2 and x_range[1] > x_range[0]):
+            raise ValueError(f"x_range = {x_range!r}: must be [x_min, x_max] with x_min < x_max")
+        if not y_levels:
+            raise ValueError("y_levels must name at least one stroke height (mm)")
+        if speed > 0.8 * float(action_type.v_max[0]):
+            raise ValueError(
+                f"speed = {speed!r} mm/s is out of range: must be <= 80 % of the env's "
+                f"max_linear_speed in x ({float(action_type.v_max[0])})"
+            )
+        self.layout, self.action_type = layout, action_type
+        self.dt, self.horizon = float(dt), int(horizon)
+        self.x_range, self.y_levels = tuple(map(float, x_range)), tuple(map(float, y_levels))
+        self.speed, self.press_depth, self.hover = speed, press_depth, hover
+        self.approach_time, self.press_time = approach_time, press_time
+        self.kp, self.kr = kp, kr
+        self.z_touch = layout.touch_height
+        self.trajectory = None
+        self.circle = None
+
+    def plan(self, p0: np.ndarray, R0: np.ndarray) -> None:
+        R_goal = R_START if self.rotates else R0
+        x0, x1 = self.x_range
+        ys = self.y_levels
+        z_c = self.z_touch - self.press_depth
+        P0 = np.array([x0, ys[0], self.z_touch + self.hover])
+        d = np.abs(P0 - p0)
+        rot = np.abs(logmap(R_goal @ R0.T))
+        t_app = max(
+            self.approach_time,
+            float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
+            float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates else 0.0,
+        )
+        segs = [
+            Approach((p0, R0), (P0, R_goal), t_app),
+            Press((P0, R_goal), self.hover + self.press_depth, self.press_time),
+        ]
+        t_left = self.horizon * self.dt - t_app - self.press_time
+        p = np.array([x0, ys[0], z_c])
+        k = 0
+        while t_left > 0:
+            k += 1
+            q = np.array([x1 if k % 2 else x0, ys[(k // 2) % len(ys)], z_c])
+            T = 1.875 * float(np.linalg.norm(q - p)) / self.speed
+            segs.append(Approach((p, R_goal), (q, R_goal), T))
+            t_left -= T
+            p = q
+        self.trajectory = Sequence(segs)
+        self.circle_start = t_app + self.press_time
+        times = np.arange(self.horizon + 2) * self.dt
+        self._P, self._R, _, _ = self.trajectory.sample(times)

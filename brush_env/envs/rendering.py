@@ -48,7 +48,51 @@ class RenderInput:
             setattr(self, k, kw[k])
 
 
-class Renderer:
+class FrameWindow:
+    """``show`` puts frames of width W and height H in a matplotlib window (``human`` mode)."""
+
+    def __init__(self, height: int, width: int):
+        self.H, self.W = int(height), int(width)
+        self._fig = None
+
+    def show(self, frame: np.ndarray, fps: float) -> None:
+        """Display ``frame`` in a matplotlib window; draws off-screen with a non-GUI backend."""
+        import matplotlib
+        import matplotlib.pyplot as plt
+
+        interactive = matplotlib.get_backend().lower() not in (
+            "agg",
+            "pdf",
+            "ps",
+            "svg",
+            "pgf",
+            "cairo",
+            "template",
+        )
+        if self._fig is None:
+            if interactive:
+                plt.ion()
+            self._fig, ax = plt.subplots(figsize=(self.W / 100, self.H / 100), dpi=100)
+            ax.set_axis_off()
+            self._fig.subplots_adjust(0, 0, 1, 1)
+            self._im = ax.imshow(frame)
+        else:
+            self._im.set_data(frame)
+        if interactive:
+            self._fig.canvas.draw_idle()
+            plt.pause(1.0 / fps)
+        else:
+            self._fig.canvas.draw()
+
+    def close(self) -> None:
+        if self._fig is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._fig)
+            self._fig = None
+
+
+class Renderer(FrameWindow):
     """Draws frames; ``show`` puts them in a matplotlib window (``human`` mode)."""
 
     def __init__(
@@ -62,8 +106,7 @@ class Renderer:
         safe_force: float,
         hard_force: float,
     ):
-        self.H = int(height)
-        self.W = 2 * self.H
+        super().__init__(height, 2 * int(height))
         self.patch_size = float(patch_size)
         self.view = float(view_size)
         self.tip_window = tip_window
@@ -164,40 +207,3 @@ class Renderer:
         right[H - 3 * bar :, min(tick, H - 1)] = BLACK
         img[:, H - 1] = BLACK  # divider
         return img.copy()
-
-    # ------------------------------------------------------------------ human
-    def show(self, frame: np.ndarray, fps: float) -> None:
-        """Display ``frame`` in a matplotlib window; draws off-screen with a non-GUI backend."""
-        import matplotlib
-        import matplotlib.pyplot as plt
-
-        interactive = matplotlib.get_backend().lower() not in (
-            "agg",
-            "pdf",
-            "ps",
-            "svg",
-            "pgf",
-            "cairo",
-            "template",
-        )
-        if self._fig is None:
-            if interactive:
-                plt.ion()
-            self._fig, ax = plt.subplots(figsize=(self.W / 100, self.H / 100), dpi=100)
-            ax.set_axis_off()
-            self._fig.subplots_adjust(0, 0, 1, 1)
-            self._im = ax.imshow(frame)
-        else:
-            self._im.set_data(frame)
-        if interactive:
-            self._fig.canvas.draw_idle()
-            plt.pause(1.0 / fps)
-        else:
-            self._fig.canvas.draw()
-
-    def close(self) -> None:
-        if self._fig is not None:
-            import matplotlib.pyplot as plt
-
-            plt.close(self._fig)
-            self._fig = None

@@ -99,11 +99,80 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="polar angle of the start point P0 about the circle's centre [deg] (default 180)",
     )
     add_flag(parser, "--clockwise", "travel the circle clockwise seen from above the plate")
+    parser.add_argument(
+        "--mesh",
+        default=None,
+        metavar="FILE",
+        help="a closed tooth mesh (STL, OBJ, PLY, ...) in place of the tooth row's crowns "
+        "(with --scene tooth_row; placed with its top at z = 0, centred in x, y; the surface "
+        "to brush must face +z); runs the press-and-scrub experiment",
+    )
+    parser.add_argument(
+        "--mesh-units",
+        default="mm",
+        choices=("mm", "cm", "m", "um", "in"),
+        help="units of the --mesh file's coordinates (default mm)",
+    )
+    parser.add_argument(
+        "--press-depth",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="press depth past contact [mm] (default: plate 3, tooth row 2)",
+    )
     add_flag(parser, "--no-progress", "no progress bar")
+
+
+def _is_tooth_scene(args) -> bool:
+    from ..engine import load_scene
+    from ..engine.scrub import tooth_surfaces
+
+    if args.mesh is not None:
+        return True
+    return bool(args.scene) and bool(tooth_surfaces(load_scene(args.scene)))
+
+
+def run_teeth(args) -> int:
+    """The tooth-row press-and-scrub experiment (brush_env.experiments.tooth_row)."""
+    from .tooth_row import run_tooth_row
+
+    extra = {} if args.press_depth is None else {"press_depth": args.press_depth}
+    s = run_tooth_row(
+        brush=args.brush,
+        scene=args.scene or "tooth_row",
+        out_dir=args.out,
+        mesh=args.mesh,
+        mesh_units=args.mesh_units,
+        fidelity=args.fidelity,
+        bodies=args.bodies,
+        progress=not args.no_progress,
+        dt=args.dt,
+        **extra,
+    )
+    perf, an = s["performance"], s["analysis"]
+    print(
+        f"status: {s['status']}; wall {perf['wall_time_s']:.1f} s (simulation "
+        f"{perf['sim_wall_time_s']:.1f} s, real-time factor {perf['real_time_factor'] or 0:.2f}); "
+        f"outputs in {args.out}"
+    )
+    st = an["strokes"]
+    if st["normal_force_N"]:
+        print(
+            f"  strokes: normal force mean {st['normal_force_N']['mean']:.2f} N, peak "
+            f"{st['normal_force_N']['peak']:.2f} N; gum force peak "
+            f"{st['gum_force_N']['peak']:.2f} N"
+        )
+    if "coverage" in an:
+        c = an["coverage"]
+        regions = ", ".join(f"{k} {100 * v:.1f} %" for k, v in c["regions"].items())
+        print(f"  coverage {100 * c['reachable']:.1f} % of the reachable area ({regions})")
+    return 0 if s["status"] == "ok" else 1
 
 
 def run(args) -> int:
     """Run the experiment, print its status, real-time factor and jamming angles."""
+    if _is_tooth_scene(args):
+        return run_teeth(args)
     summary = run_reference(
         brush=args.brush,
         scene=args.scene,
@@ -122,6 +191,7 @@ def run(args) -> int:
         head_yaw_deg=args.head_yaw,
         p0_angle_deg=args.p0_angle,
         clockwise=args.clockwise,
+        **({} if args.press_depth is None else {"press_depth": args.press_depth}),
     )
     perf = summary["performance"]
     print(

@@ -32,6 +32,7 @@ from brush_env.engine import records as rec
 from brush_env.engine._kernels import ELEM_PAPER, _element_gen
 from brush_env.engine.records import B_BETA, B_HALF
 from brush_env.engine.scene import ContactParams
+from brush_env.engine.sdf import empty_sdf
 
 from . import twins
 
@@ -39,6 +40,7 @@ EULER = (1.0, -1.0, 0.0)
 BDF2 = (1.5, -2.0, 0.5)
 CP = {f.name: getattr(ContactParams(), f.name) for f in dataclasses.fields(ContactParams)}
 _MESH = ct.empty_mesh()
+_SDF = empty_sdf()
 
 
 # =========================================================================== adapters
@@ -130,7 +132,9 @@ def kernel_tip_load(
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
     tw = rec.make_work(1, ct.N_TIP_STATE).tipw
-    con = rec.ContactScene(surf, cpa, tips, pair_ptr, pair_idx, _MESH, args[None, :], st[None, :])
+    con = rec.ContactScene(
+        surf, cpa, tips, pair_ptr, pair_idx, _MESH, args[None, :], st[None, :], _SDF
+    )
     sub = rec.Substep(c[0], c[1], c[2], h, 1.0 / h, static, np.zeros(3), 0.0, 0, 0.0)
     ct.tip_load(0, pt, sub, con, F, Kt, tw)
     st = con.tip_state[0]

@@ -1,0 +1,87 @@
+"""Frames of the tooth row (ToothRow-v0's ``render``, the tooth-row experiment and docs figures).
+
+Left: a 3-D view of the crowns, each triangle above the CEJ coloured by whether its coverage
+sample is cleaned (green) or not (grey), the bristles as poly-lines (red where the tip carries
+load).  Right: the buccal view of the coverage samples (x along the row, y up the crowns).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from brush_env.engine.teeth import surface_samples
+
+CLEAN = (0.25, 0.70, 0.35)
+DIRTY = (0.82, 0.82, 0.80)
+ROOT = (0.93, 0.88, 0.80)
+
+
+def render_tooth_row(teeth, coverage, chains, tip_force, height: int = 256, title: str = ""):
+    """RGB frame (height, 2 height, 3) uint8 of the crowns, coverage and bristles."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    dpi = 100
+    fig = plt.figure(figsize=(2 * height / dpi, height / dpi), dpi=dpi)
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    k0 = 0
+    for s in teeth:
+        V, T = s.vertices, s.triangles
+        P = V[T]
+        crown = P.mean(axis=1)[:, 1] >= 0.0
+        n = int(crown.sum())
+        cleaned = coverage.cleaned[k0 : k0 + n]
+        k0 += n
+        col = np.tile(np.asarray(ROOT), (len(T), 1))
+        col[crown] = np.where(cleaned[:, None], CLEAN, DIRTY)
+        ax.add_collection3d(Poly3DCollection(P, facecolors=col, edgecolors="none"))
+    f = np.asarray(tip_force)
+    for c, fi in zip(chains, f):
+        ax.plot(c[:, 0], c[:, 1], c[:, 2], color="tab:red" if fi > 0 else "tab:blue", lw=0.6)
+    lo, hi = coverage.extent
+    ax.set_xlim(lo[0] - 2, hi[0] + 2)
+    ax.set_ylim(lo[1] - 4, hi[1] + 2)
+    ax.set_zlim(-14, 14)
+    ax.view_init(elev=25, azim=-65)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_zlabel("z [mm]")
+    ax.tick_params(labelsize=6)
+    ax2 = fig.add_subplot(1, 2, 2)
+    pts = coverage.points
+    vis = coverage.reach
+    ax2.scatter(
+        pts[vis, 0],
+        pts[vis, 1],
+        s=1.5,
+        c=np.where(coverage.cleaned[vis, None], CLEAN, DIRTY),
+        marker="s",
+        linewidths=0,
+    )
+    tips = chains[:, -1]
+    ax2.scatter(tips[f > 0, 0], tips[f > 0, 1], s=6, c="tab:red")
+    ax2.set_aspect("equal")
+    ax2.set_xlabel("x [mm] (along the row)", fontsize=7)
+    ax2.set_ylabel("y [mm] (CEJ = 0)", fontsize=7)
+    ax2.tick_params(labelsize=6)
+    ax2.set_title(title, fontsize=7)
+    fig.tight_layout()
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return img
+
+
+def crown_triangles(teeth):
+    """(triangles (n, 3, 3), region (n,)) of the crowns above the CEJ, in coverage-sample order."""
+    tris, regs = [], []
+    for s in teeth:
+        P = s.vertices[s.triangles]
+        crown = P.mean(axis=1)[:, 1] >= 0.0
+        _, _, r = surface_samples(s.vertices, s.triangles)
+        tris.append(P[crown])
+        regs.append(r)
+    return np.concatenate(tris), np.concatenate(regs)

@@ -1,0 +1,291 @@
+"""The reference experiment on a tooth row (issue 13): press, then horizontal strokes along the row.
+
+``brush-env reference --scene tooth_row`` runs it (``--mesh FILE`` puts the user's tooth mesh in
+place of the procedural crowns).  The brush starts with its tips touching the crowns' buccal
+plane (z = 0 of the scene, as the paper's plate), is pressed ``press_depth`` mm along the bristle
+axis over the middle of the row at crown height ``y``, held, then driven ``strokes`` times along
+the row (x) between ``x_range`` (rest-to-rest quintic strokes, peak ``speed``) -- the
+horizontal scrub.  Outputs in ``out_dir`` (as the plate experiment's where they apply):
+``timeseries.csv`` (TCP force and moment in the TCP frame, total normal force, gum force, tips in
+contact, deepest penetration per step), ``tips.npz`` (tip positions and forces, sampled),
+``summary.json`` (settings, motion, performance, forces per phase, coverage per region and per
+tooth), ``forces_vs_time.png`` and ``coverage.png`` (the crowns coloured by what the tips
+scrubbed, and the buccal coverage map).  Units: mm, N, N mm, s.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..engine import SimSettings, SimulationDivergence, Simulator
+from ..engine.fidelity import load_fidelity
+from ..engine.scene import surface_labels, with_mesh
+from ..engine.scrub import crown_samples, tooth_surfaces
+from ..engine.warmup import ensure_compiled
+from ..motion import R0, Approach, Hold, Press, Sequence
+from .plan import resolve_scene
+
+#: effective tip force window [N] and cleaning radius [mm] of the coverage (configs/envs/
+#: tooth_row.toml's tip_force_window and clean_radius)
+TIP_WINDOW = (0.01, 0.2)
+CLEAN_RADIUS = 0.5
+
+DEFAULTS = dict(
+    press_depth=2.0,  # [mm] past the crowns' buccal plane (3 mm: gum peak 1.4 N > its 1 N limit)
+    press_time=0.5,  # [s]
+    hold_time=0.25,  # [s]
+    speed=20.0,  # [mm/s] peak stroke speed (the plate experiment's tool speed)
+    strokes=4,  # one-way strokes along the row
+    x_range=(-9.0, 9.0),  # [mm] stroke ends (row centre 0; the brush is 22 mm long)
+    y=3.5,  # [mm] stroke height on the crowns (CEJ = 0): the brush spans ~0.7 ... 6.3 mm
+    dt=1e-3,  # [s]
+    tips_dt=5e-3,  # [s] sampling of tips.npz
+)
+
+
+def stroke_motion(z_touch, press_depth, press_time, hold_time, speed, strokes, x_range, y):
+    """(trajectory, phase start times (press, hold, strokes)) of the press-and-scrub motion."""
+    x0, x1 = x_range
+    p_touch = np.array([0.5 * (x0 + x1), y, z_touch])
+    press = Press((p_touch, R0), press_depth, press_time)
+    p, _ = press.end_pose
+    segs = [press, Hold((p, R0), hold_time)] if hold_time > 0 else [press]
+    ends = [x0] + [x1 if k % 2 else x0 for k in range(1, strokes)]
+    for xe in ends:
+        q = np.array([xe, y, p[2]])
+        L = abs(q[0] - p[0])
+        segs.append(Approach((p, R0), (q, R0), 1.875 * L / speed))
+        p = q
+    seq = Sequence(segs)
+    return seq, tuple(float(t) for t in seq.start_times[:3])
+
+
+def run_tooth_row(
+    brush=None,
+    scene="tooth_row",
+    out_dir="runs/tooth_row",
+    *,
+    mesh=None,
+    mesh_units: str = "mm",
+    fidelity=None,
+    bodies=None,
+    progress: bool = True,
+    plots: bool = True,
+    **motion,
+) -> dict:
+    """Run the press-and-scrub experiment; returns the summary dict (also in summary.json).
+    ``motion``: any key of DEFAULTS (press_depth, press_time, hold_time, speed, strokes,
+    x_range, y, dt, tips_dt)."""
+    unknown = set(motion) - set(DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown motion keys {sorted(unknown)}: allowed {sorted(DEFAULTS)}")
+    a = {**DEFAULTS, **motion}
+    for k in ("press_time", "speed", "dt", "tips_dt"):
+        if not (math.isfinite(a[k]) and a[k] > 0):
+            raise ValueError(f"{k} = {a[k]!r} is out of range: must be > 0")
+    if not (0.0 <= a["press_depth"] <= 6.0):
+        raise ValueError(f"press_depth = {a['press_depth']!r} mm is out of range: [0, 6]")
+    t0 = time.perf_counter()
+    if fidelity is not None:
+        fid = load_fidelity(fidelity)
+        settings = fid.settings(dt=float(a["dt"]))
+        bodies = fid.bodies_per_bristle if bodies is None else bodies
+    else:
+        settings = SimSettings(dt=float(a["dt"]))
+    scene_obj = resolve_scene(brush, scene, bodies)
+    if mesh is not None:
+        scene_obj = with_mesh(scene_obj, mesh, mesh_units)
+    compile_s = ensure_compiled(notice=print if progress else None)
+    t_setup = time.perf_counter()
+    sim = Simulator(scene_obj, settings)
+    teeth = tooth_surfaces(scene_obj)
+    z_surf = max((float(s.vertices[:, 2].max()) for s in teeth), default=0.0)
+    z_touch = sim.touch_height(np.array(R0), z_surf)
+    traj, phases = stroke_motion(
+        z_touch,
+        a["press_depth"],
+        a["press_time"],
+        a["hold_time"],
+        a["speed"],
+        int(a["strokes"]),
+        a["x_range"],
+        a["y"],
+    )
+    dt = settings.dt
+    n = int(math.ceil(traj.duration / dt - 1e-9))
+    times = np.arange(n + 1) * dt
+    P, Rs, _, _ = traj.sample(times)
+    cov = crown_samples(teeth, CLEAN_RADIUS) if teeth else None
+    gum = np.array([lab == "gum" for lab in surface_labels(scene_obj)], bool)
+    t_setup = time.perf_counter() - t_setup
+    cols = ("t", "phase", "Fx", "Fy", "Fz", "Mx", "My", "Mz", "Fn", "F_gum", "n_contact", "max_pen")
+    rows = np.full((n + 1, len(cols)), np.nan)
+    stride = max(1, int(round(a["tips_dt"] / dt)))
+    tips_t, tips_p, tips_f = [], [], []
+    status, message = "ok", None
+    sim.reset(P[0], Rs[0])
+    prev_eff = np.zeros(sim.model.n_bristles, bool)
+    prev_cp = np.zeros((sim.model.n_bristles, 3))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n, unit="step", desc="tooth row", mininterval=1.0)
+    t_sim = time.perf_counter()
+    done = 0
+    for k in range(1, n + 1):
+        try:
+            out = sim.step(P[k], Rs[k])
+        except SimulationDivergence as e:
+            status, message = "diverged", str(e)
+            break
+        f = out.tip_normal_force
+        surf = out.extra["tip_surface"]
+        fg = float(f[(surf >= 0) & gum[np.maximum(surf, 0)]].sum()) if gum.any() else 0.0
+        ph = int(np.searchsorted(phases, times[k], side="right") - 1)
+        rows[k] = (
+            times[k],
+            ph,
+            *out.tcp_force_tcp,
+            *out.tcp_moment_tcp,
+            f.sum(),
+            fg,
+            out.tip_in_contact.sum(),
+            out.tip_penetration.max(),
+        )
+        if cov is not None:
+            eff = out.tip_in_contact & (f >= TIP_WINDOW[0]) & (f <= TIP_WINDOW[1])
+            if eff.any():
+                cp = out.tip_contact_point[eff]
+                cov.stamp(np.where(prev_eff[eff][:, None], prev_cp[eff], cp), cp)
+                prev_cp[eff] = cp
+            prev_eff = eff
+        if k % stride == 0:
+            tips_t.append(times[k])
+            tips_p.append(out.tip_pos.copy())
+            tips_f.append(f.copy())
+        done = k
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    t_sim = time.perf_counter() - t_sim
+    rows = rows[1 : done + 1]
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    np.savetxt(
+        out_dir / "timeseries.csv",
+        rows,
+        delimiter=",",
+        header=",".join(cols)
+        + "  # s, phase (0 press 1 hold 2 strokes), N (TCP frame), N mm, N, N, count, mm",
+        comments="",
+        fmt="%.9g",
+    )
+    np.savez_compressed(
+        out_dir / "tips.npz",
+        t=np.array(tips_t),
+        tip_pos=np.array(tips_p),
+        tip_normal_force=np.array(tips_f),
+    )
+    strokes = rows[rows[:, 1] == 2] if len(rows) else rows
+    F = np.linalg.norm(strokes[:, 2:5], axis=1) if len(strokes) else np.zeros(0)
+
+    def stat(x):
+        return {"mean": float(np.mean(x)), "peak": float(np.max(x))} if len(x) else None
+
+    analysis = {
+        "strokes": {
+            "tcp_force_N": stat(F),
+            "normal_force_N": stat(strokes[:, 8]),
+            "gum_force_N": stat(strokes[:, 9]),
+            "tips_in_contact": stat(strokes[:, 10]),
+        },
+        "press_peak_normal_force_N": float(np.max(rows[:, 8])) if len(rows) else None,
+        "max_penetration_mm": float(np.nanmax(rows[:, 11])) if len(rows) else None,
+    }
+    if cov is not None:
+        analysis["coverage"] = {
+            "reachable": cov.fraction,
+            "regions": cov.by_region(),
+            "teeth": cov.by_tooth(),
+            "tip_force_window_N": list(TIP_WINDOW),
+            "clean_radius_mm": CLEAN_RADIUS,
+        }
+    files = ["timeseries.csv", "tips.npz", "summary.json"]
+    if plots and len(rows):
+        _plot_forces(out_dir / "forces_vs_time.png", rows, phases)
+        files.append("forces_vs_time.png")
+        if cov is not None:
+            from .tooth_plots import render_tooth_row
+
+            m = sim.model
+            pos = sim.state.pos
+            chains = np.stack(
+                [pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)]
+            )
+            chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
+            img = render_tooth_row(
+                teeth, cov, chains, out.tip_normal_force, 480, title=f"coverage {cov.fraction:.1%}"
+            )
+            import matplotlib.pyplot as plt
+
+            plt.imsave(out_dir / "coverage.png", img)
+            files.append("coverage.png")
+    sim_time = float(rows[-1, 0]) if len(rows) else 0.0
+    summary = {
+        "status": status,
+        "message": message,
+        "scene": scene_obj.name,
+        "surfaces": surface_labels(scene_obj),
+        "mesh": None if mesh is None else str(mesh),
+        "settings": {
+            "fidelity": None if fidelity is None else str(fidelity),
+            "bodies_per_bristle": int(np.diff(sim.model.bstart).max()),
+            "dt_s": dt,
+            "max_substep_s": settings.max_substep,
+            "element": settings.element,
+            "tip_tip_sweeps": settings.tip_tip_sweeps,
+        },
+        "motion": {k: (list(v) if isinstance(v, tuple) else v) for k, v in a.items()},
+        "performance": {
+            "compile_s": compile_s,
+            "setup_s": t_setup,
+            "sim_wall_time_s": t_sim,
+            "simulated_s": sim_time,
+            "wall_per_sim_s": t_sim / sim_time if sim_time else None,
+            "real_time_factor": sim_time / t_sim if t_sim else None,
+            "wall_time_s": time.perf_counter() - t0,
+        },
+        "analysis": analysis,
+        "files": files,
+    }
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _plot_forces(path, rows, phases):
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=110)
+    t = rows[:, 0]
+    for j, lab in ((2, "Fx"), (3, "Fy"), (4, "Fz")):
+        ax.plot(t, rows[:, j], lw=0.8, label=f"TCP {lab}")
+    ax.plot(t, rows[:, 8], "k", lw=0.9, label="normal force (all tips)")
+    ax.plot(t, rows[:, 9], "m", lw=0.9, label="gum force")
+    for ts in phases[1:]:
+        ax.axvline(ts, color="0.6", lw=0.6, ls="--")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("force [N] (TCP frame)")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
