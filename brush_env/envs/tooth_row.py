@@ -18,8 +18,9 @@ Differences from FlatPlate-v0
   within ``clean_radius``.  The coverage term and ``info["coverage"]`` count the area a brush
   on the buccal side can reach (buccal, occlusal and interproximal regions);
   ``info["coverage_regions"]`` gives each region's cleaned fraction (lingual included, for
-  reference: it stays 0), ``info["coverage_teeth"]`` each tooth's.  The observation's ``coverage_map`` is the buccal view (x along the row, y up the
-  crowns) in ``coarse_map_size`` blocks.  ``patch_size`` and ``cell_size`` are not used.
+  reference: it stays 0), ``info["coverage_teeth"]`` each tooth's.  The observation's
+  ``coverage_map`` is the buccal view (x along the row, y up the crowns) in
+  ``coarse_map_size`` blocks.  ``patch_size`` and ``cell_size`` are not used.
 * **Gum force**: reward term ``gum_force = - gum_force_weight * integral of max(0, F_gum -
   gum_force_limit) dt`` with ``F_gum`` the normal force of the tips whose deepest contact is the
   gum; ``info["gum_force"]`` (last engine step), ``info["peak_gum_force"]`` (over the step).
