@@ -35,6 +35,22 @@ from .plan import resolve_scene
 TIP_WINDOW = (0.01, 0.2)
 CLEAN_RADIUS = 0.5
 
+#: units of the timeseries.csv columns
+TIMESERIES_UNITS = dict(
+    t="s",
+    phase="0 press, 1 hold, 2 strokes",
+    Fx="N (TCP frame: the force the TCP applies to the brush)",
+    Fy="N",
+    Fz="N",
+    Mx="N mm (about the TCP, TCP frame)",
+    My="N mm",
+    Mz="N mm",
+    Fn="N (total normal force on the tips)",
+    F_gum="N (normal force of the tips touching the gum)",
+    n_contact="tips in contact",
+    max_pen="mm (deepest tip penetration)",
+)
+
 DEFAULTS = dict(
     press_depth=2.0,  # [mm] past the crowns' buccal plane (3 mm: gum peak 1.4 N > its 1 N limit)
     press_time=0.5,  # [s]
@@ -182,8 +198,7 @@ def run_tooth_row(
         out_dir / "timeseries.csv",
         rows,
         delimiter=",",
-        header=",".join(cols)
-        + "  # s, phase (0 press 1 hold 2 strokes), N (TCP frame), N mm, N, N, count, mm",
+        header=",".join(cols),  # units: TIMESERIES_UNITS
         comments="",
         fmt="%.9g",
     )
@@ -253,6 +268,7 @@ def run_tooth_row(
             "tip_tip_sweeps": settings.tip_tip_sweeps,
         },
         "motion": {k: (list(v) if isinstance(v, tuple) else v) for k, v in a.items()},
+        "timeseries_units": TIMESERIES_UNITS,
         "performance": {
             "compile_s": compile_s,
             "setup_s": t_setup,
