@@ -2,6 +2,8 @@
 
     python -m agents.evaluate --policy reference --episodes 5 --out runs/eval_reference
     python -m agents.evaluate --policy random --episodes 5 --out runs/eval_random
+    python -m agents.evaluate --env brush_env/ToothRow-v0 --policy reference --episodes 20 \
+        --out runs/eval_teeth_reference
     python -m agents.evaluate --policy runs/ppo/model.zip --episodes 5 --out runs/eval_ppo --video
 
 ``--policy`` is ``reference`` (agents/reference.py), ``random`` (uniform actions) or the path of
@@ -110,6 +112,7 @@ def run_episode(
     }
     frames = [env.render()] if video else []
     terms = dict.fromkeys(REWARD_TERMS, 0.0)
+    peak_gum = 0.0
     ret, steps, above, peak_f, peak_tip = 0.0, 0, 0.0, 0.0, 0.0
     termination = None
     episode_start = np.ones(1, bool)
@@ -121,7 +124,8 @@ def run_episode(
         ret += reward
         steps += 1
         for k, v in info["reward_terms"].items():
-            terms[k] += v
+            terms[k] = terms.get(k, 0.0) + v
+        peak_gum = max(peak_gum, info.get("peak_gum_force", 0.0))
         above += info["time_above_force_limit"]
         peak_f = max(peak_f, info["peak_normal_force"])
         peak_tip = max(peak_tip, info["peak_tip_force"])
@@ -146,6 +150,9 @@ def run_episode(
         "hard_limit_hit": bool(peak_f > cfg.hard_force_limit),
     }
     metrics.update({f"reward_{k}": v for k, v in terms.items()})
+    if "coverage_regions" in info:  # ToothRow-v0: per-region coverage and the gum's peak force
+        metrics["peak_gum_force"] = peak_gum
+        metrics.update({f"coverage_{k}": v for k, v in info["coverage_regions"].items()})
     return metrics, series, frames
 
 
@@ -160,6 +167,9 @@ def _table(rows: list[dict]) -> str:
         "peak_normal_force",
         "peak_tip_force",
     ] + [f"reward_{k}" for k in REWARD_TERMS]
+    cols += [k for k in rows[0] if k not in cols and k != "reward_gum_force"]
+    if "reward_gum_force" in rows[0]:
+        cols.insert(cols.index("reward_termination"), "reward_gum_force")
     head = "| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n"
 
     def fmt(v):
@@ -227,10 +237,11 @@ def evaluate(
     *,
     seed: int = 0,
     video: bool = False,
-    config: str = "flat_plate",
+    config: str | None = None,
     env_kwargs: dict | None = None,
     deterministic: bool = True,
     quiet: bool = False,
+    env_id: str = ENV_ID,
 ) -> dict:
     """Run ``episodes`` episodes of ``policy`` and write the outputs (module docstring)."""
     if episodes < 1:
@@ -243,7 +254,13 @@ def evaluate(
         trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))
         config = trained.pop("config", config)
         env_kwargs = {**trained, **env_kwargs}
-    env = gym.make(ENV_ID, config=config, render_mode="rgb_array" if video else None, **env_kwargs)
+    if env_id not in brush_env.ENV_IDS:
+        raise ConfigError(
+            f"--env {env_id!r} is not registered: allowed {sorted(brush_env.ENV_IDS)}"
+        )
+    if config is not None:
+        env_kwargs["config"] = config
+    env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs)
     pol, transform = load_policy(policy, env, seed=seed)
     out.mkdir(parents=True, exist_ok=True)  # only now: every input is valid
     rows, all_series = [], []
@@ -271,6 +288,7 @@ def evaluate(
         "policy": policy,
         "episodes": episodes,
         "seed": seed,
+        "env_id": env_id,
         "config": config,
         "env_kwargs": env_kwargs,
         "env_settings": _jsonable(cfg.__dict__),
@@ -309,7 +327,12 @@ def build_parser() -> OneLineParser:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")
     add_flag(p, "--video", "write episode_000.gif")
-    p.add_argument("--config", default="flat_plate", help="env config name or TOML path")
+    p.add_argument(
+        "--env", default=ENV_ID, help=f"registered env id (default {ENV_ID}; brush_env/ToothRow-v0)"
+    )
+    p.add_argument(
+        "--config", default=None, help="env config name or TOML path (default: the env's own)"
+    )
     add_env_kw(p, 'e.g. brush="tiny_env"')
     add_flag(p, "--stochastic", "sample SB3 policy actions")
     return p
@@ -326,6 +349,7 @@ def _main(argv) -> int:
         config=args.config,
         env_kwargs=parse_env_kw(args.env_kw),
         deterministic=not args.stochastic,
+        env_id=args.env,
     )
     return 0
 

@@ -272,9 +272,11 @@ def closest_feature(p0, p1, p2, a, b, c):
 
 
 @njit(cache=True)
-def _splat(V, T, fn, en, vn, lo, h, band, dist, nrm, known):
+def _splat(V, T, pseudo, lo, h, band, dist, nrm, known):
     """Exact distance and sign at every node within ``band`` of a triangle (node-by-triangle
-    minimum); sign and normal from the closest feature's pseudonormal."""
+    minimum); sign and normal from the closest feature's pseudonormal (``pseudo`` = (face, edge,
+    vertex) pseudonormals)."""
+    fn, en, vn = pseudo
     i0 = np.empty(3, np.int64)
     i1 = np.empty(3, np.int64)
     for t in range(T.shape[0]):
@@ -359,7 +361,7 @@ def bake_mesh(vertices, triangles, cell: float = 0.2, band: float = 1.0) -> SdfG
     dist = np.full(tuple(dims), np.inf)
     nrm = np.zeros((*dims, 3))
     known = np.zeros(tuple(dims), bool)
-    _splat(V, T, fn, en, vn, lo, float(cell), float(band), dist, nrm, known)
+    _splat(V, T, (fn, en, vn), lo, float(cell), float(band), dist, nrm, known)
     # nodes beyond the band: outside if connected to the grid's border without crossing the band
     labels, _ = ndimage.label(~known)
     border = np.unique(

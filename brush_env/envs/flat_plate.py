@@ -131,6 +131,8 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | total_force_weight | 25.0 | 1/(N s) | total force penalty rate |
 | tip_force_limit | 0.2 | N | safe per-tip force |
 | tip_force_weight | 125.0 | 1/(N s) | per-tip force penalty rate |
+| gum_force_limit | 1.0 | N | safe gum force (ToothRow-v0; no gum here) |
+| gum_force_weight | 100.0 | 1/(N s) | gum force penalty rate (ToothRow-v0) |
 | termination_penalty | 10.0 | - | one-off penalty on termination |
 | max_episode_steps | 300 | steps | time limit (gym.make's value wins) |
 | hard_force_limit | 15.0 | N | total normal force that terminates |

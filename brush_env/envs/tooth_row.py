@@ -108,7 +108,7 @@ class ToothRowEnv(BrushEnv):
         return info
 
     def _frame(self) -> np.ndarray:
-        from brush_env.experiments.tooth_plots import render_tooth_row
+        from brush_env.viz.tooth_row import render_tooth_row
 
         from .rendering import FrameWindow
 

@@ -237,7 +237,7 @@ def run_tooth_row(
         _plot_forces(out_dir / "forces_vs_time.png", rows, phases)
         files.append("forces_vs_time.png")
         if cov is not None:
-            from .tooth_plots import render_tooth_row
+            from ..viz.tooth_row import render_tooth_row
 
             m = sim.model
             pos = sim.state.pos

@@ -84,6 +84,10 @@ def test_config_file_defaults_equal_dataclass_defaults_and_registration():
         assert (tuple(v) if isinstance(v, list) else v) == FIELDS[k].default, k
     steps = {eid: s for eid, (_, s) in brush_env.ENV_IDS.items()}
     assert steps["brush_env/FlatPlate-v0"] == flat["max_episode_steps"]
+    teeth = tomllib.loads((configs_dir() / "envs" / "tooth_row.toml").read_text())
+    teeth = {k: v for sec in teeth.values() for k, v in sec.items()}
+    assert set(teeth) == set(FIELDS)
+    assert steps["brush_env/ToothRow-v0"] == teeth["max_episode_steps"]
 
 
 def test_docs_env_md_lists_every_block_setting_and_term():
