@@ -2,7 +2,8 @@
 
 Left: a 3-D view of the crowns, each triangle above the CEJ coloured by whether its coverage
 sample is cleaned (green) or not (grey), the bristles as poly-lines (red where the tip carries
-load).  Right: the buccal view of the coverage samples (x along the row, y up the crowns).
+load).  Right: the buccal surfaces seen from the brush (x along the row, y up the crowns), and the cleaned
+share of every region.
 """
 
 from __future__ import annotations
@@ -42,17 +43,19 @@ def render_tooth_row(teeth, coverage, chains, tip_force, height: int = 256, titl
     for c, fi in zip(chains, f):
         ax.plot(c[:, 0], c[:, 1], c[:, 2], color="tab:red" if fi > 0 else "tab:blue", lw=0.6)
     lo, hi = coverage.extent
-    ax.set_xlim(lo[0] - 2, hi[0] + 2)
-    ax.set_ylim(lo[1] - 4, hi[1] + 2)
-    ax.set_zlim(-14, 14)
-    ax.view_init(elev=25, azim=-65)
+    box = ((lo[0] - 2, hi[0] + 2), (lo[1] - 4, hi[1] + 2), (-12.0, 12.0))
+    ax.set_xlim(*box[0])
+    ax.set_ylim(*box[1])
+    ax.set_zlim(*box[2])
+    ax.set_box_aspect([b[1] - b[0] for b in box])  # equal scales: the bristles' real length
+    ax.view_init(elev=20, azim=-75)
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_zlabel("z [mm]")
     ax.tick_params(labelsize=6)
     ax2 = fig.add_subplot(1, 2, 2)
     pts = coverage.points
-    vis = coverage.reach
+    vis = coverage.region == 0  # the buccal surfaces, seen from the brush (+z)
     ax2.scatter(
         pts[vis, 0],
         pts[vis, 1],
@@ -67,7 +70,11 @@ def render_tooth_row(teeth, coverage, chains, tip_force, height: int = 256, titl
     ax2.set_xlabel("x [mm] (along the row)", fontsize=7)
     ax2.set_ylabel("y [mm] (CEJ = 0)", fontsize=7)
     ax2.tick_params(labelsize=6)
-    ax2.set_title(title, fontsize=7)
+    reg = coverage.by_region()
+    ax2.set_title(
+        title + "\nbuccal view; " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in reg.items()),
+        fontsize=7,
+    )
     fig.tight_layout()
     fig.canvas.draw()
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
