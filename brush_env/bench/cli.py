@@ -16,7 +16,19 @@ from __future__ import annotations
 import argparse
 
 from ..user_errors import add_flag
-from . import branch, compile, contact, convergence, element, engine, env, fidelity, press, teeth
+from . import (
+    branch,
+    compile,
+    contact,
+    convergence,
+    element,
+    engine,
+    env,
+    fidelity,
+    planar,
+    press,
+    teeth,
+)
 
 #: name -> (run function, its options (None: the common ones), one-line help)
 TARGETS = {
@@ -77,6 +89,12 @@ TARGETS = {
         teeth.add_arguments,
         "tooth row against the plate (same press-and-scrub motion and fidelity: speed ratio) "
         "and the crowns' SDF grids against the exact mesh query (error, normals)",
+    ),
+    "planar": (
+        planar.bench_planar,
+        planar.add_arguments,
+        "pymunk planar bristle row against the 3-D engine on the same stroke: force and tip "
+        "errors per phase, speed, pymunk's largest stable step, overlay plot",
     ),
     "compile": (
         compile.bench_compile,

@@ -2,8 +2,8 @@
 
 Left: a 3-D view of the crowns, each triangle above the CEJ coloured by whether its coverage
 sample is cleaned (green) or not (grey), the bristles as poly-lines (red where the tip carries
-load).  Right: the buccal surfaces seen from the brush (x along the row, y up the crowns), and the cleaned
-share of every region.
+load).  Right: the buccal surfaces seen from the brush (x along the row, y up the crowns), and
+the cleaned share of every region.
 """
 
 from __future__ import annotations
