@@ -156,6 +156,15 @@ def check_hyperparameters(algo: str, hyper: dict, source: str) -> None:
             )
 
 
+def _is_brush_env(env_id: str) -> bool:
+    """True for the ids whose env is a BrushEnv (FlatPlate-v0, ToothRow-v0: env config files and
+    a reference policy); False for the others (PlanarStroke-v0)."""
+    import brush_env
+
+    entry = brush_env.ENV_IDS.get(env_id.split(":")[-1], ("",))[0]
+    return entry.startswith(("brush_env.envs.flat_plate", "brush_env.envs.tooth_row"))
+
+
 def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dict | None) -> dict:
     """Validate everything the run needs in this process (nothing written, no worker started);
     returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train."""
@@ -169,18 +178,27 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dic
     if cfg["algo"] != algo:
         raise ConfigError(f"--algo {algo!r} does not match algo = {cfg['algo']!r} in {config}")
     envc = cfg.get("env", {})
-    kwargs = {
-        "config": envc.get("config", "flat_plate"),
-        **envc.get("kwargs", {}),
-        **(env_kwargs or {}),
-    }
-    env_settings = {k: v for k, v in kwargs.items() if k not in ("config", "render_mode")}
-    load_env_config(kwargs["config"], **env_settings)  # names a bad env key or value here
+    env_id = envc.get("id", "brush_env:brush_env/FlatPlate-v0")
+    if _is_brush_env(env_id):
+        kwargs = {
+            "config": envc.get("config", "flat_plate"),
+            **envc.get("kwargs", {}),
+            **(env_kwargs or {}),
+        }
+        env_settings = {k: v for k, v in kwargs.items() if k not in ("config", "render_mode")}
+        load_env_config(kwargs["config"], **env_settings)  # names a bad env key or value here
+    else:  # e.g. PlanarStroke-v0: its keywords are checked when it is made, before training
+        if "config" in envc:
+            raise ConfigError(f"{config}: [env] config is only for BrushEnv ids, not {env_id!r}")
+        kwargs = {**envc.get("kwargs", {}), **(env_kwargs or {})}
+        import gymnasium as gym
+
+        gym.make(env_id.split(":")[-1] if ":" in env_id else env_id, **kwargs).close()
     hyper = dict(cfg.get("hyperparameters", {}))
     check_hyperparameters(algo, hyper, str(config))
     return {
         "cfg": cfg,
-        "env_id": envc.get("id", "brush_env:brush_env/FlatPlate-v0"),
+        "env_id": env_id,
         "kwargs": kwargs,
         "hyper": hyper,
         "norm": cfg.get("normalize", {}),
@@ -273,7 +291,7 @@ def _eval_and_checkpoint(algo, tr: dict, n_envs: int, eval_env, out: Path, ref_m
         log_path=str(out / "eval"),
         deterministic=True,
         verbose=0,
-        callback_after_eval=_reference_gap_callback(ref_mean),
+        callback_after_eval=None if ref_mean is None else _reference_gap_callback(ref_mean),
     )
     ckpt_cb = CheckpointCallback(
         save_freq=max(tr.get("checkpoint_freq", 50_000) // n_envs, 1),
@@ -312,12 +330,16 @@ def train(
     say = _say if progress else (lambda msg: None)
     say(f"[1/4] starting {n_envs} env(s) of {run['env_id']} (numba kernels load or compile)")
     venv, eval_env = _make_envs(run, n_envs, seed)
-    say(
-        f"[2/4] evaluating the reference policy on {n_eval} episode(s) (its return is the "
-        "baseline logged beside every evaluation)"
-    )
-    ref_mean = _evaluate_reference(run, seed, n_eval, out)
-    say(f"      reference mean return {ref_mean:.2f}")
+    if _is_brush_env(run["env_id"]):
+        say(
+            f"[2/4] evaluating the reference policy on {n_eval} episode(s) (its return is the "
+            "baseline logged beside every evaluation)"
+        )
+        ref_mean = _evaluate_reference(run, seed, n_eval, out)
+        say(f"      reference mean return {ref_mean:.2f}")
+    else:
+        ref_mean = None
+        say(f"[2/4] {run['env_id']} has no reference policy: evaluations are logged alone")
     model, policy = _make_model(algo, run, venv, seed, out, verbose)
     normalize = isinstance(venv, VecNormalize)
     eval_cb, ckpt_cb = _eval_and_checkpoint(algo, tr, n_envs, eval_env, out, ref_mean, normalize)

@@ -22,6 +22,7 @@ __version__ = "0.1.0"
 ENV_IDS = {
     "brush_env/FlatPlate-v0": ("brush_env.envs.flat_plate:BrushEnv", 300),
     "brush_env/ToothRow-v0": ("brush_env.envs.tooth_row:ToothRowEnv", 300),
+    "brush_env/PlanarStroke-v0": ("brush_env.envs.planar_stroke:PlanarStrokeEnv", 200),
 }
 
 #: The wrapper ``gym.make`` adds outside the TimeLimit of every registered id.

@@ -244,11 +244,13 @@ class PlanarBrush:
         for chain in self.chains:
             self.space.reindex_shapes_for_body(chain[-1])
 
-    def step(self, x: float, z: float) -> None:
-        """Drive the head to (x, z) [mm] over one step ``settings.dt`` (constant velocity)."""
+    def step(self, x: float, z: float, angle: float | None = None) -> None:
+        """Drive the head to (x, z) [mm] and, if given, ``angle`` [rad] (counter-clockwise in the
+        plane) over one step ``settings.dt`` (constant velocity)."""
         dt = self.settings.dt
         p = np.asarray(self.head.position)
         self.head.velocity = tuple((np.array([x, z]) - p) / dt)
+        self.head.angular_velocity = 0.0 if angle is None else (angle - self.head.angle) / dt
         self.space.step(dt)
         self.time += dt
         if not np.all(np.isfinite(self.tip_positions())):
@@ -261,6 +263,19 @@ class PlanarBrush:
     def tip_positions(self) -> np.ndarray:
         """(nb, 2) tip-circle centres (x, z) [mm]."""
         return np.array([tip.body.local_to_world(tip.offset) for tip in self.tips])
+
+    def root_force(self) -> np.ndarray:
+        """(Fx, Fz) [N] and moment [N mm] (about the head, counter-clockwise) the head applies to
+        the bristles, quasi-statically: minus the contact forces and the bristles' real weight
+        (pymunk reports only the magnitudes of joint impulses; the scaled inertia is left out)."""
+        F = -self.contact_forces().sum(axis=0)
+        if self.settings.gravity:
+            m = sum(b.mass for chain in self.chains for b in chain) / self.settings.mass_scale
+            F = F + np.array([0.0, 9810.0 * m])
+        tips = self.tip_positions() - np.asarray(self.head.position)
+        cf = self.contact_forces()
+        M = -float(np.sum(tips[:, 0] * cf[:, 1] - tips[:, 1] * cf[:, 0]))
+        return np.array([F[0], F[1], M])
 
     def contact_forces(self) -> np.ndarray:
         """(nb, 2) force [N] the surface exerts on each tip over the last step (x, z): the
