@@ -32,6 +32,15 @@ SUBCOMMANDS = {
         "brush_env.bench.cli",
         "speed-versus-error benchmarks (engine, contact, env), first-start compile",
     ),
+    "sweep": (
+        "brush_env.sweeps.cli",
+        "design sweep: vary brush/material/scene/motion keys, run the experiment per variant "
+        "(local pool or Ray), one results table",
+    ),
+    "sweep-report": (
+        "brush_env.sweeps.report_cli",
+        "effects and sensitivity ranking of a sweep (DIR/report.md with figures)",
+    ),
     "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
 }
 
@@ -76,7 +85,11 @@ def build_parser(command: str | None = None) -> tuple[OneLineParser, dict]:
 
 def _main(argv) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
-    if command in ("reference", "bench", "validate") and "-h" not in argv and "--help" not in argv:
+    if (
+        command in ("reference", "bench", "validate", "sweep")
+        and "-h" not in argv
+        and "--help" not in argv
+    ):
         announce()  # before the heavy imports: a first start compiles for about a minute
     parser, modules = build_parser(command if command in SUBCOMMANDS else "")
     args = parser.parse_args(argv)

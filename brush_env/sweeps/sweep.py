@@ -1,0 +1,120 @@
+"""``brush-env sweep SPEC --out DIR``: check the spec, prepare every run, skip the finished ones,
+run the rest on the chosen executor, keep one table (issue 16).
+
+The table is ``DIR/results.csv``: one row per run (id, motion, status, the varied parameters in
+their units, the metrics, run time, error).  CSV, not Parquet:
+
+* The table holds a few hundred rows of numbers. CSV opens in every tool a designer has
+  (spreadsheet, pandas, R) and diffs in git.
+* It needs no 30-MB dependency (pyarrow).
+* Floats are written with ``repr``, so nothing is lost.
+
+The table is rewritten after every finished run: an interrupted sweep resumes from what it holds,
+and ``done`` skips the runs whose ``summary.json`` or ``error.json`` exists.  ``DIR/spec.toml``
+is a copy of the spec; ``DIR/sweep.json`` holds the run list, the executor and the wall time.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import time
+from pathlib import Path
+
+from .executors import run_local, run_ray
+from .run import done, load_result, prepare
+from .spec import METRICS, load_spec
+
+
+def run_sweep(
+    spec_path,
+    out,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: bool = True,
+    limit: int | None = None,
+) -> dict:
+    """Run (or resume) a sweep; returns {runs, done_before, ran, failed, wall_s, table}.
+    ``limit``: stop after that many new runs (to test resuming)."""
+    spec = load_spec(spec_path)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [prepare(spec, r, out) for r in spec.runs()]  # every variant loads before any run
+    shutil.copyfile(spec.path, out / "spec.toml")
+    results = {j["id"]: load_result(j) for j in jobs if done(j)}
+    todo = [j for j in jobs if not done(j)]
+    if limit is not None:
+        todo = todo[:limit]
+    before = len(results)
+    t0 = time.perf_counter()
+
+    def on_result(r):
+        results[r["id"]] = r
+        write_table(out / "results.csv", spec, jobs, results)
+
+    if ray_address:
+        run_ray(todo, ray_address, on_result, progress)
+    else:
+        run_local(todo, workers, on_result, progress)
+    wall = time.perf_counter() - t0
+    write_table(out / "results.csv", spec, jobs, results)
+    info = dict(
+        spec=str(spec.path),
+        runs=len(jobs),
+        done_before=before,
+        ran=len(todo),
+        failed=sum(1 for r in results.values() if r.get("status") != "ok"),
+        executor=f"ray {ray_address}" if ray_address else f"local x {workers or 'all cores'}",
+        wall_s=wall,
+        table=str(out / "results.csv"),
+    )
+    (out / "sweep.json").write_text(json.dumps(info, indent=1))
+    return info
+
+
+def write_table(path: Path, spec, jobs: list, results: dict) -> None:
+    keys = [p.key for p in spec.params]
+    cols = ["id", "motion", "status", *keys, *spec.metrics]
+    if "run_time_s" not in cols:
+        cols.append("run_time_s")
+    cols.append("error")
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        w.writerow(
+            ["# unit", "", "", *[p.unit for p in spec.params],
+             *[METRICS[m][0] for m in cols[3 + len(keys) : -1]], ""]
+        )  # fmt: skip
+        for j in jobs:
+            r = results.get(j["id"])
+            if r is None:
+                continue
+            m = r.get("metrics") or {}
+            row = [j["id"], j["motion"], r.get("status")]
+            row += [repr(float(j["params"][k])) for k in keys]
+            for c in cols[3 + len(keys) : -1]:
+                v = r.get("run_time_s") if c == "run_time_s" else m.get(c)
+                row.append("" if v is None else repr(float(v)))
+            row.append(r.get("error", ""))
+            w.writerow(row)
+    tmp.replace(path)
+
+
+def read_table(path) -> tuple[list[str], list[str], list[dict]]:
+    """(columns, units, rows) of a results.csv (numbers as floats, blanks as None)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    cols, units = rows[0], rows[1]
+    out = []
+    for r in rows[2:]:
+        d = {}
+        for c, v in zip(cols, r, strict=True):
+            if c in ("id", "motion", "status", "error"):
+                d[c] = v
+            else:
+                d[c] = float(v) if v != "" else None
+        out.append(d)
+    return cols, units, out
