@@ -62,10 +62,14 @@ def sweep_report(out) -> Path:
     if failed:
         lines += ["Failed runs:", ""] + [f"* `{r['id']}`: {r['error']}" for r in failed] + [""]
     for p in params:
+        ncol = min(4, len(metrics))
+        nrow = -(-len(metrics) // ncol)
         fig, axs = plt.subplots(
-            1, len(metrics), figsize=(2.6 * len(metrics), 2.6), dpi=100, squeeze=False
+            nrow, ncol, figsize=(2.8 * ncol, 2.4 * nrow), dpi=100, squeeze=False
         )
-        for ax, m in zip(axs[0], metrics, strict=True):
+        for ax in axs.ravel()[len(metrics) :]:
+            ax.set_visible(False)
+        for ax, m in zip(axs.ravel(), metrics, strict=False):
             for mot in motions:
                 pts = [(r[p], r[m]) for r in ok if r["motion"] == mot and r[m] is not None]
                 if pts:
@@ -75,6 +79,7 @@ def sweep_report(out) -> Path:
             ax.set_title(f"{m} [{METRICS[m][0]}]", fontsize=7)
             ax.tick_params(labelsize=6)
         axs[0, 0].legend(fontsize=6)
+        fig.suptitle(f"effect of {p} [{key_unit(p)}]", fontsize=8)
         fig.tight_layout()
         name = f"effect_{p.replace('.', '_').replace('*', 'all')}.png"
         fig.savefig(out / name)

@@ -183,7 +183,9 @@ def metrics(summary: dict, exp_dir: Path) -> dict:
     out["mean_Fn_N"] = a.get("mean_Fn_total_N")
     out["max_penetration_mm"] = a.get("max_penetration_whole_run_mm")
     jam = (a.get("jamming") or {}).get("events", {})
-    for i, (_, ev) in enumerate(sorted(jam.items())[:2], start=1):
+    # jam1: the event the paper puts at 9pi/4 (45 deg mod 360), jam2: 13pi/4 (225 deg)
+    events = sorted(jam.values(), key=lambda ev: ev.get("paper_angle_mod_2pi_rad", 0.0))
+    for i, ev in enumerate(events[:2], start=1):
         if ev.get("count"):
             out[f"jam{i}_angle_deg"] = ev.get("mean_angle_mod_2pi_deg")
             out[f"jam{i}_peak_N"] = ev.get("mean_Fh_N")
