@@ -39,6 +39,18 @@ from .observation import ObservationLayout
 __all__ = ["CircleReference", "ScrubReference"]
 
 
+def _check_positive(**values) -> None:
+    for name, val in values.items():
+        if not (math.isfinite(val) and val > 0):
+            raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
+
+
+def _check_nonnegative(**values) -> None:
+    for name, val in values.items():
+        if not (math.isfinite(val) and val >= 0):
+            raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
+
+
 class CircleReference:
     """Plans and tracks the press-then-circle motion for one episode at a time.
 
@@ -67,19 +79,11 @@ class CircleReference:
         kp: float = 5.0,
         kr: float = 5.0,
     ):
-        for name, val in (
-            ("radius", radius),
-            ("speed", speed),
-            ("accel", accel),
-            ("approach_time", approach_time),
-            ("press_time", press_time),
-            ("dt", dt),
-        ):
-            if not (math.isfinite(val) and val > 0):
-                raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
-        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp), ("kr", kr)):
-            if not (math.isfinite(val) and val >= 0):
-                raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
+        _check_positive(
+            radius=radius, speed=speed, accel=accel, approach_time=approach_time,
+            press_time=press_time, dt=dt,
+        )  # fmt: skip
+        _check_nonnegative(press_depth=press_depth, hover=hover, kp=kp, kr=kr)
         if speed > 0.8 * float(min(action_type.v_max[:2])):
             raise ValueError(
                 f"speed = {speed!r} mm/s is out of range: must be <= 80 % of the "
@@ -188,17 +192,8 @@ class ScrubReference(CircleReference):
         kp: float = 5.0,
         kr: float = 5.0,
     ):
-        for name, val in (
-            ("speed", speed),
-            ("approach_time", approach_time),
-            ("press_time", press_time),
-            ("dt", dt),
-        ):
-            if not (math.isfinite(val) and val > 0):
-                raise ValueError(f"{name} = {val!r} is out of range: must be > 0")
-        for name, val in (("press_depth", press_depth), ("hover", hover), ("kp", kp), ("kr", kr)):
-            if not (math.isfinite(val) and val >= 0):
-                raise ValueError(f"{name} = {val!r} is out of range: must be >= 0")
+        _check_positive(speed=speed, approach_time=approach_time, press_time=press_time, dt=dt)
+        _check_nonnegative(press_depth=press_depth, hover=hover, kp=kp, kr=kr)
         if not (len(x_range) == 2 and x_range[1] > x_range[0]):
             raise ValueError(f"x_range = {x_range!r}: must be [x_min, x_max] with x_min < x_max")
         if not y_levels:
