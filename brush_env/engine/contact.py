@@ -51,8 +51,7 @@ S_FTT = 21  # tip-tip normal force magnitude (sum) [N]
 S_BETA = 22  # beta of the step start (committed), see tip_load
 S_BNEW = 23  # beta at the slip speed of the last evaluation
 S_SURF = 24  # index of the deepest surface the tip touched at the last evaluation (-1: none)
-S_FSURF = 25  # the surface friction acts with in this step: S_SURF of the step start (committed)
-N_TIP_STATE = 26
+N_TIP_STATE = 25
 
 # --- contact parameter vector cp (per scene: scene.ContactParams.as_array(), Tables 2-3)
 C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
@@ -305,9 +304,11 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
 
     One surface (the plate): its contact.  Several surfaces (``_several_surfaces``): the normal
     force of every touched surface whose contact point is not inside another one (a tip in the
-    gap between two crowns feels both walls; the gum inside a crown is hidden), and friction with
-    one of them: the surface the tip touched deepest at the step start while it still touches,
-    else the deepest now -- so the friction surface does not switch between Newton iterates."""
+    gap between two crowns feels both walls; the gum inside a crown is hidden), and friction
+    against their resultant: ``|sum_s Fn_s n_s|`` in the plane normal to it.  The resultant is
+    continuous as a contact comes, goes or stops being the deepest; friction against the deepest
+    surface alone flipped its plane between Newton iterates where two surfaces were equally
+    deep, and Newton failed even at dt/256."""
     surf = con.surf
     cp = con.cp
     vt = tw.vt
@@ -348,14 +349,13 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
 def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
     inside another surface is hidden in their union); adds them to F, Kt, stores the total in
-    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the friction surface's normal and contact
-    point in tw.nrm, tw.cpt and returns its (Fn, normal tangent kk); Fn = 0: no friction."""
+    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the resultant's direction in tw.nrm for
+    friction and returns its magnitude and the summed normal tangent; (0, 0): no friction."""
     surf = con.surf
     cp = con.cp
     vt = tw.vt
     nrm = tw.pnrm
     cpt = tw.pcpt
-    fsurf = int(state[S_FSURF])
     best = FAR
     ibest = -1
     for s in range(surf.shape[0]):
@@ -365,9 +365,10 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
             ibest = s
     if ibest < 0 or best >= R:
         return 0.0, 0.0
-    ffric = -1  # the friction surface: the step start's while it touches, else the deepest
     total = 0.0
-    f_fric = 0.0
+    r0 = 0.0  # resultant normal force sum_s Fn_s n_s: friction acts in the plane normal to it
+    r1 = 0.0
+    r2 = 0.0
     k_fric = 0.0
     for s in range(surf.shape[0]):
         gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
@@ -396,15 +397,18 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
             for bb in range(3):
                 Kt[a, bb] -= kk * nrm[a] * nrm[bb]
         total += Fn
-        if s == fsurf or (s == ibest and ffric != fsurf):
-            ffric = s
-            f_fric = Fn
-            k_fric = kk
-            for a in range(3):
-                tw.nrm[a] = nrm[a]
-                tw.cpt[a] = cpt[a]
+        r0 += Fn * nrm[0]
+        r1 += Fn * nrm[1]
+        r2 += Fn * nrm[2]
+        k_fric += kk
     state[S_FN] = total
-    return f_fric, k_fric
+    f_res = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if f_res <= 0.0:
+        return 0.0, 0.0
+    tw.nrm[0], tw.nrm[1], tw.nrm[2] = r0 / f_res, r1 / f_res, r2 / f_res
+    # friction's tangent in Fn: the sum of the normal stiffnesses (exact for one surface, an
+    # approximation of d|sum F n| / dp for several, which only affects Newton's rate)
+    return f_res, k_fric
 
 
 @njit(**HOT, inline="always")

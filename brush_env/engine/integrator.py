@@ -43,10 +43,8 @@ from .contact import (
     S_BNEW,
     S_DELTA,
     S_DNEW,
-    S_FSURF,
     S_HIST,
     S_PN,
-    S_SURF,
     in_contact,
     penetration_step_limit,
     slip_step_limit,
@@ -872,7 +870,6 @@ def _commit(br, chain, sub, con, ws):
     for a in range(3):
         tip_state[S_DELTA + a] = tip_state[S_DNEW + a]
     tip_state[S_BETA] = tip_state[S_BNEW]
-    tip_state[S_FSURF] = tip_state[S_SURF]  # friction's surface for the next step
     pos, rot = chain.pos, chain.rot
     for k in range(br.n):
         i = br.b0 + k

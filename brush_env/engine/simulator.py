@@ -719,7 +719,6 @@ def _fresh_tip_state(nb: int) -> np.ndarray:
     """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
     ts = np.zeros((nb, N_TIP_STATE))
     ts[:, ct.S_SURF] = -1.0
-    ts[:, ct.S_FSURF] = -1.0
     return ts
 
 
