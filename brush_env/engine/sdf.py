@@ -11,8 +11,10 @@ where ``d < R`` (penetration ``R - d``).  Each surface kind supplies those three
   the kernel takes the deepest contact (the smallest distance), which is the union's SDF wherever
   the tip touches one surface at a time.
 * a closed triangle mesh, baked once into a grid of node distances and normals (``bake_mesh``)
-  and queried by trilinear interpolation (``grid_gap``).  Nodes farther than ``band`` from the
-  mesh are clamped to +-band (a narrow band: contact only needs the surface's neighbourhood).
+  and queried by trilinear interpolation (``grid_gap``).  Outside nodes farther than ``band``
+  from the mesh are clamped to +band (a narrow band: contact only needs the surface's
+  neighbourhood); inside nodes beyond the band get -(band + their distance to the band) and its
+  gradient as normal, so a tip that lands deep inside (a snap-through step) is still pushed out.
   Distance at the nodes is exact (closest triangle), its sign from the angle-weighted
   pseudonormal of the closest feature (Baerentzen & Aanaes, IEEE TVCG 11(3), 2005), which is
   correct for any closed, consistently oriented mesh.  Interpolation error: trilinear weights
@@ -39,7 +41,7 @@ from numba import njit
 
 from ._kernels import HOT
 
-BAKE_VERSION = 1  # bump when the baking changes: cached grids of older versions are not used
+BAKE_VERSION = 2  # bump when the baking changes: cached grids of older versions are not used
 FAR = 1e300  # "no surface near": larger than any tip radius
 
 
@@ -375,6 +377,15 @@ def bake_mesh(vertices, triangles, cell: float = 0.2, band: float = 1.0) -> SdfG
     )
     outside = np.isin(labels, border[border > 0])
     dist[~known] = np.where(outside[~known], band, -band)
+    # inside beyond the band: -(band + distance to the band) with the gradient as normal, so a
+    # tip that lands deep inside (a snap-through predictor step) is pushed out, not lost
+    deep = ~known & ~outside
+    if deep.any():
+        dist[deep] = -band - cell * ndimage.distance_transform_edt(deep)[deep]
+        g = np.stack(np.gradient(dist, cell), axis=-1)
+        gn = np.linalg.norm(g, axis=-1)
+        ok = deep & (gn > 1e-12)
+        nrm[ok] = g[ok] / gn[ok][:, None]
     return SdfGrid(tuple(float(x) for x in lo), float(cell), float(band), dist, nrm)
 
 

@@ -105,6 +105,19 @@ class CircleReference:
     def rotates(self) -> bool:
         return self.action_type.dim == 6
 
+    def _approach(self, p0, R0, P0, R_goal) -> Approach:
+        """Quintic approach from the start pose to (P0, R_goal): at least ``approach_time``, and
+        long enough that its peak speed (1.875 x the mean) stays under 80 % of the action
+        limits."""
+        d = np.abs(P0 - p0)
+        rot = np.abs(logmap(R_goal @ R0.T))
+        t_app = max(
+            self.approach_time,
+            float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
+            float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates else 0.0,
+        )
+        return Approach((p0, R0), (P0, R_goal), t_app)
+
     def plan(self, p0: np.ndarray, R0: np.ndarray) -> None:
         """Build the trajectory from the start pose (base frame) and sample it on the step grid."""
         R_goal = R_START if self.rotates else R0
@@ -116,14 +129,8 @@ class CircleReference:
                 self.z_touch + self.hover,
             ]
         )
-        d = np.abs(P0 - p0)
-        rot = np.abs(logmap(R_goal @ R0.T))
-        t_app = max(
-            self.approach_time,
-            float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
-            float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates else 0.0,
-        )
-        approach = Approach((p0, R0), (P0, R_goal), t_app)
+        approach = self._approach(p0, R0, P0, R_goal)
+        t_app = approach.duration
         press = Press((P0, R_goal), self.hover + self.press_depth, self.press_time)
         z_c = self.z_touch - self.press_depth
         t_left = max(self.horizon * self.dt - t_app - self.press_time, 1.0)
@@ -219,15 +226,10 @@ class ScrubReference(CircleReference):
         ys = self.y_levels
         z_c = self.z_touch - self.press_depth
         P0 = np.array([x0, ys[0], self.z_touch + self.hover])
-        d = np.abs(P0 - p0)
-        rot = np.abs(logmap(R_goal @ R0.T))
-        t_app = max(
-            self.approach_time,
-            float(np.max(1.875 * d / (0.8 * self.action_type.v_max))),
-            float(np.max(1.875 * rot / (0.8 * self.action_type.w_max))) if self.rotates else 0.0,
-        )
+        approach = self._approach(p0, R0, P0, R_goal)
+        t_app = approach.duration
         segs = [
-            Approach((p0, R0), (P0, R_goal), t_app),
+            approach,
             Press((P0, R_goal), self.hover + self.press_depth, self.press_time),
         ]
         t_left = self.horizon * self.dt - t_app - self.press_time

@@ -285,3 +285,26 @@ def test_tooth_row_scene_labels_and_bad_surface_keys(tmp_path):
     f.write_text('[[surface]]\nkind = "tooth_row"\nteeth = ["X9"]\n')
     with pytest.raises(ConfigError, match=r"tooth 'X9' is unknown"):
         load_scene(f)
+
+
+def test_stroke_along_the_gum_line_where_crown_and_gum_are_equally_deep(tooth_row):
+    """A hard case: the default brush pressed 3 mm at the cervical third (TCP y = 3 mm) and
+    dragged 15 mm along the row, where tips touch a crown and the gum within 0.1 um of the same
+    depth.  Friction against one surface flipped its plane between Newton iterates there and the
+    run diverged at t = 0.66 s; against the resultant normal force it runs through, with every
+    tip within the paper's criterion scale (< 25 um) and the gum touched."""
+    sim = Simulator(tooth_row, SimSettings(dt=1e-3))
+    zt = sim.touch_height(R0, 0.0)
+    p = np.array([0.0, 3.0, zt + 0.5])
+    sim.reset(p, R0)
+    gum = len(tooth_row.surfaces) - 1
+    touched_gum = False
+    for k in range(1100):
+        q = p.copy()
+        q[2] = zt + 0.5 - min(k / 400, 1.0) * 3.5
+        q[0] = 0.03 * max(0, k - 600)
+        out = sim.step(q, R0)
+        touched_gum |= bool(np.any(out.extra["tip_surface"] == gum))
+        assert out.tip_penetration.max() < 0.025
+    assert touched_gum
+    assert np.all(np.isfinite(out.tcp_force))
