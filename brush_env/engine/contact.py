@@ -315,9 +315,16 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     nrm = tw.nrm
     cpt = tw.cpt
     if surf.shape[0] > 1:
-        Fn, kk = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
+        Fn = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
         if Fn > 0.0 and (cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0):
-            _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
+            # friction ~ |R|: its Newton coupling dF_t = (F_t / |R|) d|R|, d|R| = -g^T dpt with
+            # g = sum_s kk_s (n.n_s) n_s (tw.pcpt, from _several_surfaces), not kk n
+            _friction_load(pt, Fn, 0.0, sub, cp, state, F, Kt, tw)
+            g = tw.pcpt
+            ft = tw.ft
+            for a in range(3):
+                for bb in range(3):
+                    Kt[a, bb] -= ft[a] / Fn * g[bb]
         return
     if surf.shape[0] == 0:
         return
@@ -349,8 +356,8 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
 def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
     inside another surface is hidden in their union); adds them to F, Kt, stores the total in
-    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the resultant's direction in tw.nrm for
-    friction and returns its magnitude and the summed normal tangent; (0, 0): no friction."""
+    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the resultant's direction in tw.nrm and
+    d|R|/dpt's negative in tw.pcpt for friction and returns its magnitude |R| (0: no friction)."""
     surf = con.surf
     cp = con.cp
     vt = tw.vt
@@ -364,12 +371,12 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
             best = gap
             ibest = s
     if ibest < 0 or best >= R:
-        return 0.0, 0.0
+        return 0.0
     total = 0.0
     r0 = 0.0  # resultant normal force sum_s Fn_s n_s: friction acts in the plane normal to it
     r1 = 0.0
     r2 = 0.0
-    k_fric = 0.0
+    m00 = m01 = m02 = m11 = m12 = m22 = 0.0  # sum_s kk_s n_s n_s^T (symmetric)
     for s in range(surf.shape[0]):
         gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
         if gap >= R:
@@ -400,15 +407,24 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
         r0 += Fn * nrm[0]
         r1 += Fn * nrm[1]
         r2 += Fn * nrm[2]
-        k_fric += kk
+        m00 += kk * nrm[0] * nrm[0]
+        m01 += kk * nrm[0] * nrm[1]
+        m02 += kk * nrm[0] * nrm[2]
+        m11 += kk * nrm[1] * nrm[1]
+        m12 += kk * nrm[1] * nrm[2]
+        m22 += kk * nrm[2] * nrm[2]
     state[S_FN] = total
     f_res = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if f_res <= 0.0:
-        return 0.0, 0.0
-    tw.nrm[0], tw.nrm[1], tw.nrm[2] = r0 / f_res, r1 / f_res, r2 / f_res
-    # friction's tangent in Fn: the sum of the normal stiffnesses (exact for one surface, an
-    # approximation of d|sum F n| / dp for several, which only affects Newton's rate)
-    return f_res, k_fric
+        return 0.0
+    n0, n1, n2 = r0 / f_res, r1 / f_res, r2 / f_res
+    tw.nrm[0], tw.nrm[1], tw.nrm[2] = n0, n1, n2
+    # d|R|/dpt = -g with g = (sum_s kk_s n_s n_s^T) n (the normals' rotation left out, as for
+    # one surface): friction's Newton coupling to the normal force
+    tw.pcpt[0] = m00 * n0 + m01 * n1 + m02 * n2
+    tw.pcpt[1] = m01 * n0 + m11 * n1 + m12 * n2
+    tw.pcpt[2] = m02 * n0 + m12 * n1 + m22 * n2
+    return f_res
 
 
 @njit(**HOT, inline="always")
