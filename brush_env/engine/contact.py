@@ -365,8 +365,11 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     cpt = tw.pcpt
     best = FAR
     ibest = -1
+    touched = 0  # bit s: surface s is within R (only those are evaluated again below)
     for s in range(surf.shape[0]):
         gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
+        if gap < R and s < 63:
+            touched |= 1 << s
         if gap < best:
             best = gap
             ibest = s
@@ -378,6 +381,8 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     r2 = 0.0
     m00 = m01 = m02 = m11 = m12 = m22 = 0.0  # sum_s kk_s n_s n_s^T (symmetric)
     for s in range(surf.shape[0]):
+        if s < 63 and not (touched >> s) & 1:
+            continue
         gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
         if gap >= R:
             continue
