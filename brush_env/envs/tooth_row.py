@@ -77,7 +77,6 @@ class ToothRowEnv(BrushEnv):
 
     def _surface_height(self, scene) -> float:
         """z [mm] of the crowns' buccal plane: their highest point (0 for the procedural row)."""
-        self.scene = scene
         return float(max(s.vertices[:, 2].max() for s in self._teeth()))
 
     def _make_coverage(self):

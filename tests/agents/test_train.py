@@ -115,29 +115,10 @@ def test_shipped_agent_configs_load():
         assert load_agent_config(configs_dir() / "agents" / f"{algo}.toml")["algo"] == algo
 
 
-PLANAR_TOML = """
-algo = "ppo"
-policy = "MlpPolicy"
-[env]
-id = "brush_env:brush_env/PlanarStroke-v0"
-[env.kwargs]
-brush = "tiny_env"
-max_episode_steps = 16
-[normalize]
-obs = true
-reward = true
-[hyperparameters]
-n_steps = 64
-batch_size = 32
-n_epochs = 2
-[hyperparameters.policy_kwargs]
-net_arch = [32, 32]
-[train]
-eval_freq = 64
-eval_episodes = 1
-checkpoint_freq = 128
-seed = 0
-"""
+# the same run on PlanarStroke-v0: no env config file (only BrushEnv ids have one)
+PLANAR_TOML = PPO_TOML.replace("FlatPlate-v0", "PlanarStroke-v0").replace(
+    'config = "flat_plate"\n', ""
+)
 
 
 def test_planar_stroke_trains_with_agents_train(tmp_path):
