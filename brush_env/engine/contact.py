@@ -30,7 +30,16 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .sdf import FAR, capsule_gap, ellipsoid_gap, grid_gap, sphere_gap
+from .sdf import (
+    FAR,
+    capsule_gap,
+    ellipsoid_gap,
+    ellipsoid_rate,
+    grid_gap,
+    grid_rate,
+    round_rate,
+    sphere_gap,
+)
 
 # --- tip_args row (per bristle, float64)
 A_FEXT = 0  # 0:3 external dead force [N, world]
@@ -251,6 +260,34 @@ def _surface_gap(surf, pt, nrm, cpt, mesh, sdf):
     return rr - surf[7]
 
 
+@njit(**HOT)
+def _normal_rate(surf, pt, nrm, gap, sdf, J, gd):
+    """How the contact geometry moves with the sphere centre, after ``_surface_gap`` gave
+    (gap, nrm) at pt: gd <- d gap / d pt [-] and J <- d nrm / d pt [1/mm].
+
+    J carries the curvature term Fn dn/dpt of the contact force Fn n: a tip pressed on a crown of
+    radius r has a tangential stiffness of ~Fn / r (0.03 N/mm at 0.1 N on 3 mm), tens of times
+    the bristle's own bending stiffness at its tip, so a Newton tangent without it turns the
+    normal force against the bristle at each iterate.  Exact for the analytic kinds; the grid's
+    is the derivative of its interpolation (what the residual sees).  Plane and triangle mesh:
+    J = 0 (flat faces; a mesh's edges and vertices are left out) and gd = n."""
+    kind = surf[0]
+    for a in range(3):
+        gd[a] = nrm[a]
+        for b in range(3):
+            J[a, b] = 0.0
+    if kind == SURF_GRID:
+        grid_rate(int(surf[1]), sdf, pt, J, gd)
+    elif kind == SURF_SPHERE:
+        round_rate(surf, 0, pt, nrm, gap, J)
+    elif kind == SURF_CAPSULE:
+        round_rate(surf, 1, pt, nrm, gap, J)
+    elif kind == SURF_CYLINDER:
+        round_rate(surf, 2, pt, nrm, gap, J)
+    elif kind == SURF_ELLIPSOID:
+        ellipsoid_rate(surf, nrm, gap, J)
+
+
 @njit(**HOT, inline="always")
 def _from_partner(pt, tips, j):
     """(d, |d|): the vector from partner tip j's centre to ``pt`` [mm] and its length."""
@@ -302,7 +339,8 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     """Tip-surface contact: the penalty normal force of eq 6 and its tangent, then friction
     (eq 7-10, ``_friction_load``).
 
-    One surface (the plate): its contact.  Several surfaces (``_several_surfaces``): the normal
+    A plane or a triangle mesh alone (the plate): its contact, flat.  Several surfaces, or one
+    curved one (``_several_surfaces``, with the curvature in the tangent): the normal
     force of every touched surface whose contact point is not inside another one (a tip in the
     gap between two crowns feels both walls; the gum inside a crown is hidden), and friction
     against their resultant: ``|sum_s Fn_s n_s|`` in the plane normal to it.  The resultant is
@@ -314,11 +352,13 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     vt = tw.vt
     nrm = tw.nrm
     cpt = tw.cpt
-    if surf.shape[0] > 1:
+    if surf.shape[0] > 1 or (
+        surf.shape[0] == 1 and surf[0, 0] != SURF_PLANE and surf[0, 0] != SURF_MESH
+    ):
         Fn = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
         if Fn > 0.0 and (cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0):
             # friction ~ |R|: its Newton coupling dF_t = (F_t / |R|) d|R|, d|R| = -g^T dpt with
-            # g = sum_s kk_s (n.n_s) n_s (tw.pcpt, from _several_surfaces), not kk n
+            # g = -A^T n (tw.pcpt, from _several_surfaces), not kk n
             _friction_load(pt, Fn, 0.0, sub, cp, state, F, Kt, tw)
             g = tw.pcpt
             ft = tw.ft
@@ -379,7 +419,13 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     r0 = 0.0  # resultant normal force sum_s Fn_s n_s: friction acts in the plane normal to it
     r1 = 0.0
     r2 = 0.0
-    m00 = m01 = m02 = m11 = m12 = m22 = 0.0  # sum_s kk_s n_s n_s^T (symmetric)
+    A = tw.A  # its derivative d(sum_s Fn_s n_s)/dpt, the contacts' Newton tangent
+    J = tw.J
+    gd = tw.gd
+    for a in range(3):
+        for bb in range(3):
+            A[a, bb] = 0.0
+    rate = 0.0 if sub.static else sub.c0 * sub.inv_h
     for s in range(surf.shape[0]):
         if s < 63 and not (touched >> s) & 1:
             continue
@@ -403,32 +449,32 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
             state[S_SURF] = s
         if Fn <= 0.0:
             continue
-        kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
+        _normal_rate(surf[s], pt, nrm, gap, con.sdf, J, gd)
+        # d(Fn n) = n dFn + Fn J dpt, with dFn = -kn gd^T dpt - cn (rate n + J^T v)^T dpt
+        # (delta = R - gap, ddelta = -v.n)
+        for bb in range(3):
+            jv = J[0, bb] * vt[0] + J[1, bb] * vt[1] + J[2, bb] * vt[2]
+            dfn = -kn * gd[bb] - cn * (rate * nrm[bb] + jv)
+            for a in range(3):
+                A[a, bb] += nrm[a] * dfn + Fn * J[a, bb]
         for a in range(3):
             F[a] += Fn * nrm[a]
-            for bb in range(3):
-                Kt[a, bb] -= kk * nrm[a] * nrm[bb]
         total += Fn
         r0 += Fn * nrm[0]
         r1 += Fn * nrm[1]
         r2 += Fn * nrm[2]
-        m00 += kk * nrm[0] * nrm[0]
-        m01 += kk * nrm[0] * nrm[1]
-        m02 += kk * nrm[0] * nrm[2]
-        m11 += kk * nrm[1] * nrm[1]
-        m12 += kk * nrm[1] * nrm[2]
-        m22 += kk * nrm[2] * nrm[2]
+    for a in range(3):
+        for bb in range(3):
+            Kt[a, bb] += A[a, bb]
     state[S_FN] = total
     f_res = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if f_res <= 0.0:
         return 0.0
     n0, n1, n2 = r0 / f_res, r1 / f_res, r2 / f_res
     tw.nrm[0], tw.nrm[1], tw.nrm[2] = n0, n1, n2
-    # d|R|/dpt = -g with g = (sum_s kk_s n_s n_s^T) n (the normals' rotation left out, as for
-    # one surface): friction's Newton coupling to the normal force
-    tw.pcpt[0] = m00 * n0 + m01 * n1 + m02 * n2
-    tw.pcpt[1] = m01 * n0 + m11 * n1 + m12 * n2
-    tw.pcpt[2] = m02 * n0 + m12 * n1 + m22 * n2
+    # d|R|/dpt = n^T A = -g: friction's Newton coupling to the normal force
+    for bb in range(3):
+        tw.pcpt[bb] = -(n0 * A[0, bb] + n1 * A[1, bb] + n2 * A[2, bb])
     return f_res
 
 

@@ -86,7 +86,10 @@ ElementScratch = namedtuple(
     "ElementScratch", ["e", "out12", "base12", "pert12", "cP", "RP", "zero6", "th", "pt"]
 )
 #: scratch of the tip load (eq 6-10, Table 3) and the penetration limit
-TipScratch = namedtuple("TipScratch", ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt"])
+#: J (3, 3): a surface's dn/dpt [1/mm]; A (3, 3): d(sum_s Fn_s n_s)/dpt [N/mm]; gd: grad of gap
+TipScratch = namedtuple(
+    "TipScratch", ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A"]
+)
 #: scratch of the tip block of the Newton matrix (3x3 products)
 BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFSr"])
 #: scratch of the predictors and the chain update
@@ -209,7 +212,7 @@ def make_work(
     )
     base = Base(v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3))
     el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(6), v(3), v(3))
-    tipw = TipScratch(*(v(3) for _ in TipScratch._fields))
+    tipw = TipScratch(*(v(3, 3) if f in ("J", "A") else v(3) for f in TipScratch._fields))
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
     mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
     backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), v(n_tip_state))

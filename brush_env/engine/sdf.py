@@ -138,6 +138,81 @@ def ellipsoid_gap(row, pt, nrm, cpt):
     return -d if inside else d
 
 
+@njit(**HOT, inline="always")
+def _tangent_projector(nrm, J, scale):
+    """J <- (I - n n^T) * scale."""
+    for a in range(3):
+        for b in range(3):
+            J[a, b] = ((1.0 if a == b else 0.0) - nrm[a] * nrm[b]) * scale
+
+
+@njit(**HOT)
+def round_rate(row, kind_axis, pt, nrm, gap, J):
+    """dn/dpt [1/mm] of a sphere (kind_axis 0), capsule (1) or infinite cylinder (2; row as in
+    ``contact``: point on the axis, unit axis, radius): the normal turns by 1 / (radius + gap) per
+    mm across the surface, and not at all along a cylinder's axis."""
+    rr = gap + row[7]
+    if rr < 1e-12:
+        rr = 1e-12
+    _tangent_projector(nrm, J, 1.0 / rr)
+    if kind_axis == 0:
+        return
+    if kind_axis == 1:
+        a0, a1, a2 = row[4] - row[1], row[5] - row[2], row[6] - row[3]
+        L2 = a0 * a0 + a1 * a1 + a2 * a2
+        if L2 <= 0.0:
+            return
+        s = ((pt[0] - row[1]) * a0 + (pt[1] - row[2]) * a1 + (pt[2] - row[3]) * a2) / L2
+        if s <= 0.0 or s >= 1.0:  # on an end cap: a sphere
+            return
+        L = np.sqrt(L2)
+        a0, a1, a2 = a0 / L, a1 / L, a2 / L
+    else:
+        a0, a1, a2 = row[4], row[5], row[6]
+    ax = (a0, a1, a2)
+    for a in range(3):
+        for b in range(3):
+            J[a, b] -= ax[a] * ax[b] / rr
+
+
+@njit(**HOT)
+def ellipsoid_rate(row, nrm, gap, J):
+    """dn/dpt [1/mm] of ``ellipsoid_gap``'s field at a point ``gap`` [mm] off the surface along
+    ``nrm``: W (I + gap W)^-1 with W = P diag(1/a^2) P / |diag(1/a^2) x| the shape operator at the
+    closest point x (P = I - n n^T; W n = 0).  Zero where I + gap W is singular (a focal point
+    inside)."""
+    # on the surface x_i = lam a_i^2 n_i with sum (x_i / a_i)^2 = 1, and |diag(1/a^2) x| = lam
+    s0, s1, s2 = row[4] * row[4], row[5] * row[5], row[6] * row[6]
+    lam = 1.0 / np.sqrt(s0 * nrm[0] ** 2 + s1 * nrm[1] ** 2 + s2 * nrm[2] ** 2)
+    inv = (1.0 / s0, 1.0 / s1, 1.0 / s2)
+    for a in range(3):  # J <- W
+        for b in range(3):
+            acc = 0.0
+            for c in range(3):
+                pac = (1.0 if a == c else 0.0) - nrm[a] * nrm[c]
+                pcb = (1.0 if c == b else 0.0) - nrm[c] * nrm[b]
+                acc += pac * inv[c] * pcb
+            J[a, b] = acc / lam
+    m00, m01, m02 = 1.0 + gap * J[0, 0], gap * J[0, 1], gap * J[0, 2]
+    m10, m11, m12 = gap * J[1, 0], 1.0 + gap * J[1, 1], gap * J[1, 2]
+    m20, m21, m22 = gap * J[2, 0], gap * J[2, 1], 1.0 + gap * J[2, 2]
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+    det += m02 * (m10 * m21 - m11 * m20)
+    if abs(det) < 1e-9:
+        for a in range(3):
+            for b in range(3):
+                J[a, b] = 0.0
+        return
+    i00, i01, i02 = (m11 * m22 - m12 * m21), (m02 * m21 - m01 * m22), (m01 * m12 - m02 * m11)
+    i10, i11, i12 = (m12 * m20 - m10 * m22), (m00 * m22 - m02 * m20), (m02 * m10 - m00 * m12)
+    i20, i21, i22 = (m10 * m21 - m11 * m20), (m01 * m20 - m00 * m21), (m00 * m11 - m01 * m10)
+    for a in range(3):  # J <- W M^-1, row by row
+        w0, w1, w2 = J[a, 0], J[a, 1], J[a, 2]
+        J[a, 0] = (w0 * i00 + w1 * i10 + w2 * i20) / det
+        J[a, 1] = (w0 * i01 + w1 * i11 + w2 * i21) / det
+        J[a, 2] = (w0 * i02 + w1 * i12 + w2 * i22) / det
+
+
 # ------------------------------------------------------------------ grid query
 @njit(**HOT)
 def grid_gap(g, sdf, pt, nrm, cpt):
@@ -175,6 +250,62 @@ def grid_gap(g, sdf, pt, nrm, cpt):
     for a in range(3):
         cpt[a] = pt[a] - d * nrm[a]
     return d
+
+
+@njit(**HOT)
+def grid_rate(g, sdf, pt, J, gd):
+    """Derivatives of ``grid_gap``'s interpolation at pt: gd <- the gradient of the trilinear
+    distance [-] (what the penetration follows; within O(h curvature) of the normal), and
+    J <- dn/dpt [1/mm] of the interpolated normal n = N/|N|, N = sum_c w_c n_c:
+    J = (I - n n^T) (sum_c n_c grad w_c^T) / |N|.  Both zero outside the grid."""
+    hdr, vals = sdf
+    for a in range(3):
+        gd[a] = 0.0
+        for b in range(3):
+            J[a, b] = 0.0
+    h = hdr[g, 3]
+    nx, ny, nz = int(hdr[g, 4]), int(hdr[g, 5]), int(hdr[g, 6])
+    off = int(hdr[g, 7])
+    fx = (pt[0] - hdr[g, 0]) / h
+    fy = (pt[1] - hdr[g, 1]) / h
+    fz = (pt[2] - hdr[g, 2]) / h
+    if not (fx >= 0.0 and fy >= 0.0 and fz >= 0.0):
+        return
+    ix, iy, iz = int(fx), int(fy), int(fz)
+    if ix >= nx - 1 or iy >= ny - 1 or iz >= nz - 1:
+        return
+    tx, ty, tz = fx - ix, fy - iy, fz - iz
+    n0 = n1 = n2 = 0.0
+    for c in range(8):
+        di, dj, dk = c >> 2, (c >> 1) & 1, c & 1
+        wx = tx if di else 1.0 - tx
+        wy = ty if dj else 1.0 - ty
+        wz = tz if dk else 1.0 - tz
+        sx = (1.0 if di else -1.0) / h
+        sy = (1.0 if dj else -1.0) / h
+        sz = (1.0 if dk else -1.0) / h
+        gw = (sx * wy * wz, wx * sy * wz, wx * wy * sz)  # grad of this node's weight
+        q = off + ((ix + di) * ny + iy + dj) * nz + iz + dk
+        w = wx * wy * wz
+        n0 += w * vals[q, 1]
+        n1 += w * vals[q, 2]
+        n2 += w * vals[q, 3]
+        for b in range(3):
+            gd[b] += vals[q, 0] * gw[b]
+            for a in range(3):
+                J[a, b] += vals[q, 1 + a] * gw[b]
+    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if nn < 1e-12:
+        for a in range(3):
+            for b in range(3):
+                J[a, b] = 0.0
+        return
+    N = (n0 / nn, n1 / nn, n2 / nn)
+    # J <- (I - n n^T) J / |N|, column by column
+    for b in range(3):
+        dot = N[0] * J[0, b] + N[1] * J[1, b] + N[2] * J[2, b]
+        for a in range(3):
+            J[a, b] = (J[a, b] - N[a] * dot) / nn
 
 
 def empty_sdf():
