@@ -5,14 +5,17 @@ Two tables (issue 13's acceptance):
 1. **Speed**: the same press-and-scrub motion (``brush_env.experiments.tooth_row``: 2 mm press,
    hold, four 18 mm strokes at 20 mm/s) on ``flat_plate`` and on ``tooth_row`` (or a user mesh,
    ``--mesh``) at one fidelity level; wall time per simulated second (best of ``--repeats``),
-   the ratio (tooth row / plate speed, the target is >= 50 %), Newton iterations per step, mean
-   normal force and coverage.
+   the ratio (tooth row / plate speed, the target is >= 50 %), Newton iterations per step (summed
+   over the bristles; the machine-independent part of the cost), mean normal force and coverage.
+   ``--ellipsoids`` adds two rows that tell curvature from the grid: the crowns replaced by four
+   analytic ellipsoids of their size (``ELLIPSOID_ROW``), and the same ellipsoids as meshes baked
+   into grids (trimesh's icosphere, 20,480 triangles, cell 0.15 mm).
 2. **SDF error**: for each crown, the baked grid's distance and normal against the exact
    closest-triangle query at random points in the band and on the shell where a touching tip's
    centre sits (d = tip radius): max and RMS distance error, the rigorous bound sqrt(3) h, and the
    largest normal angle in the contact region next to the mesh's largest dihedral angle.
 
-    brush-env bench teeth [--fidelity fast] [--repeats 2] [--json] [--quick]
+    brush-env bench teeth [--fidelity fast] [--repeats 2] [--json] [--quick] [--ellipsoids]
 """
 
 from __future__ import annotations
@@ -34,6 +37,46 @@ def add_arguments(p) -> None:
     p.add_argument("--fidelity", default="fast", help="fidelity level of both scenes")
     p.add_argument("--mesh", default=None, help="a tooth mesh file in place of the crowns")
     p.add_argument("--mesh-units", default="mm", help="units of --mesh (mm, cm, m, um, in)")
+    add_flag(
+        p,
+        "--ellipsoids",
+        "also run the crowns as analytic ellipsoids and as those ellipsoids baked into grids",
+    )
+
+
+#: The crowns as axis-aligned ellipsoids of their size: (label, centre x [mm], semi-axis along the
+#: row [mm]); all centred at y = 2.25, z = -4.5 mm with semi-axes 6.25 (y) and 4.5 (z) mm, so that
+#: each spans its crown's box in y and z (``teeth.py``: y -4..8.5, crown tops at z = 0).
+ELLIPSOID_ROW = (("PM1", -13.55, 3.5), ("PM2", -5.85, 3.5), ("M1", 3.35, 5.0), ("M2", 13.55, 4.5))
+
+
+def ellipsoid_scenes(fidelity):
+    """(analytic, baked): the tooth row with its crowns replaced by ``ELLIPSOID_ROW``, as analytic
+    ellipsoids and as meshes baked into grids; the gum and the brush are the tooth row's."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from ..engine.fidelity import load_fidelity
+    from ..engine.scene import Ellipsoid, MeshSurface
+    from ..experiments.plan import resolve_scene
+
+    base = resolve_scene(None, "tooth_row", load_fidelity(fidelity).bodies_per_bristle)
+    gum = tuple(s for s in base.surfaces if s.label == "gum")
+    ell = tuple(
+        Ellipsoid(center=(x, 2.25, -4.5), semi_axes=(a, 6.25, 4.5), label=f"ellipsoid:{lab}")
+        for lab, x, a in ELLIPSOID_ROW
+    )
+    ico = trimesh.creation.icosphere(subdivisions=5)
+    baked = tuple(
+        MeshSurface(
+            np.asarray(ico.vertices) * np.asarray(e.semi_axes) + np.asarray(e.center),
+            np.asarray(ico.faces),
+            label=f"grid:{e.label.split(':')[1]}",
+        )
+        for e in ell
+    )
+    return replace(base, surfaces=ell + gum), replace(base, surfaces=baked + gum)
 
 
 def _speed_rows(args, log) -> list[dict]:
@@ -43,13 +86,17 @@ def _speed_rows(args, log) -> list[dict]:
     ensure_compiled(notice=lambda m: print(m, file=log))
     strokes = 1 if args.quick else 4
     rows = []
-    for scene in ("flat_plate", "tooth_row"):
+    scenes = [("flat_plate", "flat_plate"), ("tooth_row", "tooth_row")]
+    if args.ellipsoids:
+        analytic, baked = ellipsoid_scenes(args.fidelity)
+        scenes += [("ellipsoid_row", analytic), ("ellipsoid_row_baked", baked)]
+    for label, scene in scenes:
         best = None
         for _ in range(1 if args.quick else max(1, args.repeats)):
             s = run_tooth_row(
                 scene=scene,
-                out_dir=f"/tmp/brush_env_bench_teeth_{scene}",
-                mesh=args.mesh if scene == "tooth_row" else None,
+                out_dir=f"/tmp/brush_env_bench_teeth_{label}",
+                mesh=args.mesh if label == "tooth_row" else None,
                 mesh_units=args.mesh_units,
                 fidelity=args.fidelity,
                 progress=False,
@@ -64,17 +111,18 @@ def _speed_rows(args, log) -> list[dict]:
         perf, an = best["performance"], best["analysis"]
         rows.append(
             dict(
-                scene=scene,
+                scene=label,
                 status=best["status"],
                 fidelity=args.fidelity,
                 simulated_s=perf["simulated_s"],
                 wall_per_sim_s=perf["wall_per_sim_s"],
+                newton_iterations_per_step=perf["newton_iterations_per_step"],
                 mean_normal_force_N=an["strokes"]["normal_force_N"]["mean"],
                 peak_gum_force_N=an["strokes"]["gum_force_N"]["peak"],
                 coverage=an.get("coverage", {}).get("reachable"),
             )
         )
-        print(f"  {scene}: {perf['wall_per_sim_s']:.3f} s per simulated s", file=log)
+        print(f"  {label}: {perf['wall_per_sim_s']:.3f} s per simulated s", file=log)
     ratio = rows[0]["wall_per_sim_s"] / rows[1]["wall_per_sim_s"]
     for r in rows:
         r["speed_vs_plate"] = rows[0]["wall_per_sim_s"] / r["wall_per_sim_s"]
@@ -151,6 +199,7 @@ def bench_teeth(args) -> int:
                     ("fidelity", lambda r: r["fidelity"]),
                     ("wall / sim s", lambda r: f"{r['wall_per_sim_s']:.3f}"),
                     ("speed vs plate", lambda r: f"{100 * r['speed_vs_plate']:.0f} %"),
+                    ("Newton it / step", lambda r: f"{r['newton_iterations_per_step']:.1f}"),
                     ("mean Fn [N]", lambda r: f"{r['mean_normal_force_N']:.2f}"),
                     ("peak gum [N]", lambda r: f"{r['peak_gum_force_N']:.2f}"),
                     (

@@ -154,12 +154,14 @@ def run_tooth_row(
         bar = tqdm(total=n, unit="step", desc="tooth row", mininterval=1.0)
     t_sim = time.perf_counter()
     done = 0
+    iterations = 0
     for k in range(1, n + 1):
         try:
             out = sim.step(P[k], Rs[k])
         except SimulationDivergence as e:
             status, message = "diverged", str(e)
             break
+        iterations += out.iterations
         f = out.tip_normal_force
         surf = out.extra["tip_surface"]
         fg = float(f[(surf >= 0) & gum[np.maximum(surf, 0)]].sum()) if gum.any() else 0.0
@@ -277,6 +279,8 @@ def run_tooth_row(
             "wall_per_sim_s": t_sim / sim_time if sim_time else None,
             "real_time_factor": sim_time / t_sim if t_sim else None,
             "wall_time_s": time.perf_counter() - t0,
+            # Newton iterations summed over the bristles, per step: machine-independent cost
+            "newton_iterations_per_step": iterations / done if done else None,
         },
         "analysis": analysis,
         "files": files,
