@@ -214,23 +214,32 @@ def ellipsoid_rate(row, nrm, gap, J):
 
 
 # ------------------------------------------------------------------ grid query
+@njit(**HOT, inline="always")
+def _grid_cell(g, hdr, pt):
+    """The cell of grid g that holds pt: (node index of its corner (0, 0, 0) in ``vals``, ny, nz,
+    the local coordinates tx, ty, tz in [0, 1), cell h [mm]); corner index -1 outside the grid
+    (also for NaN).  Corner (di, dj, dk) is at index + (di ny + dj) nz + dk."""
+    h = hdr[g, 3]
+    nx, ny, nz = int(hdr[g, 4]), int(hdr[g, 5]), int(hdr[g, 6])
+    fx = (pt[0] - hdr[g, 0]) / h
+    fy = (pt[1] - hdr[g, 1]) / h
+    fz = (pt[2] - hdr[g, 2]) / h
+    if not (fx >= 0.0 and fy >= 0.0 and fz >= 0.0):  # also catches NaN
+        return -1, ny, nz, 0.0, 0.0, 0.0, h
+    ix, iy, iz = int(fx), int(fy), int(fz)
+    if ix >= nx - 1 or iy >= ny - 1 or iz >= nz - 1:
+        return -1, ny, nz, 0.0, 0.0, 0.0, h
+    return int(hdr[g, 7]) + (ix * ny + iy) * nz + iz, ny, nz, fx - ix, fy - iy, fz - iz, h
+
+
 @njit(**HOT)
 def grid_gap(g, sdf, pt, nrm, cpt):
     """Signed distance [mm] at pt from grid ``g`` of ``sdf`` by trilinear interpolation of the
     node distances and normals; FAR outside the grid (no surface within the band there)."""
     hdr, vals = sdf
-    h = hdr[g, 3]
-    nx, ny, nz = int(hdr[g, 4]), int(hdr[g, 5]), int(hdr[g, 6])
-    off = int(hdr[g, 7])
-    fx = (pt[0] - hdr[g, 0]) / h
-    fy = (pt[1] - hdr[g, 1]) / h
-    fz = (pt[2] - hdr[g, 2]) / h
-    if not (fx >= 0.0 and fy >= 0.0 and fz >= 0.0):  # also catches NaN
+    q0, ny, nz, tx, ty, tz, h = _grid_cell(g, hdr, pt)
+    if q0 < 0:
         return FAR
-    ix, iy, iz = int(fx), int(fy), int(fz)
-    if ix >= nx - 1 or iy >= ny - 1 or iz >= nz - 1:
-        return FAR
-    tx, ty, tz = fx - ix, fy - iy, fz - iz
     d = 0.0
     n0 = 0.0
     n1 = 0.0
@@ -238,7 +247,7 @@ def grid_gap(g, sdf, pt, nrm, cpt):
     for c in range(8):
         di, dj, dk = c >> 2, (c >> 1) & 1, c & 1
         w = (tx if di else 1.0 - tx) * (ty if dj else 1.0 - ty) * (tz if dk else 1.0 - tz)
-        q = off + ((ix + di) * ny + iy + dj) * nz + iz + dk
+        q = q0 + (di * ny + dj) * nz + dk
         d += w * vals[q, 0]
         n0 += w * vals[q, 1]
         n1 += w * vals[q, 2]
@@ -263,18 +272,9 @@ def grid_rate(g, sdf, pt, J, gd):
         gd[a] = 0.0
         for b in range(3):
             J[a, b] = 0.0
-    h = hdr[g, 3]
-    nx, ny, nz = int(hdr[g, 4]), int(hdr[g, 5]), int(hdr[g, 6])
-    off = int(hdr[g, 7])
-    fx = (pt[0] - hdr[g, 0]) / h
-    fy = (pt[1] - hdr[g, 1]) / h
-    fz = (pt[2] - hdr[g, 2]) / h
-    if not (fx >= 0.0 and fy >= 0.0 and fz >= 0.0):
+    q0, ny, nz, tx, ty, tz, h = _grid_cell(g, hdr, pt)
+    if q0 < 0:
         return
-    ix, iy, iz = int(fx), int(fy), int(fz)
-    if ix >= nx - 1 or iy >= ny - 1 or iz >= nz - 1:
-        return
-    tx, ty, tz = fx - ix, fy - iy, fz - iz
     n0 = n1 = n2 = 0.0
     for c in range(8):
         di, dj, dk = c >> 2, (c >> 1) & 1, c & 1
@@ -285,7 +285,7 @@ def grid_rate(g, sdf, pt, J, gd):
         sy = (1.0 if dj else -1.0) / h
         sz = (1.0 if dk else -1.0) / h
         gw = (sx * wy * wz, wx * sy * wz, wx * wy * sz)  # grad of this node's weight
-        q = off + ((ix + di) * ny + iy + dj) * nz + iz + dk
+        q = q0 + (di * ny + dj) * nz + dk
         w = wx * wy * wz
         n0 += w * vals[q, 1]
         n1 += w * vals[q, 2]
