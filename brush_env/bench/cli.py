@@ -5,7 +5,8 @@
 ``element`` (both beam elements against the converged turn), ``press`` (the 3 mm press's hold
 force at every step size), ``branch`` (hold direction and jamming angles over step sizes),
 ``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``teeth``
-(tooth row vs plate speed, SDF vs exact mesh), ``compile``
+(tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
+iterations, instructions under callgrind), ``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -27,6 +28,7 @@ from . import (
     fidelity,
     planar,
     press,
+    steps,
     teeth,
 )
 
@@ -89,6 +91,12 @@ TARGETS = {
         teeth.add_arguments,
         "tooth row against the plate (same press-and-scrub motion and fidelity: speed ratio) "
         "and the crowns' SDF grids against the exact mesh query (error, normals)",
+    ),
+    "steps": (
+        steps.bench_steps,
+        steps.add_arguments,
+        "one scene's press-and-scrub motion (bench teeth's): steps, Newton iterations, wall; "
+        "--callgrind counts the step loop's instructions under valgrind",
     ),
     "planar": (
         planar.bench_planar,

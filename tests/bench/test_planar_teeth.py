@@ -67,3 +67,19 @@ def test_bench_teeth_ellipsoid_rows_are_one_surface_twice():
         near = (d_ex > 0.0) & (d_ex < 0.8)
         assert near.sum() > 200
         assert np.abs(d_gr - d_ex)[near].max() <= bound, (e.label, bound)
+
+
+def test_bench_steps_is_deterministic(capsys):
+    """``bench steps`` is for A/B comparisons by Newton iterations: the same run twice gives the
+    same count (the engine's determinism), over the whole one-stroke motion."""
+    rows = []
+    for _ in range(2):
+        assert cli.main(["bench", "steps", "--scene", "tooth_row", "--strokes", "1", "--json"]) == 0
+        rows.append(json.loads(capsys.readouterr().out.splitlines()[-1]))
+    assert rows[0]["steps"] == rows[1]["steps"] > 1500  # 1.59 s of press, hold and stroke at 1 ms
+    assert rows[0]["newton_iterations"] == rows[1]["newton_iterations"] > rows[0]["steps"]
+
+
+def test_bench_steps_refuses_a_bad_stroke_count(capsys):
+    assert cli.main(["bench", "steps", "--strokes", "0"]) == 2
+    assert "--strokes = 0" in capsys.readouterr().err

@@ -1,0 +1,106 @@
+"""``brush-env bench steps``: one scene's press-and-scrub motion, stepped, for A/B comparisons
+by Newton iterations and by instruction counts.
+
+Wall time drifts by up to 30 % on a shared VM; the Newton iterations are deterministic and the
+instructions retired by the step loop drift by < 0.1 %.  The motion is ``bench teeth``'s (2 mm
+press, hold, ``--strokes`` 18 mm strokes at 20 mm/s) on ``--scene`` at ``--fidelity``; it prints
+the steps, the Newton iterations summed over the bristles and the wall time of the loop.
+
+``--callgrind`` switches valgrind callgrind's instrumentation on just before the loop and off after
+it (``callgrind_control -i on|off``), so that callgrind's "Collected" total is the loop alone
+(numba's first call runs before it)::
+
+    valgrind --tool=callgrind --collect-atstart=yes --instr-atstart=no \\
+        brush-env bench steps --scene tooth_row --strokes 1 --callgrind
+
+numba compiles for the CPU it sees, and valgrind's virtual CPU is not the host's, so a cache
+compiled natively would be compiled again under valgrind (hours).  Set ``NUMBA_CPU_NAME`` and
+``NUMBA_CPU_FEATURES`` to what valgrind reports, both for a native warm-up run and for the
+valgrind runs (docs/benchmarks.md, "Instruction counts").
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import time
+
+import numpy as np
+
+from .harness import emit, markdown_table, open_log
+
+
+def add_arguments(p) -> None:
+    from ..user_errors import add_flag
+
+    add_flag(p, "--json", "one JSON object on stdout (machine info on stderr)")
+    add_flag(p, "--callgrind", "toggle callgrind's instrumentation around the step loop")
+    p.add_argument("--scene", default="tooth_row", help="scene name or file (default tooth_row)")
+    p.add_argument("--fidelity", default="fast", help="fidelity level (default fast)")
+    p.add_argument("--strokes", type=int, default=1, help="18 mm strokes after the press (1-8)")
+
+
+def _toggle(on: bool) -> None:
+    subprocess.run(
+        ["callgrind_control", "-i", "on" if on else "off", str(os.getpid())],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
+
+
+def bench_steps(args) -> int:
+    from ..engine import Simulator
+    from ..engine.fidelity import load_fidelity
+    from ..experiments.plan import resolve_scene
+    from ..experiments.tooth_row import stroke_motion
+    from ..motion import R0
+    from ..user_errors import UserError
+
+    if not 1 <= args.strokes <= 8:
+        raise UserError(f"--strokes = {args.strokes}: must be in [1, 8]")
+    log = open_log(args)
+    fid = load_fidelity(args.fidelity)
+    dt = 1e-3  # the step of run_tooth_row (the level's max_substep splits it)
+    sim = Simulator(resolve_scene(None, args.scene, fid.bodies_per_bristle), fid.settings(dt=dt))
+    z_touch = sim.touch_height(np.array(R0), 0.0)
+    traj, _ = stroke_motion(z_touch, 2.0, 0.5, 0.25, 20.0, args.strokes, (-9.0, 9.0), 3.5)
+    ts = np.arange(int(traj.duration / dt)) * dt
+    P, R, _, _ = traj.sample(ts)
+    sim.reset(P[0], R[0])
+    sim.step(P[1], R[1])  # numba's first call, outside the measurement
+    iterations = 0
+    if args.callgrind:
+        _toggle(True)
+    t0 = time.perf_counter()
+    for k in range(2, len(ts)):
+        iterations += sim.step(P[k], R[k]).iterations
+    wall = time.perf_counter() - t0
+    if args.callgrind:
+        _toggle(False)
+    row = emit(
+        args,
+        dict(
+            scene=str(args.scene),
+            fidelity=args.fidelity,
+            strokes=args.strokes,
+            steps=len(ts) - 2,
+            newton_iterations=iterations,
+            wall_s=wall,
+        ),
+    )
+    if not args.json:
+        print(
+            markdown_table(
+                [row],
+                [
+                    ("scene", lambda r: r["scene"]),
+                    ("fidelity", lambda r: r["fidelity"]),
+                    ("strokes", lambda r: str(r["strokes"])),
+                    ("steps", lambda r: str(r["steps"])),
+                    ("Newton iterations", lambda r: str(r["newton_iterations"])),
+                    ("wall [s]", lambda r: f"{r['wall_s']:.2f}"),
+                ],
+            ),
+            file=log,
+        )
+    return 0
