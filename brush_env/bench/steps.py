@@ -52,18 +52,16 @@ def bench_steps(args) -> int:
     from ..engine import Simulator
     from ..engine.fidelity import load_fidelity
     from ..experiments.plan import resolve_scene
-    from ..experiments.tooth_row import stroke_motion
-    from ..motion import R0
+    from ..experiments.tooth_row import DEFAULTS, scrub_motion
     from ..user_errors import UserError
 
     if not 1 <= args.strokes <= 8:
         raise UserError(f"--strokes = {args.strokes}: must be in [1, 8]")
     log = open_log(args)
     fid = load_fidelity(args.fidelity)
-    dt = 1e-3  # the step of run_tooth_row (the level's max_substep splits it)
+    dt = DEFAULTS["dt"]  # run_tooth_row's step (the level's max_substep splits it)
     sim = Simulator(resolve_scene(None, args.scene, fid.bodies_per_bristle), fid.settings(dt=dt))
-    z_touch = sim.touch_height(np.array(R0), 0.0)
-    traj, _ = stroke_motion(z_touch, 2.0, 0.5, 0.25, 20.0, args.strokes, (-9.0, 9.0), 3.5)
+    traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": args.strokes})
     ts = np.arange(int(traj.duration / dt)) * dt
     P, R, _, _ = traj.sample(ts)
     sim.reset(P[0], R[0])

@@ -64,6 +64,23 @@ DEFAULTS = dict(
 )
 
 
+def scrub_motion(sim, motion):
+    """(trajectory, phase starts) of ``stroke_motion`` for ``sim``'s scene with the arguments of
+    ``motion`` (DEFAULTS' keys): the tips touch the crowns' highest point (z = 0 without crowns)."""
+    teeth = tooth_surfaces(sim.scene)
+    z_surf = max((float(s.vertices[:, 2].max()) for s in teeth), default=0.0)
+    return stroke_motion(
+        sim.touch_height(np.array(R0), z_surf),
+        motion["press_depth"],
+        motion["press_time"],
+        motion["hold_time"],
+        motion["speed"],
+        int(motion["strokes"]),
+        motion["x_range"],
+        motion["y"],
+    )
+
+
 def stroke_motion(z_touch, press_depth, press_time, hold_time, speed, strokes, x_range, y):
     """(trajectory, phase start times (press, hold, strokes)) of the press-and-scrub motion."""
     x0, x1 = x_range
@@ -120,18 +137,7 @@ def run_tooth_row(
     t_setup = time.perf_counter()
     sim = Simulator(scene_obj, settings)
     teeth = tooth_surfaces(scene_obj)
-    z_surf = max((float(s.vertices[:, 2].max()) for s in teeth), default=0.0)
-    z_touch = sim.touch_height(np.array(R0), z_surf)
-    traj, phases = stroke_motion(
-        z_touch,
-        a["press_depth"],
-        a["press_time"],
-        a["hold_time"],
-        a["speed"],
-        int(a["strokes"]),
-        a["x_range"],
-        a["y"],
-    )
+    traj, phases = scrub_motion(sim, a)
     dt = settings.dt
     n = int(math.ceil(traj.duration / dt - 1e-9))
     times = np.arange(n + 1) * dt
