@@ -63,20 +63,14 @@ def ellipsoid_scenes(fidelity):
 
     base = resolve_scene(None, "tooth_row", load_fidelity(fidelity).bodies_per_bristle)
     gum = tuple(s for s in base.surfaces if s.label == "gum")
-    ell = tuple(
-        Ellipsoid(center=(x, 2.25, -4.5), semi_axes=(a, 6.25, 4.5), label=f"ellipsoid:{lab}")
-        for lab, x, a in ELLIPSOID_ROW
-    )
     ico = trimesh.creation.icosphere(subdivisions=5)
-    baked = tuple(
-        MeshSurface(
-            np.asarray(ico.vertices) * np.asarray(e.semi_axes) + np.asarray(e.center),
-            np.asarray(ico.faces),
-            label=f"grid:{e.label.split(':')[1]}",
-        )
-        for e in ell
-    )
-    return replace(base, surfaces=ell + gum), replace(base, surfaces=baked + gum)
+    ell, baked = [], []
+    for lab, x, a in ELLIPSOID_ROW:
+        centre, axes = (x, 2.25, -4.5), (a, 6.25, 4.5)
+        ell.append(Ellipsoid(center=centre, semi_axes=axes, label=f"ellipsoid:{lab}"))
+        V = np.asarray(ico.vertices) * np.asarray(axes) + np.asarray(centre)
+        baked.append(MeshSurface(V, np.asarray(ico.faces), label=f"grid:{lab}"))
+    return replace(base, surfaces=(*ell, *gum)), replace(base, surfaces=(*baked, *gum))
 
 
 def _speed_rows(args, log) -> list[dict]:

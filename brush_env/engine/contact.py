@@ -272,13 +272,12 @@ def _normal_rate(surf, pt, nrm, gap, sdf, J, gd):
     is the derivative of its interpolation (what the residual sees).  Plane and triangle mesh:
     J = 0 (flat faces; a mesh's edges and vertices are left out) and gd = n."""
     kind = surf[0]
-    for a in range(3):
-        gd[a] = nrm[a]
-        for b in range(3):
-            J[a, b] = 0.0
-    if kind == SURF_GRID:
+    if kind == SURF_GRID:  # sets both
         grid_rate(int(surf[1]), sdf, pt, J, gd)
-    elif kind == SURF_SPHERE:
+        return
+    for a in range(3):  # exact distances: their gradient is the normal
+        gd[a] = nrm[a]
+    if kind == SURF_SPHERE:
         round_rate(surf, 0, pt, nrm, gap, J)
     elif kind == SURF_CAPSULE:
         round_rate(surf, 1, pt, nrm, gap, J)
@@ -286,6 +285,10 @@ def _normal_rate(surf, pt, nrm, gap, sdf, J, gd):
         round_rate(surf, 2, pt, nrm, gap, J)
     elif kind == SURF_ELLIPSOID:
         ellipsoid_rate(surf, nrm, gap, J)
+    else:
+        for a in range(3):
+            for b in range(3):
+                J[a, b] = 0.0
 
 
 @njit(**HOT, inline="always")
