@@ -99,6 +99,7 @@ def simulate_contact(
     element: str | None = None,
     max_substep: float | None = None,
     observe=None,
+    sim_settings=None,
     **settings,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
@@ -110,18 +111,24 @@ def simulate_contact(
     if given, sees every step's ``StepResult`` (inside the timed loop).  A
     ``SimulationDivergence`` ends the run early; the samples up to the last completed step are
     kept and ``status`` says when it diverged.  Further keywords are SimSettings fields
-    (e.g. ``tip_tip_sweeps``)."""
+    (e.g. ``tip_tip_sweeps``); ``sim_settings``, if given, is the whole ``SimSettings`` (a
+    fidelity level's, ``fidelity.level_settings``), used unchanged (its bodies per bristle and
+    step win over ``bodies``, ``dt``, ``integrator``, ``element`` and ``max_substep``)."""
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
     from ..experiments.plan import _plate_height
 
+    if sim_settings is None:
+        extra = {} if element is None else {"element": element}
+        extra["max_substep"] = dt if max_substep is None else max_substep
+        extra.update(settings)
+        sim_settings = SimSettings(dt=dt, integrator=integrator, **extra)
+    else:
+        bodies, dt = sim_settings.bodies_per_bristle or bodies, sim_settings.dt
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
-    extra = {} if element is None else {"element": element}
-    extra["max_substep"] = dt if max_substep is None else max_substep
-    extra.update(settings)
-    sim = Simulator(scene, SimSettings(dt=dt, integrator=integrator, **extra))
+    sim = Simulator(scene, sim_settings)
     touch_z = sim.touch_height(R0, _plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)
     t_circle = starts[-1]

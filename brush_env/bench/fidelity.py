@@ -44,9 +44,11 @@ PLOT = Path(__file__).resolve().parents[2] / "docs" / "figures" / "fidelity_pare
 
 def turn_run(level, quick: bool = False) -> dict:
     """(a) for one level: times, TCP force and tip normal forces on the 5 ms grid, wall [s]."""
-    from ..engine import load_fidelity
+    from ..engine.fidelity import level_settings, load_fidelity
 
     fid = load_fidelity(level)
+    # the level's own SimSettings, stepped at its solver step (no split)
+    settings = level_settings(fid, dt=fid.max_substep)
     g = dict(CONTACT_GRID_FULL)
     press, hold, arc = (0.1, 0.0, 0.06) if quick else (g["press"], g["hold"], _arc_seconds(g))
     ts, F, fn = [], [], []
@@ -59,17 +61,15 @@ def turn_run(level, quick: bool = False) -> dict:
             fn.append(out.tip_normal_force.copy())
 
     run = simulate_contact(
-        fid.bodies_per_bristle,
-        fid.max_substep,
-        fid.integrator,
+        settings.bodies_per_bristle,
+        settings.dt,
+        settings.integrator,
         True,
         press,
         hold,
         arc,
-        element=fid.element,
         observe=observe,
-        tip_tip_sweeps=fid.tip_tip_sweeps,
-        newton_rtol=fid.newton_rtol,
+        sim_settings=settings,
     )
     return {
         "t": np.array(ts),

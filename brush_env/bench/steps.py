@@ -50,7 +50,7 @@ def _toggle(on: bool) -> None:
 
 def bench_steps(args) -> int:
     from ..engine import Simulator
-    from ..engine.fidelity import load_fidelity
+    from ..engine.fidelity import level_settings
     from ..experiments.plan import resolve_scene
     from ..experiments.tooth_row import DEFAULTS, scrub_motion
     from ..user_errors import UserError
@@ -58,9 +58,8 @@ def bench_steps(args) -> int:
     if not 1 <= args.strokes <= 8:
         raise UserError(f"--strokes = {args.strokes}: must be in [1, 8]")
     log = open_log(args)
-    fid = load_fidelity(args.fidelity)
     dt = DEFAULTS["dt"]  # run_tooth_row's step (the level's max_substep splits it)
-    sim = Simulator(resolve_scene(None, args.scene, fid.bodies_per_bristle), fid.settings(dt=dt))
+    sim = Simulator(resolve_scene(None, args.scene, None), level_settings(args.fidelity, dt=dt))
     traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": args.strokes})
     ts = np.arange(int(traj.duration / dt)) * dt
     P, R, _, _ = traj.sample(ts)

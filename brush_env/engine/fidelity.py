@@ -13,17 +13,18 @@ error against ``reference`` and its speed; never edited by hand).  Levels shippe
 
 Use::
 
-    fid = load_fidelity("balanced")
-    sim = Simulator(fid.apply(scene), fid.settings(dt=4e-3))
+    sim = Simulator(scene, level_settings("balanced", dt=4e-3))
 
-``settings(**overrides)`` gives the ``SimSettings`` (the level sets ``max_substep``, ``element``,
-``integrator``, ``tip_tip_sweeps``, ``newton_rtol``; ``dt``, the caller's step, and anything
-else come from the overrides); ``apply(scene)`` the scene with the level's bodies per bristle.
+A level resolves to one ``SimSettings`` (``settings.py``): every key of its [settings] table is a
+``SimSettings`` field of the same name (the bristle model, the bodies per bristle, the solver step,
+the element, the integrator, the tip-tip solve, the Newton tolerance).  ``level_settings(level,
+**overrides)`` is the one path from a level to the engine: the env, the experiments, the sweeps and
+the benches all call it and pass its value to ``Simulator`` unchanged; ``dt`` (the caller's step)
+and any other ``SimSettings`` field come from the overrides.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,8 +35,9 @@ from .config import _read_toml, configs_dir
 
 #: the levels shipped in configs/fidelity, most to least accurate
 LEVELS = ("reference", "paper", "balanced", "fast")
-#: what a level's [settings] table may set (bodies per bristle and SimSettings fields)
+#: what a level's [settings] table may set: these SimSettings fields, under their own names
 SETTING_KEYS = (
+    "model",
     "bodies_per_bristle",
     "max_substep",
     "element",
@@ -48,7 +50,8 @@ MEASURED_MARK = "# --- measured by `brush-env bench fidelity --write` (not edite
 
 @dataclass(frozen=True)
 class Fidelity:
-    """One fidelity level (module docstring).  bodies_per_bristle [count]; max_substep [s] the
+    """One fidelity level (module docstring).  model: the bristle model ("dfm": the full chain);
+    bodies_per_bristle [count]; max_substep [s] the
     longest solver step; element "mid" | "paper"; integrator "bdf2" | "euler"; tip_tip_sweeps
     [count] (1: partners one sweep behind, >1: coupled); newton_rtol [-] relative to each
     bristle's force scale; measured: the bench's figures (errors [-], speeds) or empty."""
@@ -57,6 +60,7 @@ class Fidelity:
     description: str
     bodies_per_bristle: int
     max_substep: float
+    model: str = "dfm"
     element: str = "mid"
     integrator: str = "bdf2"
     tip_tip_sweeps: int = 8
@@ -75,6 +79,8 @@ class Fidelity:
         from .simulator import SimSettings
 
         kw = dict(
+            model=self.model,
+            bodies_per_bristle=self.bodies_per_bristle,
             max_substep=self.max_substep,
             element=self.element,
             integrator=self.integrator,
@@ -85,14 +91,12 @@ class Fidelity:
         kw.setdefault("dt", min(1e-3, kw["max_substep"]))
         return SimSettings(**kw)
 
-    def apply(self, scene):
-        """``scene`` with every bristle of its brush discretised into this level's bodies."""
-        return dataclasses.replace(scene, brush=scene.brush.with_bodies(self.bodies_per_bristle))
-
     def describe(self) -> str:
         """One line: the level's name and what it sets."""
+        what = "" if self.model == "dfm" else f" ({self.model} bristle model)"
         return (
-            f"{self.name}: {self.bodies_per_bristle} {self.element}-element bodies per bristle, "
+            f"{self.name}{what}: {self.bodies_per_bristle} {self.element}-element bodies per "
+            "bristle, "
             f"solver steps <= {self.max_substep * 1e3:g} ms ({self.integrator}), tip-tip "
             + ("coupled" if self.tip_tip_sweeps > 1 else "one sweep")
         )
@@ -156,3 +160,15 @@ def load_fidelity(name_or_path: str | os.PathLike | Fidelity) -> Fidelity:
         )
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
+
+
+def level_settings(level, **overrides: Any):
+    """The ``SimSettings`` of fidelity ``level`` (a name, a TOML path or a ``Fidelity``) with
+    ``overrides`` (``SimSettings`` fields under their own names, e.g. ``dt``, ``max_substep``)
+    winning; ``level`` None or "": ``SimSettings`` defaults with the overrides.  The one path from
+    a level to the engine (module docstring)."""
+    from .settings import SimSettings
+
+    if level is None or level == "":
+        return SimSettings(**overrides)
+    return load_fidelity(level).settings(**overrides)

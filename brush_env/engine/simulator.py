@@ -3,43 +3,46 @@ wrench.
 
 A designer's script::
 
-    from brush_env.engine import Simulator, SimSettings, load_brush
-    sim = Simulator(load_brush("default"), SimSettings(dt=1e-3))
+    from brush_env.engine import Simulator, load_fidelity, load_scene
+    sim = Simulator(load_scene("flat_plate"), load_fidelity("balanced").settings(dt=1e-3))
     sim.reset(tcp_p, tcp_R)
     for p, R in poses:
         out = sim.step(p, R)
         print(out.time, out.tcp_force)
+
+The simulator knows the drive (poses checked, ``dt`` split into solver steps, a divergence rolled
+back) and the outputs; the bristles themselves are stepped through the seam of ``bristles.py``
+(the full DFM chain, ``chain.py``, or another registered model: ``SimSettings.model``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import contact as ct
 from . import integrator as itg
-from . import records as rec
-from ._kernels import ELEMENTS
-from .beam import (
-    bristle_frame,
-    first_bending_omega,
-    mid_frame_stiffness,
-    segment_inertia,
-    timoshenko_stiffness,
-)
-from .checks import ConfigError, Limit, check_choice, check_int, check_real
+from .bristles import make_bristle_model
+from .chain import State
 from .config import BrushConfig
-from .contact import N_TIP_ARGS, N_TIP_STATE
 from .rotation import expmap, logmap, pose_ok
-from .scene import MeshPlate, Scene
-from .sdf import pack_grids
+from .scene import Scene
+from .settings import G_EARTH, INTEGRATORS, SimSettings, SimulationDivergence
 
-G_EARTH = 9810.0  # [mm/s^2]
-INTEGRATORS = {"euler": 0, "bdf2": 1}
-
+__all__ = [
+    "G_EARTH",
+    "INTEGRATORS",
+    "PENETRATION_WARN_FRACTION",
+    "PenetrationWarning",
+    "SimSettings",
+    "SimulationDivergence",
+    "Simulator",
+    "State",
+    "StepResult",
+]
 
 #: a tip's penetration beyond this fraction of its radius is outside the penalty law's range
 #: (eq 6 models a shallow indentation of the tip sphere): warned once per simulator
@@ -57,213 +60,6 @@ def _caller_level() -> int:
         level += 1
         f = f.f_back
     return level
-
-
-class SimulationDivergence(RuntimeError):
-    """Raised when Newton fails on the smallest sub-step; the state is left as before the step."""
-
-    def __init__(self, time: float, bristles, reason: str):
-        self.time = time
-        self.bristles = list(int(b) for b in bristles)
-        self.reason = reason
-        super().__init__(
-            f"simulation diverged at t = {time:.6g} s in bristle(s) {self.bristles[:10]}: {reason}"
-        )
-
-
-@dataclass(frozen=True)
-class SimSettings:
-    """Numerical settings of the engine.
-
-    dt [s] time step (the interval of ``step``); max_substep [s] the longest step the solver
-    takes: a longer ``dt`` is split into ceil(dt / max_substep) equal internal steps with the TCP
-    pose interpolated between the two commanded poses (linear position, geodesic rotation), so
-    that a large control step does not hold an unstable (buckling) equilibrium or jump across a
-    stick-slip transition (default 1 ms: the 3 mm press's hold force is within 3 % of a 0.125 ms
-    run, docs/model.md); integrator "euler" (backward Euler) or "bdf2"; newton_rtol: Newton
-    tolerance on the residual relative to each bristle's force scale E I / L^2 [-];
-    newton_max_iter per attempt; max_substep_levels: a failing (internal) step is retried as
-    halves down to its length / 2**levels;
-    jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at every
-    step; reuse changes iteration counts only, the converged state is set by the residual);
-    gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off);
-    max_tcp_speed [mm/s], max_tcp_angular_speed [rad/s]: the fastest TCP motion ``step``
-    accepts (default 1000 mm/s, a UR5's tool speed limit, and 10 turns/s): a faster command is
-    a jump, not a motion, and is refused with an error naming the speed;
-    element: the beam element formulation, "paper" (the paper's Adams-FIELD element, strain in
-    the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
-    accurate with few bodies in buckled contact; docs/model.md);
-    tip_tip_sweeps: most sweeps over the bristles per (internal) step for tip-tip contact
-    (Table 3).  1 (default): one sweep, the partners solved later in the sweep held at their
-    start-of-step tips (the tip-tip force lags: 6 % on the flat-plate turn even at 0.125 ms).
-    > 1: after the first sweep the touching tips are placed by the coupled solve
-    (``coupling.py``) and the bristles whose partners moved by more than tip_tip_tol [mm] since
-    they were solved are solved again, so both sides of every tip-tip contact see the
-    end-of-step tips (action = reaction within 2 k tol); +50 % wall on the flat-plate turn at
-    1 ms, but up to ~7x on the four-turn reference experiment (docs/model.md); the fidelity
-    levels reference, paper and balanced use 8.
-    """
-
-    dt: float = 1e-3
-    integrator: str = "bdf2"
-    max_substep: float = 1e-3
-    max_tcp_speed: float = 1000.0
-    max_tcp_angular_speed: float = 20.0 * np.pi
-    newton_rtol: float = 1e-7
-    newton_max_iter: int = 100
-    max_substep_levels: int = 8
-    gravity: tuple = (0.0, 0.0, -G_EARTH)
-    jacobian_max_age: int = 25
-    element: str = "mid"
-    tip_tip_sweeps: int = 1
-    tip_tip_tol: float = 1e-6
-
-    @property
-    def substeps(self) -> int:
-        """Internal steps per ``step``: ceil(dt / max_substep)."""
-        return max(1, int(np.ceil(self.dt / self.max_substep - 1e-9)))
-
-    def __post_init__(self):
-        check_real("settings.dt", self.dt, Limit("s", gt=0, le=0.1))
-        check_real("settings.max_substep", self.max_substep, Limit("s", gt=0, le=0.1))
-        check_real("settings.max_tcp_speed", self.max_tcp_speed, Limit("mm/s", gt=0, le=1e5))
-        check_real(
-            "settings.max_tcp_angular_speed",
-            self.max_tcp_angular_speed,
-            Limit("rad/s", gt=0, le=1e3),
-        )
-        check_choice("settings.integrator", self.integrator, sorted(INTEGRATORS), "integrator")
-        check_choice("settings.element", self.element, sorted(ELEMENTS), "element")
-        check_real("settings.newton_rtol", self.newton_rtol, Limit("relative", gt=0, le=1e-2))
-        check_int("settings.newton_max_iter", self.newton_max_iter, Limit("", ge=1, le=1000))
-        check_int("settings.max_substep_levels", self.max_substep_levels, Limit("", ge=0, le=30))
-        check_int(
-            "settings.jacobian_max_age", self.jacobian_max_age, Limit("steps", ge=0, le=10000)
-        )
-        check_int("settings.tip_tip_sweeps", self.tip_tip_sweeps, Limit("", ge=1, le=1000))
-        check_real("settings.tip_tip_tol", self.tip_tip_tol, Limit("mm", gt=0, le=1.0))
-        if len(self.gravity) != 3 or not np.all(np.isfinite(self.gravity)):
-            raise ConfigError(
-                f"settings.gravity = {self.gravity!r}: must be 3 finite numbers (mm/s^2)"
-            )
-
-
-@dataclass
-class Model:
-    """Static arrays of a brush (see _kernels for the layout)."""
-
-    bstart: np.ndarray  # (nb+1,) int64
-    bp: np.ndarray  # (N, 8)
-    K: np.ndarray  # (N, 6, 6)
-    root_p: np.ndarray  # (nb, 3) root node in the TCP frame [mm]
-    root_R: np.ndarray  # (nb, 3, 3) bristle frame in the TCP frame
-    seg_len: np.ndarray  # (N,) [mm]
-    tip_radius: np.ndarray  # (nb,) [mm]
-    length: np.ndarray  # (nb,) [mm]
-    elem: np.ndarray  # (N,) int64 element formulation of each body's element (_kernels.ELEM_*)
-
-    def arrays(self) -> rec.ModelArrays:
-        """The kernels' view of the model (``records.ModelArrays``)."""
-        return rec.ModelArrays(self.bstart, self.bp, self.K, self.root_p, self.root_R, self.elem)
-
-    @property
-    def n_bristles(self) -> int:
-        return len(self.bstart) - 1
-
-    @property
-    def n_bodies(self) -> int:
-        return int(self.bstart[-1])
-
-
-def build_model(brush: BrushConfig, element: str = "mid") -> Model:
-    """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping) for
-    the beam element ``element`` ("paper" or "mid", see SimSettings)."""
-    nbod = [b.bodies for b in brush.bristles]
-    bstart = np.zeros(len(nbod) + 1, np.int64)
-    bstart[1:] = np.cumsum(nbod)
-    N = int(bstart[-1])
-    bp = np.zeros((N, rec.N_BP))
-    K = np.zeros((N, 6, 6))
-    seg = np.zeros(N)
-    R_head = brush.head_rotation()
-    root_p = np.zeros((len(nbod), 3))
-    root_R = np.zeros((len(nbod), 3, 3))
-    for j, br in enumerate(brush.bristles):
-        sec, mat = br.section, br.material
-        n = br.bodies
-        l = br.length / n
-        A, Iy, Iz, J = sec.area, sec.I_y, sec.I_z, sec.J
-        kappa = sec.shear_coeff(mat.nu)
-        Kel = timoshenko_stiffness(mat.E, mat.G, A, Iy, Iz, J, kappa, l)
-        if element == "mid":
-            Kel = mid_frame_stiffness(Kel, l)
-        m, Jb = segment_inertia(mat.density, A, Iy, Iz, l)
-        Imin = min(Iy, Iz)
-        beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A, br.length)
-        fscale = mat.E * Imin / br.length**2
-        sl = slice(bstart[j], bstart[j + 1])
-        K[sl] = Kel
-        bp[sl, rec.B_MASS] = m
-        bp[sl, rec.B_JX : rec.B_JX + 3] = Jb
-        bp[sl, rec.B_HALF] = 0.5 * l
-        bp[sl, rec.B_LEN] = l
-        bp[sl, rec.B_BETA] = beta
-        bp[sl, rec.B_FSCALE] = fscale
-        seg[sl] = l
-        root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
-        # lean: rotate about the width axis so the tip moves toward the thickness direction
-        c, s_ = np.cos(brush.effective_lean), np.sin(brush.effective_lean)
-        Ry = np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # x -> (c, 0, +s)
-        root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
-    return Model(
-        bstart,
-        bp,
-        K,
-        root_p,
-        root_R,
-        seg,
-        np.array([b.tip_radius for b in brush.bristles]),
-        np.array([b.length for b in brush.bristles]),
-        np.full(N, ELEMENTS[element], np.int64),
-    )
-
-
-@dataclass
-class State:
-    """Complete dynamic state; ``copy()`` and ``Simulator.set_state`` restore it exactly.
-
-    pos (N,3) [mm] body centres of mass, rot (N,3,3) body->world, vel (N,3) [mm/s],
-    omg (N,3) [rad/s] world; p* the same at the previous step (BDF2 history); hist_ok (nb,) how many
-    whole steps lie behind the history, 0-2 (0: the next step starts with backward Euler; 2: the
-    predictor extrapolates at third order); tcp_p (4,3) [mm] / tcp_R (4,3,3): TCP pose at t_{n-1},
-    t_n, t_{n-2} (rows 0, 1, 3; row 2 is scratch); tip_state (nb, ns): per-contact state;
-    time [s]; steps; pppos (N,3) [mm] / pprot (N,3,3): body poses at t_{n-2}.
-    """
-
-    pos: np.ndarray
-    rot: np.ndarray
-    vel: np.ndarray
-    omg: np.ndarray
-    ppos: np.ndarray
-    prot: np.ndarray
-    pvel: np.ndarray
-    pomg: np.ndarray
-    hist_ok: np.ndarray
-    tcp_p: np.ndarray
-    tcp_R: np.ndarray
-    tip_state: np.ndarray
-    time: float = 0.0
-    steps: int = 0
-    jac: rec.NewtonCache = None
-    pppos: np.ndarray = None
-    pprot: np.ndarray = None
-
-    def copy(self, with_jacobian: bool = True) -> State:
-        """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
-        state so that a restored state continues bit for bit like the original."""
-        d = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
-        d["jac"] = rec.NewtonCache(*(a.copy() for a in self.jac)) if with_jacobian else self.jac
-        return State(**d)
 
 
 @dataclass
@@ -298,108 +94,42 @@ class StepResult:
 
 
 class Simulator:
-    """Discrete flexible multibody brush driven by a prescribed TCP pose (see module docstring)."""
+    """A brush driven by a prescribed TCP pose (see the module docstring).
+
+    ``scene``: a ``Scene`` (or a ``BrushConfig``: no surfaces); ``settings``: ``SimSettings``
+    (a fidelity level's ``settings()``), whose ``bodies_per_bristle`` (if not 0) re-discretises
+    the scene's brush and whose ``model`` picks the bristle model behind the seam.
+    """
 
     def __init__(self, scene, settings: SimSettings | None = None):
         if isinstance(scene, BrushConfig):
             scene = Scene(scene)
-        self.scene = scene
-        brush = scene.brush
-        self.brush = brush
         self.settings = settings or SimSettings()
-        self.model = build_model(brush, self.settings.element)
-        nb = self.model.n_bristles
-        self.tip_args = np.zeros((nb, N_TIP_ARGS))
-        self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
-        self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
-        self.surfaces, grids = _surface_rows(scene.surfaces)
-        self.sdf = pack_grids(grids)
-        meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
-        if len(meshes) > 1:
-            raise ConfigError(
-                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
+        if self.settings.bodies_per_bristle:
+            scene = dataclasses.replace(
+                scene, brush=scene.brush.with_bodies(self.settings.bodies_per_bristle)
             )
-        self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
-        self.pair_ptr, self.pair_idx = (
-            tip_pairs(self.model, scene)
-            if scene.tip_tip
-            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
-        )
-        self._ws = rec.make_work(
-            int(np.diff(self.model.bstart).max()),
-            N_TIP_STATE,
-            self.model.n_bodies,
-            nb,
-            len(self.pair_idx),
-        )
-        self._kmodel = self.model.arrays()
-        self._tips = np.zeros((nb, 7))
-        self._tips[:, 6] = self.model.tip_radius
-        self._out = rec.StepOut(
-            np.zeros((nb, 6)),
-            np.zeros(nb, np.int64),
-            np.zeros(nb, np.int64),
-            np.zeros(nb, np.int64),
-        )
-        self._rootw = self._out.rootw
-        self.state: State | None = None
-        self._snap: State | None = None  # rollback buffers (see _snapshot)
-        self._prm = self._make_prm(static=False)
+        self.scene = scene
+        self.brush = scene.brush
+        self.bristles = make_bristle_model(scene, self.settings)
         self._pen_warned = False
 
-    # ------------------------------------------------------------------ set-up
-    def _make_prm(self, static: bool) -> np.ndarray:
-        s = self.settings
-        prm = np.zeros(itg.N_PRM)
-        prm[itg.P_H] = s.dt if static else s.dt / s.substeps
-        prm[itg.P_METHOD] = INTEGRATORS[s.integrator]
-        prm[itg.P_STATIC] = 1.0 if static else 0.0
-        prm[itg.P_RTOL] = s.newton_rtol
-        prm[itg.P_MAXIT] = s.newton_max_iter
-        prm[itg.P_MAXLEV] = s.max_substep_levels
-        prm[itg.P_G : itg.P_G + 3] = s.gravity
-        prm[itg.P_JAGE] = s.jacobian_max_age
-        prm[itg.P_SWEEPS] = s.tip_tip_sweeps
-        prm[itg.P_TTTOL] = s.tip_tip_tol
-        return prm
+    @property
+    def model(self):
+        """The brush geometry of the bristle model (``bristles.py``: bstart, root_p, ...)."""
+        return self.bristles.model
+
+    @property
+    def state(self):
+        """The bristle model's state (``pos``, ``rot``, ``tcp_p``, ``tcp_R``, ``time``, ...)."""
+        return self.bristles.state
 
     def reset(self, tcp_p=None, tcp_R=None, time: float = 0.0) -> StepResult:
         """Straight, unstressed bristles at rest on a TCP at pose (tcp_p [mm], tcp_R)."""
         tcp_p = np.zeros(3) if tcp_p is None else np.asarray(tcp_p, float)
         tcp_R = np.eye(3) if tcp_R is None else np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
-        m = self.model
-        N, nb = m.n_bodies, m.n_bristles
-        pos = np.zeros((N, 3))
-        rot = np.zeros((N, 3, 3))
-        for j in range(nb):
-            Rw = tcp_R @ m.root_R[j]
-            root_w = tcp_p + tcp_R @ m.root_p[j]
-            for k, i in enumerate(range(m.bstart[j], m.bstart[j + 1])):
-                pos[i] = root_w + (k + 0.5) * m.seg_len[i] * Rw[:, 0]
-                rot[i] = Rw
-        z = np.zeros((N, 3))
-        self.state = State(
-            pos,
-            rot,
-            z.copy(),
-            z.copy(),
-            pos.copy(),
-            rot.copy(),
-            z.copy(),
-            z.copy(),
-            np.zeros(nb, np.int64),
-            np.stack([tcp_p] * 4),
-            np.stack([tcp_R] * 4),
-            _fresh_tip_state(nb),
-            time,
-            0,
-            rec.make_newton_cache(N, nb),
-            pos.copy(),
-            rot.copy(),
-        )
-        self._rootw[:] = 0.0
-        itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
+        self.bristles.reset(tcp_p, tcp_R, time)
         return self._result(0, 0)
 
     @staticmethod
@@ -439,15 +169,13 @@ class Simulator:
                 f"tip forces must be finite with shape ({self.model.n_bristles}, 3)"
                 f", got shape {f.shape}"
             )
-        self.tip_args[:, 0:3] = f
+        self.bristles.set_tip_forces(f)
 
-    def get_state(self) -> State:
+    def get_state(self):
         return self.state.copy()
 
-    def set_state(self, state: State) -> None:
-        self.state = state.copy()
-        st, m = self.state, self.model
-        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, self._tips)
+    def set_state(self, state) -> None:
+        self.bristles.set_state(state)
 
     # ------------------------------------------------------------------ stepping
     def step(self, tcp_p, tcp_R) -> StepResult:
@@ -461,7 +189,7 @@ class Simulator:
         self._check_motion(tcp_p, tcp_R)
         n = self.settings.substeps
         if n == 1:
-            return self._result(*self._advance(tcp_p, tcp_R, self._prm, st.time + self.settings.dt))
+            return self._result(*self._advance(tcp_p, tcp_R, st.time + self.settings.dt))
         return self._advance_split(tcp_p, tcp_R, n)
 
     def _advance_split(self, tcp_p, tcp_R, n: int) -> StepResult:
@@ -472,13 +200,13 @@ class Simulator:
         t0, h = st.time, self.settings.dt / n
         p0, R0 = st.tcp_p[1].copy(), st.tcp_R[1].copy()
         w = logmap(tcp_R @ R0.T)  # world-frame rotation vector from R0 to tcp_R
-        start = self._snapshot(st)  # the rollback target of every internal step
+        start = self.bristles.snapshot()  # the rollback target of every internal step
         iters = nsub = 0
         for k in range(1, n + 1):
             s = k / n
             p = tcp_p if k == n else (1.0 - s) * p0 + s * tcp_p
             R = tcp_R if k == n else expmap(s * w) @ R0
-            it, ns = self._advance(p, R, self._prm, t0 + k * h, start)
+            it, ns = self._advance(p, R, t0 + k * h, start)
             iters += it
             nsub += ns
         st.time = t0 + self.settings.dt  # no round-off drift of the step grid
@@ -497,113 +225,21 @@ class Simulator:
         tcp_p = st.tcp_p[1].copy() if tcp_p is None else np.asarray(tcp_p, float)
         tcp_R = st.tcp_R[1].copy() if tcp_R is None else np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
-        prm = self._make_prm(static=True)
-        prm[itg.P_MAXLEV] = 0
-        full = self.tip_args.copy()
+        full = self.bristles.tip_forces.copy()
         try:
             for k in range(1, increments + 1):
-                self.tip_args[:] = full * (k / increments)
-                counts = self._advance(tcp_p, tcp_R, prm, st.time)
+                self.bristles.set_tip_forces(full * (k / increments))
+                counts = self.bristles.solve_static(tcp_p, tcp_R)
         finally:
-            self.tip_args[:] = full
-        self.state.hist_ok[:] = 0
+            self.bristles.set_tip_forces(full)
         return self._result(*counts)
 
-    def _advance(self, tcp_p, tcp_R, prm, t_new, snapshot=None) -> tuple[int, int]:
-        """One (internal) step as named stages: base motion -> per-bristle implicit solve
-        (contact search, beam, contact, friction, tip-tip inside Newton) -> acceptance or
-        rollback -> the penetration check; returns (Newton iterations, sub-steps) of all
-        bristles (``_result`` builds the outputs once per ``step``).  ``snapshot``: the state a
-        divergence restores (default: this step's start; a split step passes its own start)."""
-        if snapshot is None:
-            snapshot = self._snapshot(self.state)  # rollback target
-        self._base_motion(tcp_p, tcp_R)
-        self._solve_bristles(prm)
-        self._accept_or_rollback(snapshot, prm, t_new)
-        self._shift_drive(tcp_p, tcp_R, t_new)
-        out = self._out
+    def _advance(self, tcp_p, tcp_R, t_new, rollback=None) -> tuple[int, int]:
+        """One solver step of the bristle model, then the penetration check."""
+        counts = self.bristles.advance(tcp_p, tcp_R, t_new, rollback)
         if not self._pen_warned:
-            self._warn_penetration(self._penetration())
-        return int(out.iters.sum()), int(out.nsub.sum())
-
-    def _base_motion(self, tcp_p, tcp_R) -> None:
-        """Stage 1: the prescribed TCP pose at t + dt (row 2 of the drive); the kernels
-        interpolate it over sub-steps (linear position, geodesic rotation)."""
-        st = self.state
-        st.tcp_p[2] = tcp_p
-        st.tcp_R[2] = tcp_R
-
-    def _solve_bristles(self, prm) -> None:
-        """Stage 2: every bristle's implicit step (integrator.step_bristles): per bristle, the
-        momentum balance (eq 11) with the beam elements (eq 1-5), the tip's contact search over
-        the surfaces and its pre-searched tip-tip partners (§2.2, ``tip_pairs``), the normal law
-        (eq 6), friction (eq 7-10) and tip-tip contact (Table 3), solved by Newton."""
-        st = self.state
-        chain = rec.Chain(
-            st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
-        )
-        drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
-        itg.step_bristles(
-            self._kmodel, chain, drive, prm, self._contact(), st.jac, self._ws, self._out
-        )
-
-    def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
-        """Stage 3: a bristle that failed on its smallest sub-step, or a non-finite state,
-        restores the whole state and raises ``SimulationDivergence`` (never NaN)."""
-        st, m = self.state, self.model
-        bad = np.flatnonzero(self._out.status)
-        if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self._rootw)):
-            bad = np.arange(m.n_bristles)
-        if bad.size:
-            self.set_state(snapshot)
-            # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
-            # them all stale, so that what follows depends on the restored state alone
-            self.state.jac.key[:] = 0.0
-            raise SimulationDivergence(
-                t_new,
-                bad,
-                "Newton did not converge on the smallest "
-                f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})",
-            )
-
-    def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
-        """Stage 4: the TCP history moves on (t_{n-2} <- t_{n-1} <- t_n <- t_{n+1}), time too."""
-        st = self.state
-        st.tcp_p[3] = st.tcp_p[0]
-        st.tcp_R[3] = st.tcp_R[0]
-        st.tcp_p[0] = st.tcp_p[1]
-        st.tcp_R[0] = st.tcp_R[1]
-        st.tcp_p[1] = tcp_p
-        st.tcp_R[1] = tcp_R
-        st.time = t_new
-        st.steps += 1
-
-    def _snapshot(self, st: State) -> State:
-        """Copy of ``st`` into buffers kept across steps (no allocation per step).  The Newton
-        factors are shared, not copied: they are only a cache, and a failed step marks them all
-        stale (``_advance``)."""
-        snap = self._snap
-        if snap is None:
-            snap = self._snap = st.copy(with_jacobian=False)
-        else:
-            for name in _STATE_ARRAYS:
-                np.copyto(getattr(snap, name), getattr(st, name))
-            snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
-        return snap
-
-    def _contact(self) -> rec.ContactScene:
-        """The kernels' view of the contact scene and the per-tip state."""
-        return rec.ContactScene(
-            self.surfaces,
-            self.contact_params,
-            self._tips,
-            self.pair_ptr,
-            self.pair_idx,
-            self.mesh,
-            self.tip_args,
-            self.state.tip_state,
-            self.sdf,
-        )
+            self._warn_penetration(self.bristles.contact().penetration)
+        return counts
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
         """TCP height z [mm] at which the lowest tip sphere of the unloaded brush just touches the
@@ -617,28 +253,18 @@ class Simulator:
 
     @property
     def n_tip_pairs(self) -> int:
-        """Number of tip-tip pairs kept for this scene (each counted once)."""
-        return len(self.pair_idx) // 2
+        """Number of tip-tip pairs kept for this scene (each counted once; 0 if the model keeps
+        none)."""
+        return int(getattr(self.bristles, "n_tip_pairs", 0))
 
     # ------------------------------------------------------------------ outputs
     def tip_positions(self) -> np.ndarray:
         """Tip node (sphere centre) of every bristle [mm, world], (nb, 3)."""
-        return self._tip_states()[:, 0:3]
+        return self.bristles.tips[:, 0:3].copy()
 
     def tip_velocities(self) -> np.ndarray:
         """Tip node velocity of every bristle [mm/s, world], (nb, 3)."""
-        return self._tip_states()[:, 3:6]
-
-    def _tip_states(self) -> np.ndarray:
-        st, m = self.state, self.model
-        out = np.empty((m.n_bristles, 6))
-        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, out)
-        return out
-
-    def _penetration(self) -> np.ndarray:
-        """(nb,) [mm] each tip's penetration, 0 where it does not touch."""
-        ts = self.state.tip_state
-        return np.maximum(ts[:, ct.S_PEN], 0.0) * (ts[:, ct.S_FN] > 0.0)
+        return self.bristles.tips[:, 3:6].copy()
 
     def _warn_penetration(self, pen: np.ndarray) -> None:
         """Once per simulator: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius."""
@@ -661,11 +287,10 @@ class Simulator:
         st = self.state
         R_tcp = st.tcp_R[1]
         w = np.empty(6)
-        itg.tcp_wrench(R_tcp, self.model.root_p, self._rootw, w)
+        itg.tcp_wrench(R_tcp, self.model.root_p, self.bristles.root_wrench, w)
         F, M = w[0:3], w[3:6]
-        ts = st.tip_state
-        fn = ts[:, ct.S_FN].copy()
-        tips = self._tips[:, 0:6].copy()  # step_bristles / tip_states keep them current
+        c = self.bristles.contact()
+        tips = self.bristles.tips.copy()
         return StepResult(
             st.time,
             F,
@@ -676,84 +301,16 @@ class Simulator:
             tips[:, 3:6],
             iters,
             nsub,
-            fn,
-            ts[:, ct.S_FT : ct.S_FT + 3].copy(),
-            fn > 0.0,
-            (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
-            self._penetration(),
-            ts[:, ct.S_CP : ct.S_CP + 3].copy(),
+            c.normal_force,
+            c.tangential_force,
+            c.normal_force > 0.0,
+            c.sliding,
+            c.penetration,
+            c.contact_point,
             extra={
-                "tip_tip_force": ts[:, ct.S_FTT].copy(),
+                "tip_tip_force": c.tip_tip_force,
                 # index of the surface each tip touches deepest (-1: none; Scene.surfaces order)
-                "tip_surface": np.where(fn > 0.0, ts[:, ct.S_SURF], -1.0).astype(np.int64),
-                # sweeps and bristle re-solves of the (last internal) step, and whether its
-                # tip-tip partners settled within tip_tip_tol before the sweeps ran out
-                "sweeps": int(self._ws.sw.count[0]),
-                "resolves": int(self._ws.sw.count[1]),
-                "tip_tip_settled": bool(self._ws.sw.count[2] == 0),
-                "tip_tip_fallback": bool(self._ws.sw.count[2] == 2),
+                "tip_surface": c.surface,
+                **self.bristles.solver_info(),
             },
         )
-
-
-#: the array fields of State (copied by Simulator._snapshot)
-_STATE_ARRAYS = (
-    "pos",
-    "rot",
-    "vel",
-    "omg",
-    "ppos",
-    "prot",
-    "pvel",
-    "pomg",
-    "pppos",
-    "pprot",
-    "hist_ok",
-    "tcp_p",
-    "tcp_R",
-    "tip_state",
-)
-
-
-def _fresh_tip_state(nb: int) -> np.ndarray:
-    """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
-    ts = np.zeros((nb, N_TIP_STATE))
-    ts[:, ct.S_SURF] = -1.0
-    return ts
-
-
-def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
-    """Kernel rows (kind, then the kind's numbers: contact.SURF_*) of the scene's surfaces, and
-    the baked SDF grids that rows of kind SURF_GRID index (in their order)."""
-    rows = np.zeros((len(surfaces), ct.N_SURF))
-    grids = []
-    for j, srf in enumerate(surfaces):
-        if hasattr(srf, "sdf_grid"):
-            rows[j, 0], rows[j, 1] = ct.SURF_GRID, len(grids)
-            grids.append(srf.sdf_grid())
-        else:
-            rows[j] = srf.kernel_row()
-    return rows, grids
-
-
-def tip_pairs(model: Model, scene, travel_fraction: float | None = None):
-    """Tip-tip pairs the scene can bring together, as CSR lists (each pair listed for both tips).
-
-    Two tips can touch only if their roots are closer than the sum of the tips' largest travels
-    plus the two sphere radii.  A tip's travel is bounded by its bristle length (it swings about
-    its root), times ``scene.tip_travel_fraction`` (default 0.6: a bristle pressed onto a plate
-    and dragged leans over but does not fold back, so its tip stays within ~0.6 L of the root
-    line; documented choice, checked against the full pair set in tests).
-    """
-    frac = (
-        getattr(scene, "tip_travel_fraction", 0.6) if travel_fraction is None else travel_fraction
-    )
-    nb = model.n_bristles
-    roots = model.root_p
-    reach = frac * model.length + model.tip_radius
-    d = np.linalg.norm(roots[:, None, :] - roots[None, :, :], axis=2)
-    ok = (d <= reach[:, None] + reach[None, :]) & ~np.eye(nb, dtype=bool)
-    ptr = np.zeros(nb + 1, np.int64)
-    ptr[1:] = np.cumsum(ok.sum(axis=1))
-    idx = np.nonzero(ok)[1].astype(np.int64)
-    return ptr, idx

@@ -10,11 +10,11 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 ``wall_s``, ``steps_per_s`` (all envs together), ``steps_per_s_per_env``,
 ``real_time_factor`` (simulated seconds per wall-clock second, all envs together),
 ``engine_steps_per_s``, ``cold_start_s``, ``terminations``, and the settings (``brush``,
-``n_bristles``, ``bodies_per_bristle``, ``engine_dt``, ``engine_max_substep``, ``frame_skip``,
+``n_bristles``, ``bodies_per_bristle``, ``engine_dt``, ``max_substep``, ``frame_skip``,
 ``control_hz``).
 
     brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
-                        [--engine-dt 0.004] [--engine-max-substep 0.001] [--frame-skip 10]
+                        [--engine-dt 0.004] [--max-substep 0.001] [--frame-skip 10]
                         [--json]
 
 Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
@@ -39,7 +39,7 @@ DEFAULTS = {
     "brush": "default",
     "bodies": 3,
     "engine_dt": 0.004,
-    "engine_max_substep": 0.001,
+    "max_substep": 0.001,
     "frame_skip": 10,
     "config": "flat_plate",
 }
@@ -49,9 +49,8 @@ def _env_kwargs(a: dict) -> dict:
     return {
         "config": a["config"],
         "brush": a["brush"],
-        "bodies_per_bristle": a["bodies"],
         "engine_dt": a["engine_dt"],
-        "engine_max_substep": a["engine_max_substep"],
+        "engine_settings": {"bodies_per_bristle": a["bodies"], "max_substep": a["max_substep"]},
         "frame_skip": a["frame_skip"],
     }
 
@@ -146,7 +145,7 @@ def _row(mode, n, steps, wall, cold, terminations, u, a) -> dict:
         "n_bristles": u.n_bristles,
         "bodies_per_bristle": a["bodies"],
         "engine_dt": u.config.engine_dt,
-        "engine_max_substep": u.config.engine_max_substep,
+        "max_substep": u.sim.settings.max_substep,
         "frame_skip": u.config.frame_skip,
         "control_hz": 1.0 / u.dt,
     }
@@ -196,10 +195,10 @@ _OPTIONS = (
     ),
     ("--engine-dt", dict(type=float, default=DEFAULTS["engine_dt"], help="engine step [s]")),
     (
-        "--engine-max-substep",
+        "--max-substep",
         dict(
             type=float,
-            default=DEFAULTS["engine_max_substep"],
+            default=DEFAULTS["max_substep"],
             help="longest internal solver step [s] (engine_dt: no split)",
         ),
     ),
@@ -239,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
     r = rows[0]
     print(
         f"brush {r['brush']} ({r['n_bristles']} bristles x {r['bodies_per_bristle']} bodies), "
-        f"engine dt {r['engine_dt']} s (solver steps <= {r['engine_max_substep']} s) "
+        f"engine dt {r['engine_dt']} s (solver steps <= {r['max_substep']} s) "
         f"x frame_skip {r['frame_skip']} = "
         f"{r['control_hz']:.4g} Hz control"
     )

@@ -3,7 +3,7 @@ limits (issue 15: "random-action env steps over fixed seeds: no SimulationDiverg
 single-step tip force above 1 N or penetration above 20 um that the small-step run does not
 show").
 
-For each ``engine_max_substep`` [s] and each seed: ``--steps`` env steps of actions drawn
+For each ``max_substep`` [s] and each seed: ``--steps`` env steps of actions drawn
 uniformly from [-1, 1]^6 (``numpy.random.default_rng(seed)``), the episode reset (seed + 100 k)
 when it ends.  Per row: divergences, episode ends, the largest per-step peak tip normal force
 (``info["peak_tip_force"]``) [N], the steps whose peak exceeds 1 N, the largest penetration of
@@ -26,12 +26,12 @@ DEFAULTS = {"steps": 500, "seeds": [0, 1, 2], "substeps": [0.004, 0.001, 0.00025
 
 
 def random_run(max_substep: float, seed: int, steps: int) -> dict:
-    """One seed's random-action run at ``engine_max_substep = max_substep`` (see module)."""
+    """One seed's random-action run at ``max_substep = max_substep`` (see module)."""
     import gymnasium as gym
 
     import brush_env  # noqa: F401  (registers the env ids)
 
-    env = gym.make(ENV_ID, engine_max_substep=max_substep)
+    env = gym.make(ENV_ID, engine_settings={"max_substep": max_substep})
     u = env.unwrapped
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
@@ -53,7 +53,7 @@ def random_run(max_substep: float, seed: int, steps: int) -> dict:
     env.close()
     peaks = np.asarray(peaks)
     return {
-        "engine_max_substep": max_substep,
+        "max_substep": max_substep,
         "seed": seed,
         "steps": steps,
         "divergences": int(divergences),
@@ -81,10 +81,10 @@ def run(args) -> int:
 
 
 def format_table(rows) -> str:
-    smallest = min(r["engine_max_substep"] for r in rows)  # the small-step run of each seed
-    ref = {r["seed"]: np.asarray(r["peaks"]) for r in rows if r["engine_max_substep"] == smallest}
+    smallest = min(r["max_substep"] for r in rows)  # the small-step run of each seed
+    ref = {r["seed"]: np.asarray(r["peaks"]) for r in rows if r["max_substep"] == smallest}
     lines = [
-        "| engine_max_substep [s] | seed | divergences | episode ends | peak tip force [N] | "
+        "| max_substep [s] | seed | divergences | episode ends | peak tip force [N] | "
         "steps > 1 N | of them not > 1 N in the smallest-limit run | max penetration [um] | "
         "wall [s] |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -94,7 +94,7 @@ def format_table(rows) -> str:
         n = min(len(p), len(q))
         extra = int(((p[:n] > 1.0) & ~(q[:n] > 1.0)).sum())
         lines.append(
-            f"| {r['engine_max_substep']:g} | {r['seed']} | {r['divergences']} | "
+            f"| {r['max_substep']:g} | {r['seed']} | {r['divergences']} | "
             f"{r['episode_ends']} | {r['peak_tip_force_N']:.3f} | {r['steps_above_1N']} | "
             f"{extra} | {r['max_penetration_um']:.1f} | {r['wall_s']:.1f} |"
         )
@@ -111,5 +111,5 @@ def add_arguments(p) -> None:
         type=float,
         nargs="+",
         default=DEFAULTS["substeps"],
-        help="engine_max_substep values [s]; the smallest is the small-step reference",
+        help="max_substep values [s]; the smallest is the small-step reference",
     )

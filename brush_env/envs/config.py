@@ -45,6 +45,8 @@ def _f(
         hi_open=hi_open,
         choices=choices,
     )
+    if isinstance(default, dict):
+        return field(default_factory=dict, metadata=meta)
     return field(default=default, metadata=meta)
 
 
@@ -61,9 +63,17 @@ class EnvConfig:
         "fast",
         "engine",
         "-",
-        "fidelity level (configs/fidelity: reference, paper, balanced, fast) or a TOML path: sets "
-        "bodies_per_bristle, engine_max_substep, element, integrator, tip_tip_sweeps unless "
-        "those are keywords of the same call; empty: those keys as written",
+        "fidelity level (configs/fidelity: reference, paper, balanced, fast) or a TOML path: the "
+        "engine settings (bristle model, bodies, solver step, element, integrator, tip-tip "
+        "solve, Newton tolerance); empty: the engine's defaults",
+    )
+    engine_settings: dict = _f(
+        {},
+        "engine",
+        "-",
+        "engine settings that replace the level's, under the engine's own names (SimSettings "
+        "fields, e.g. {max_substep = 0.004, bodies_per_bristle = 6}); not dt or gravity, which "
+        "are the env's engine_dt and gravity",
     )
     brush: str = _f("default", "engine", "-", "brush: a name in configs/brushes or a TOML path")
     scene: str = _f(
@@ -72,36 +82,17 @@ class EnvConfig:
         "-",
         "scene: a name in configs/scenes or a TOML path (one plane, normal +z)",
     )
-    bodies_per_bristle: int = _f(
-        3,
-        "engine",
-        "count",
-        "rigid bodies per bristle (0 keeps the brush file's value)",
-        lo=0,
-        hi=24,
-    )
-    engine_dt: float = _f(0.004, "engine", "s", "engine time step", lo=0.0, hi=0.02, lo_open=True)
-    engine_max_substep: float = _f(
-        0.001,
+    engine_dt: float = _f(
+        0.004,
         "engine",
         "s",
-        "longest internal solver step: engine_dt is split into ceil(engine_dt / this) steps "
-        "(1 ms keeps the press on the small-step buckling branch; engine_dt switches the split "
-        "off, faster but on the wrong branch at 2-4 ms, docs/env.md)",
+        "engine time step (SimSettings.dt; the level's max_substep splits it into solver steps)",
         lo=0.0,
         hi=0.02,
         lo_open=True,
     )
     frame_skip: int = _f(
         10, "engine", "count", "engine steps per action (control step)", lo=1, hi=1000
-    )
-    integrator: str = _f("bdf2", "engine", "-", "implicit scheme", choices=("bdf2", "euler"))
-    element: str = _f(
-        "mid",
-        "engine",
-        "-",
-        "beam element: mid (accurate with few bodies) or paper (docs/model.md)",
-        choices=("mid", "paper"),
     )
     gravity: bool = _f(True, "engine", "-", "gravity on the bristles (-z, 9810 mm/s^2)")
     tip_tip: str = _f(
@@ -110,15 +101,6 @@ class EnvConfig:
         "-",
         "tip-tip contact (Table 3): scene = the scene file's setting, on, off",
         choices=("scene", "on", "off"),
-    )
-    tip_tip_sweeps: int = _f(
-        1,
-        "engine",
-        "count",
-        "most sweeps per solver step for tip-tip contact: >1 solves touching tips coupled "
-        "(action = reaction), 1 holds partners one sweep behind (faster, lags; docs/model.md)",
-        lo=1,
-        hi=100,
     )
     # --- action -------------------------------------------------------------------------------
     action_mode: str = _f(
@@ -336,9 +318,25 @@ class EnvConfig:
             object.__setattr__(self, f.name, _check(f, getattr(self, f.name)))
         self._cross_checks()
 
+    def sim_settings(self):
+        """The engine's ``SimSettings``: the fidelity level with ``engine_settings`` replacing
+        its keys, ``engine_dt`` as the step and the env's gravity switch (built once)."""
+        return self._sim
+
     def _cross_checks(self) -> None:
-        if self.fidelity:
-            fidelity_settings(self.fidelity)  # an unknown level or bad file names itself
+        from brush_env.engine.fidelity import level_settings
+        from brush_env.engine.settings import G_EARTH
+
+        gravity = (0.0, 0.0, -G_EARTH) if self.gravity else (0.0, 0.0, 0.0)
+        try:  # an unknown level, a bad level file or a bad engine setting names itself
+            sim = level_settings(
+                self.fidelity, **self.engine_settings, dt=self.engine_dt, gravity=gravity
+            )
+        except ConfigError as e:
+            if self.engine_settings:
+                raise ConfigError(f"{e} (engine_settings = {self.engine_settings!r})") from None
+            raise
+        object.__setattr__(self, "_sim", sim)
         for name in ("tip_force_window", "workspace_height", "start_height"):
             lo, hi = getattr(self, name)
             if lo > hi:
@@ -433,6 +431,8 @@ _LIMITS = {name: _limit(f.metadata) for name, f in FIELDS.items()}
 def _check(f, value):
     """Type- and range-check one field; returns the normalised value."""
     m, name, default = f.metadata, f.name, f.default
+    if name == "engine_settings":
+        return _check_engine_settings(value)
     limit = _LIMITS[name]
     unit = f" ({m['unit']})" if m["unit"] not in ("-", "") else ""
     if isinstance(default, bool):
@@ -454,6 +454,28 @@ def _check(f, value):
             raise type_error(name, value, f"a list of {n} numbers{unit}, each in {limit.text}")
         return tuple(_number(f"{name}[{i}]", v, float, limit) for i, v in enumerate(value))
     return _number(name, value, int if isinstance(default, int) else float, limit)
+
+
+#: SimSettings fields the env sets itself (engine_dt, gravity), so not in engine_settings
+_ENV_OWNED = ("dt", "gravity")
+
+
+def _check_engine_settings(value) -> dict:
+    """``engine_settings``: a table of SimSettings fields (their values are checked when the
+    settings are built, ``EnvConfig.sim_settings``)."""
+    from brush_env.engine.settings import engine_keys
+
+    if not isinstance(value, dict):
+        raise type_error("engine_settings", value, "a table of engine settings")
+    allowed = [k for k in engine_keys() if k not in _ENV_OWNED]
+    for k in value:
+        if k not in allowed:
+            raise ConfigError(
+                f"engine_settings.{k} is not an engine setting the env passes on"
+                f"{did_you_mean(str(k), allowed)} (allowed: {', '.join(allowed)}; "
+                "the step is engine_dt and gravity is the env's gravity)"
+            )
+    return dict(value)
 
 
 def _number(name: str, value, kind: type, limit: _Range):
@@ -519,34 +541,11 @@ def load_env_config(
         flat.update(table)
     _check_names(overrides, "override")
     flat.update(overrides)
-    if flat.get("fidelity"):
-        # the level's settings replace the file's; keywords of this call still win
-        for key, value in fidelity_settings(flat["fidelity"]).items():
-            if key not in overrides:
-                flat[key] = value
     try:
         return EnvConfig(**flat)
     except ConfigError as e:
         src = str(path) + (f" with overrides {overrides!r}" if overrides else "")
         raise ConfigError(f"{src}: {e}") from None
-
-
-#: EnvConfig keys a fidelity level sets, and the Fidelity field each comes from
-FIDELITY_KEYS = {
-    "bodies_per_bristle": "bodies_per_bristle",
-    "engine_max_substep": "max_substep",
-    "element": "element",
-    "integrator": "integrator",
-    "tip_tip_sweeps": "tip_tip_sweeps",
-}
-
-
-def fidelity_settings(level) -> dict:
-    """The EnvConfig values of a fidelity level (``FIDELITY_KEYS``)."""
-    from brush_env.engine.fidelity import load_fidelity
-
-    fid = load_fidelity(level)
-    return {key: getattr(fid, attr) for key, attr in FIDELITY_KEYS.items()}
 
 
 def arguments_table() -> str:
@@ -558,6 +557,8 @@ def arguments_table() -> str:
     for f in FIELDS.values():
         m = f.metadata
         d = list(f.default) if isinstance(f.default, tuple) else f.default
+        if f.name == "engine_settings":
+            d = {}
         rows.append(
             f"| `{f.name}` | {m['section']} | `{d!r}` | {m['unit']} "
             f"| {_LIMITS[f.name].text} | {m['doc']} |"

@@ -102,18 +102,14 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 
 | Parameter | Default | Unit | Meaning |
 |---|---|---|---|
-| fidelity | "fast" | - | fidelity level (configs/fidelity); sets the five engine keys it names |
+| fidelity | "fast" | - | fidelity level (configs/fidelity): the engine's settings (model, bodies, solver step, element, tip-tip solve) |
+| engine_settings | {} | - | engine settings replacing the level's, under the engine's names, e.g. {"max_substep": 0.004} |
 | brush | "default" | - | brush name in configs/brushes or a TOML path |
 | scene | "flat_plate" | - | scene name in configs/scenes or a TOML path |
-| bodies_per_bristle | 3 | count | bodies per bristle (0: the brush file's) |
-| engine_dt | 0.004 | s | engine time step |
-| engine_max_substep | 0.001 | s | longest internal solver step (engine_dt is split into equal steps) |
+| engine_dt | 0.004 | s | engine time step (the level's max_substep splits it into solver steps) |
 | frame_skip | 10 | count | engine steps per action; dt = engine_dt * frame_skip |
-| integrator | "bdf2" | - | "bdf2" or "euler" |
-| element | "mid" | - | beam element: "mid" (accurate with few bodies) or "paper" |
 | gravity | True | - | gravity on the bristles |
 | tip_tip | "scene" | - | tip-tip contact: the scene file's (on for flat_plate), "on", "off" |
-| tip_tip_sweeps | 1 | count | sweeps per solver step for tip-tip contact (1: one sweep, lags; >1 coupled) |
 | action_mode | "6d" | - | "6d" or "3d" |
 | max_linear_speed | (50, 50, 20) | mm/s | velocity at action +-1 |
 | max_angular_speed | (0.5, 0.5, 1.0) | rad/s | angular velocity at action +-1 |
@@ -164,7 +160,6 @@ import numpy as np
 from brush_env.engine import (
     ConfigError,
     Plane,
-    SimSettings,
     SimulationDivergence,
     Simulator,
     load_brush,
@@ -221,8 +216,6 @@ class BrushEnv(gym.Env):
         self.config = cfg
         self.render_mode = render_mode
         brush = load_brush(cfg.brush)
-        if cfg.bodies_per_bristle:
-            brush = brush.with_bodies(cfg.bodies_per_bristle)
         scene = load_scene(cfg.scene, brush=brush)
         if cfg.tip_tip != "scene":
             scene = dataclasses.replace(scene, tip_tip=cfg.tip_tip == "on")
@@ -230,18 +223,9 @@ class BrushEnv(gym.Env):
         self.plate_z = self._surface_height(scene)
         # surfaces whose contact force has a limit of its own (the gum of a tooth row)
         self._gum = np.array([s == "gum" for s in surface_labels(scene)], bool)
-        gravity = SimSettings().gravity if cfg.gravity else (0.0, 0.0, 0.0)
-        self.sim = Simulator(
-            scene,
-            SimSettings(
-                dt=cfg.engine_dt,
-                max_substep=cfg.engine_max_substep,
-                integrator=cfg.integrator,
-                gravity=gravity,
-                element=cfg.element,
-                tip_tip_sweeps=cfg.tip_tip_sweeps,
-            ),
-        )
+        # the level's settings as one value, passed on unchanged (EnvConfig.sim_settings)
+        self.sim = Simulator(scene, cfg.sim_settings())
+        self.scene = self.sim.scene  # with the level's bodies per bristle
         model = self.sim.model
         self.n_bristles = model.n_bristles
         self.L = float(brush.max_length)

@@ -13,8 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..engine import SimSettings
-from ..engine.fidelity import load_fidelity
+from ..engine.fidelity import level_settings, load_fidelity
 from ..engine.warmup import ensure_compiled
 from .analysis import PAPER_JAMMING_ANGLES, analyse_run, pitch_asymmetry
 from .outputs import (
@@ -85,16 +84,19 @@ def run_reference(
     args = dict(locals())
     t_wall0 = time.perf_counter()
     check_run_args(args)
-    extra = {} if max_substep is None else {"max_substep": float(max_substep)}
-    if fidelity is None:
-        settings = SimSettings(dt=float(dt), integrator=integrator, element=element, **extra)
-    else:
-        fid = load_fidelity(fidelity)
-        for key in ("integrator", "element"):
-            if args[key] != DEFAULTS[key]:
-                extra[key] = args[key]
-        settings = fid.settings(dt=float(dt), **extra)
-        bodies = fid.bodies_per_bristle if bodies is None else bodies
+    # one SimSettings from the level (fidelity.level_settings); explicit arguments win over it
+    over: dict = {"dt": float(dt)}
+    if max_substep is not None:
+        over["max_substep"] = float(max_substep)
+    if bodies is not None:
+        over["bodies_per_bristle"] = int(bodies)
+    for key in ("integrator", "element"):
+        if fidelity is None or args[key] != DEFAULTS[key]:
+            over[key] = args[key]
+    fid = None if fidelity is None else load_fidelity(fidelity)
+    settings = level_settings(fid, **over)
+    if fid is not None:
+        bodies = settings.bodies_per_bristle
         args["bodies"] = bodies
         args["fidelity"] = fid.name
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)  # inputs valid past here

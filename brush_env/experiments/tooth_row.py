@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine import SimSettings, SimulationDivergence, Simulator
-from ..engine.fidelity import load_fidelity
+from ..engine import SimulationDivergence, Simulator
+from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, with_mesh
 from ..engine.scrub import crown_samples, tooth_surfaces
 from ..engine.warmup import ensure_compiled
@@ -124,12 +124,10 @@ def run_tooth_row(
     if not (0.0 <= a["press_depth"] <= 6.0):
         raise ValueError(f"press_depth = {a['press_depth']!r} mm is out of range: [0, 6]")
     t0 = time.perf_counter()
-    if fidelity is not None:
-        fid = load_fidelity(fidelity)
-        settings = fid.settings(dt=float(a["dt"]))
-        bodies = fid.bodies_per_bristle if bodies is None else bodies
-    else:
-        settings = SimSettings(dt=float(a["dt"]))
+    # one SimSettings from the level (fidelity.level_settings); ``bodies`` wins over it
+    over = {} if bodies is None else {"bodies_per_bristle": int(bodies)}
+    settings = level_settings(fidelity, dt=float(a["dt"]), **over)
+    bodies = settings.bodies_per_bristle or None
     scene_obj = resolve_scene(brush, scene, bodies)
     if mesh is not None:
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)

@@ -31,7 +31,7 @@ def _setup(surfaces):
     """The contact arrays of one bristle over ``surfaces``, friction off."""
     sim = Simulator(Scene(one_bristle(bodies=2), tuple(surfaces), tip_tip=False), SimSettings())
     sim.reset(np.array([0.0, 0.0, 50.0]), R0)
-    con = sim._contact()
+    con = sim.bristles._contact()
     con.cp[ct.C_MUS] = 0.0
     con.cp[ct.C_MUD] = 0.0
     return con

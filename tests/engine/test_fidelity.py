@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from brush_env.engine import ConfigError, SimSettings, load_fidelity, load_scene
+from brush_env.engine import ConfigError, SimSettings, Simulator, load_fidelity, load_scene
 from brush_env.engine.fidelity import LEVELS, SETTING_KEYS
 
 
@@ -17,10 +17,12 @@ def test_every_shipped_level_loads_and_sets_what_it_says(name):
     fid = load_fidelity(name)
     s = fid.settings(dt=4e-3)
     assert isinstance(s, SimSettings) and s.dt == 4e-3
-    for key in SETTING_KEYS[1:]:
+    for key in SETTING_KEYS:
         assert getattr(s, key) == getattr(fid, key), key
-    scene = fid.apply(load_scene("flat_plate"))
-    assert {b.bodies for b in scene.brush.bristles} == {fid.bodies_per_bristle}
+    # the simulator discretises the brush into the level's bodies from the settings alone
+    sim = Simulator(load_scene("flat_plate"), s)
+    assert {b.bodies for b in sim.scene.brush.bristles} == {fid.bodies_per_bristle}
+    assert sim.model.n_bodies == fid.bodies_per_bristle * sim.model.n_bristles
     assert name in fid.describe()
 
 

@@ -109,7 +109,7 @@ def test_a_failed_step_raises_and_leaves_the_state_untouched():
     go on from that state."""
     brush = load_brush(overrides={"bodies_per_bristle": 3})
     # (max_tcp_speed raised: the default refuses a 2000 mm/s command before Newton sees it)
-    settings = SimSettings(dt=1e-3, newton_max_iter=2, max_substep_levels=0, max_tcp_speed=1e4)
+    settings = SimSettings(dt=1e-3, newton_max_iter=2, max_halvings=0, max_tcp_speed=1e4)
     sim = Simulator(brush, settings)
     p0 = np.array([0.0, 0.0, 10.0])
     sim.reset(p0, R0)

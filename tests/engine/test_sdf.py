@@ -30,7 +30,7 @@ def _static_load(surfaces, pt, radius=0.44):
     """contact.tip_load at tip centre pt (statics: no damping, no rate): (F, tip_state row)."""
     sim = Simulator(Scene(one_bristle(bodies=2), tuple(surfaces), tip_tip=False), SimSettings())
     sim.reset(np.array([0.0, 0.0, 50.0]), R0)
-    con = sim._contact()
+    con = sim.bristles._contact()
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
     tw = rec.make_work(1, ct.N_TIP_STATE).tipw

@@ -149,15 +149,15 @@ def test_a_failed_split_step_restores_the_start_of_the_whole_step():
     for p, R in _press_poses(sim, 5, 0.5, rotate=False):
         sim.step(p, R)
     before = sim.get_state()
-    solve, calls = sim._solve_bristles, []
+    solve, calls = sim.bristles._solve_bristles, []
 
     def failing_third(prm):
         solve(prm)
         calls.append(1)
         if len(calls) == 3:
-            sim._out.status[0] = 1  # as NEWTON_FAILED on the smallest sub-step
+            sim.bristles._out.status[0] = 1  # as NEWTON_FAILED on the smallest sub-step
 
-    sim._solve_bristles = failing_third
+    sim.bristles._solve_bristles = failing_third
     with pytest.raises(SimulationDivergence) as err:
         sim.step(p + np.array([0.02, 0.0, -0.02]), R)
     assert err.value.time == pytest.approx(before.time + 3e-3) and err.value.bristles == [0]
@@ -165,6 +165,6 @@ def test_a_failed_split_step_restores_the_start_of_the_whole_step():
     for name in [f.name for f in fields(now) if isinstance(getattr(now, f.name), np.ndarray)]:
         assert np.array_equal(getattr(now, name), getattr(before, name)), name
     assert now.time == before.time and now.steps == before.steps
-    sim._solve_bristles = solve
+    sim.bristles._solve_bristles = solve
     out = sim.step(p + np.array([0.02, 0.0, -0.02]), R)
     assert np.all(np.isfinite(out.tcp_force)) and out.time == pytest.approx(before.time + 4e-3)

@@ -600,7 +600,7 @@ def test_residual_matches_the_twin(pressed_brush, mode):
     h = sim.settings.dt
     gravity = np.array(sim.settings.gravity, float)
     tcp_next = st.tcp_p[1] + np.array([2e-3, 1e-3, -5e-3])
-    ctx = sim._contact()
+    ctx = sim.bristles._contact()
     cpd = {f.name: getattr(sim.scene.contact, f.name) for f in dataclasses.fields(ContactParams)}
     planes = [(np.array(s.point, float), np.array(s.normal, float)) for s in sim.scene.surfaces]
     in_contact = 0
@@ -650,7 +650,7 @@ def test_residual_matches_the_twin(pressed_brush, mode):
         tips_p, tips_v = st.pos[last] + r, st.vel[last] + np.cross(st.omg[last], r)
         partners = [
             (tips_p[j], tips_v[j], m.tip_radius[j])
-            for j in sim.pair_idx[sim.pair_ptr[b] : sim.pair_ptr[b + 1]]
+            for j in sim.bristles.pair_idx[sim.bristles.pair_ptr[b] : sim.bristles.pair_ptr[b + 1]]
         ]
         pt_n = hist["pos_n"][-1] + bp[-1, B_HALF] * hist["rot_n"][-1][:, 0]
         tips = []

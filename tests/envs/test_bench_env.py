@@ -24,7 +24,7 @@ KEYS = {
     "n_bristles",
     "bodies_per_bristle",
     "engine_dt",
-    "engine_max_substep",
+    "max_substep",
     "frame_skip",
     "control_hz",
 }

@@ -16,7 +16,7 @@ def test_same_seed_same_actions_and_the_table():
         assert r["steps"] == 4 and len(r["peaks"]) == 4
         assert r["divergences"] == 0 and r["peak_tip_force_N"] >= 0.0
         assert r["max_penetration_um"] >= 0.0
-    fake = dict(b, engine_max_substep=0.002, peaks=[2.0, 0.0, 0.0, 0.0], steps_above_1N=1)
+    fake = dict(b, max_substep=0.002, peaks=[2.0, 0.0, 0.0, 0.0], steps_above_1N=1)
     table = format_table([fake, b])
     assert table.count("\n") == 3
     assert "| 0.002 | 0 | 0 | 0 |" in table and "| 1 | 1 |" in table

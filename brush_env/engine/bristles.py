@@ -1,0 +1,138 @@
+"""The bristle-model seam: ``Simulator`` steps "the bristles" through this one interface.
+
+Behind it today: the full discrete flexible multibody chain (``chain.DFMChain``, eq 1-11, the
+paper's model and the mid element), registered as ``"dfm"``.  A second model (the reduced model
+for training, or a toy in the tests) registers itself with :func:`register_bristle_model` and is
+chosen by ``SimSettings.model`` -- a fidelity level's ``model = "..."`` -- with no change to the
+simulator, the envs, the experiments or their outputs.
+
+The contract (also in docs/architecture.md, "The bristle-model seam"):
+
+Takes
+    ``factory(scene, settings)``: a ``Scene`` whose brush is already discretised into
+    ``settings.bodies_per_bristle`` bodies, and the ``SimSettings``.  Per call: the TCP pose
+    (tcp_p [mm], tcp_R) at the end of the solver step and the step's end time (the step length is
+    ``settings.dt / settings.substeps``); dead tip loads [N] (``set_tip_forces``).
+Holds
+    ``model``: the brush geometry -- ``bstart`` (nb+1,) the bodies of bristle j are
+    ``bstart[j]:bstart[j+1]``, ``n_bristles``, ``n_bodies``, ``root_p`` (nb,3) [mm] and ``root_R``
+    (nb,3,3) the roots in the TCP frame, ``length`` (nb,) [mm], ``tip_radius`` (nb,) [mm],
+    ``seg_len`` (N,) [mm].  ``state``: ``pos`` (N,3) [mm] body centres, ``rot`` (N,3,3),
+    ``tcp_p`` (4,3) / ``tcp_R`` (4,3,3) the drive (row 1: now, row 0: one step before),
+    ``time`` [s], ``steps``, and ``copy()``; restoring a copy (``set_state``) continues bit for
+    bit.
+Returns
+    ``advance`` -> (Newton iterations or 0, solver steps taken); a failed step restores the given
+    rollback state and raises ``SimulationDivergence`` (never NaN).  After every call: ``tips``
+    (nb,6) tip-node position [mm] and velocity [mm/s], world; ``root_wrench`` (nb,6) the force
+    [N] and moment [N mm] about the root node with which each bristle pushes on the head, world
+    (the TCP wrench is minus their sum, moments carried to the TCP: ``integrator.tcp_wrench``);
+    ``contact()`` a :class:`TipContact`; ``solver_info()``
+    a dict of the model's own counters (may be empty).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from .checks import ConfigError, did_you_mean
+
+
+class TipContact(NamedTuple):
+    """Per-tip contact after a step, world frame (zeros where a tip does not touch)."""
+
+    normal_force: np.ndarray  # (nb,) [N] eq 6 (summed over surfaces)
+    tangential_force: np.ndarray  # (nb, 3) [N] friction, eq 7-10
+    sliding: np.ndarray  # (nb,) bool
+    penetration: np.ndarray  # (nb,) [mm]
+    contact_point: np.ndarray  # (nb, 3) [mm]
+    tip_tip_force: np.ndarray  # (nb,) [N] Table 3, summed over partners
+    surface: np.ndarray  # (nb,) int64: index into Scene.surfaces of the deepest surface, -1 none
+
+
+class BristleModel(ABC):
+    """One bristle model behind the seam (module docstring: what it takes, holds, returns)."""
+
+    model: object
+    state: object
+    tips: np.ndarray
+    root_wrench: np.ndarray
+
+    @abstractmethod
+    def reset(self, tcp_p: np.ndarray, tcp_R: np.ndarray, time: float) -> None:
+        """Straight, unloaded bristles at rest on the TCP pose (tcp_p [mm], tcp_R) at ``time``."""
+
+    @abstractmethod
+    def snapshot(self):
+        """A rollback point: the current state (buffers may be reused between calls)."""
+
+    @abstractmethod
+    def advance(self, tcp_p, tcp_R, t_new: float, rollback) -> tuple[int, int]:
+        """One solver step to the TCP pose at ``t_new`` [s]; on failure restore ``rollback`` and
+        raise ``SimulationDivergence``."""
+
+    @abstractmethod
+    def solve_static(self, tcp_p, tcp_R) -> tuple[int, int]:
+        """Static equilibrium at the TCP pose under the current tip loads (velocities zero)."""
+
+    @abstractmethod
+    def set_state(self, state) -> None:
+        """Restore a state made by ``state.copy()``."""
+
+    @abstractmethod
+    def set_tip_forces(self, forces: np.ndarray) -> None:
+        """Dead external loads on the tips [N, world], shape (nb, 3)."""
+
+    @property
+    @abstractmethod
+    def tip_forces(self) -> np.ndarray:
+        """The current dead tip loads [N, world], (nb, 3)."""
+
+    @abstractmethod
+    def contact(self) -> TipContact:
+        """Per-tip contact of the last step."""
+
+    def solver_info(self) -> dict:
+        """The model's own counters of the last step (e.g. sweeps); empty by default."""
+        return {}
+
+
+#: name -> factory(scene, settings) of the bristle models ``SimSettings.model`` may name
+_MODELS: dict[str, Callable] = {}
+
+
+def register_bristle_model(name: str, factory: Callable) -> None:
+    """Make ``SimSettings(model=name)`` build ``factory(scene, settings)`` (a BristleModel)."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"bristle model name = {name!r}: must be a non-empty string")
+    _MODELS[name] = factory
+
+
+def bristle_models() -> tuple[str, ...]:
+    """The registered bristle model names."""
+    _register_builtin()
+    return tuple(sorted(_MODELS))
+
+
+def make_bristle_model(scene, settings) -> BristleModel:
+    """The bristle model ``settings.model`` for ``scene`` (ConfigError if none has that name)."""
+    _register_builtin()
+    factory = _MODELS.get(settings.model)
+    if factory is None:
+        known = sorted(_MODELS)
+        raise ConfigError(
+            f"settings.model = {settings.model!r} is not a bristle model"
+            f"{did_you_mean(settings.model, known)} (known: {', '.join(known)})"
+        )
+    return factory(scene, settings)
+
+
+def _register_builtin() -> None:
+    if "dfm" not in _MODELS:
+        from .chain import DFMChain
+
+        _MODELS["dfm"] = DFMChain

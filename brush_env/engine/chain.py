@@ -1,0 +1,460 @@
+"""The full discrete flexible multibody bristle model behind the seam (``bristles.py``): every
+bristle a chain of rigid bodies (eq 11) joined by Timoshenko beam elements (eq 1-5, the paper's
+element or the mid-frame one), its tip sphere in penalty contact with the surfaces (eq 6) with
+stick-slip friction (eq 7-10) and with neighbouring tips (Table 3), integrated implicitly per
+bristle (``integrator.step_bristles``).  Registered as bristle model ``"dfm"``; the fidelity
+levels reference, paper and balanced use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import contact as ct
+from . import integrator as itg
+from . import records as rec
+from ._kernels import ELEMENTS
+from .beam import (
+    bristle_frame,
+    first_bending_omega,
+    mid_frame_stiffness,
+    segment_inertia,
+    timoshenko_stiffness,
+)
+from .bristles import BristleModel, TipContact
+from .checks import ConfigError
+from .config import BrushConfig
+from .contact import N_TIP_ARGS, N_TIP_STATE
+from .scene import MeshPlate
+from .sdf import pack_grids
+from .settings import INTEGRATORS, SimSettings, SimulationDivergence
+
+
+@dataclass
+class Model:
+    """Static arrays of a brush (see _kernels for the layout)."""
+
+    bstart: np.ndarray  # (nb+1,) int64
+    bp: np.ndarray  # (N, 8)
+    K: np.ndarray  # (N, 6, 6)
+    root_p: np.ndarray  # (nb, 3) root node in the TCP frame [mm]
+    root_R: np.ndarray  # (nb, 3, 3) bristle frame in the TCP frame
+    seg_len: np.ndarray  # (N,) [mm]
+    tip_radius: np.ndarray  # (nb,) [mm]
+    length: np.ndarray  # (nb,) [mm]
+    elem: np.ndarray  # (N,) int64 element formulation of each body's element (_kernels.ELEM_*)
+
+    def arrays(self) -> rec.ModelArrays:
+        """The kernels' view of the model (``records.ModelArrays``)."""
+        return rec.ModelArrays(self.bstart, self.bp, self.K, self.root_p, self.root_R, self.elem)
+
+    @property
+    def n_bristles(self) -> int:
+        return len(self.bstart) - 1
+
+    @property
+    def n_bodies(self) -> int:
+        return int(self.bstart[-1])
+
+
+def build_model(brush: BrushConfig, element: str = "mid") -> Model:
+    """Flatten a brush config into kernel arrays (eq 1-3 stiffness, eq 11 inertia, damping) for
+    the beam element ``element`` ("paper" or "mid", see SimSettings)."""
+    nbod = [b.bodies for b in brush.bristles]
+    bstart = np.zeros(len(nbod) + 1, np.int64)
+    bstart[1:] = np.cumsum(nbod)
+    N = int(bstart[-1])
+    bp = np.zeros((N, rec.N_BP))
+    K = np.zeros((N, 6, 6))
+    seg = np.zeros(N)
+    R_head = brush.head_rotation()
+    root_p = np.zeros((len(nbod), 3))
+    root_R = np.zeros((len(nbod), 3, 3))
+    for j, br in enumerate(brush.bristles):
+        sec, mat = br.section, br.material
+        n = br.bodies
+        l = br.length / n
+        A, Iy, Iz, J = sec.area, sec.I_y, sec.I_z, sec.J
+        kappa = sec.shear_coeff(mat.nu)
+        Kel = timoshenko_stiffness(mat.E, mat.G, A, Iy, Iz, J, kappa, l)
+        if element == "mid":
+            Kel = mid_frame_stiffness(Kel, l)
+        m, Jb = segment_inertia(mat.density, A, Iy, Iz, l)
+        Imin = min(Iy, Iz)
+        beta = 2.0 * mat.damping_ratio / first_bending_omega(mat.E, Imin, mat.density, A, br.length)
+        fscale = mat.E * Imin / br.length**2
+        sl = slice(bstart[j], bstart[j + 1])
+        K[sl] = Kel
+        bp[sl, rec.B_MASS] = m
+        bp[sl, rec.B_JX : rec.B_JX + 3] = Jb
+        bp[sl, rec.B_HALF] = 0.5 * l
+        bp[sl, rec.B_LEN] = l
+        bp[sl, rec.B_BETA] = beta
+        bp[sl, rec.B_FSCALE] = fscale
+        seg[sl] = l
+        root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
+        # lean: rotate about the width axis so the tip moves toward the thickness direction
+        c, s_ = np.cos(brush.effective_lean), np.sin(brush.effective_lean)
+        Ry = np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])  # x -> (c, 0, +s)
+        root_R[j] = R_head @ bristle_frame(br.axis, br.width_dir) @ Ry
+    return Model(
+        bstart,
+        bp,
+        K,
+        root_p,
+        root_R,
+        seg,
+        np.array([b.tip_radius for b in brush.bristles]),
+        np.array([b.length for b in brush.bristles]),
+        np.full(N, ELEMENTS[element], np.int64),
+    )
+
+
+@dataclass
+class State:
+    """Complete dynamic state; ``copy()`` and ``Simulator.set_state`` restore it exactly.
+
+    pos (N,3) [mm] body centres of mass, rot (N,3,3) body->world, vel (N,3) [mm/s],
+    omg (N,3) [rad/s] world; p* the same at the previous step (BDF2 history); hist_ok (nb,) how many
+    whole steps lie behind the history, 0-2 (0: the next step starts with backward Euler; 2: the
+    predictor extrapolates at third order); tcp_p (4,3) [mm] / tcp_R (4,3,3): TCP pose at t_{n-1},
+    t_n, t_{n-2} (rows 0, 1, 3; row 2 is scratch); tip_state (nb, ns): per-contact state;
+    time [s]; steps; pppos (N,3) [mm] / pprot (N,3,3): body poses at t_{n-2}.
+    """
+
+    pos: np.ndarray
+    rot: np.ndarray
+    vel: np.ndarray
+    omg: np.ndarray
+    ppos: np.ndarray
+    prot: np.ndarray
+    pvel: np.ndarray
+    pomg: np.ndarray
+    hist_ok: np.ndarray
+    tcp_p: np.ndarray
+    tcp_R: np.ndarray
+    tip_state: np.ndarray
+    time: float = 0.0
+    steps: int = 0
+    jac: rec.NewtonCache = None
+    pppos: np.ndarray = None
+    pprot: np.ndarray = None
+
+    def copy(self, with_jacobian: bool = True) -> State:
+        """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
+        state so that a restored state continues bit for bit like the original."""
+        d = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.__dict__.items()}
+        d["jac"] = rec.NewtonCache(*(a.copy() for a in self.jac)) if with_jacobian else self.jac
+        return State(**d)
+
+
+class DFMChain(BristleModel):
+    """The full DFM chain of every bristle of ``scene`` under ``settings`` (module docstring)."""
+
+    def __init__(self, scene, settings: SimSettings):
+        self.settings = settings
+        self.model = build_model(scene.brush, settings.element)
+        nb = self.model.n_bristles
+        self.tip_args = np.zeros((nb, N_TIP_ARGS))
+        self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
+        self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
+        self.surfaces, grids = _surface_rows(scene.surfaces)
+        self.sdf = pack_grids(grids)
+        meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
+        if len(meshes) > 1:
+            raise ConfigError(
+                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
+            )
+        self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
+        self.pair_ptr, self.pair_idx = (
+            tip_pairs(self.model, scene)
+            if scene.tip_tip
+            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        )
+        self._ws = rec.make_work(
+            int(np.diff(self.model.bstart).max()),
+            N_TIP_STATE,
+            self.model.n_bodies,
+            nb,
+            len(self.pair_idx),
+        )
+        self._kmodel = self.model.arrays()
+        self._tips = np.zeros((nb, 7))
+        self._tips[:, 6] = self.model.tip_radius
+        self._out = rec.StepOut(
+            np.zeros((nb, 6)),
+            np.zeros(nb, np.int64),
+            np.zeros(nb, np.int64),
+            np.zeros(nb, np.int64),
+        )
+        self.root_wrench = self._out.rootw
+        self.state: State | None = None
+        self._snap: State | None = None  # rollback buffers (see snapshot)
+        self._prm = self._make_prm(static=False)
+
+    def _make_prm(self, static: bool) -> np.ndarray:
+        s = self.settings
+        prm = np.zeros(itg.N_PRM)
+        prm[itg.P_H] = s.dt if static else s.dt / s.substeps
+        prm[itg.P_METHOD] = INTEGRATORS[s.integrator]
+        prm[itg.P_STATIC] = 1.0 if static else 0.0
+        prm[itg.P_RTOL] = s.newton_rtol
+        prm[itg.P_MAXIT] = s.newton_max_iter
+        prm[itg.P_MAXLEV] = s.max_halvings
+        prm[itg.P_G : itg.P_G + 3] = s.gravity
+        prm[itg.P_JAGE] = s.jacobian_max_age
+        prm[itg.P_SWEEPS] = s.tip_tip_sweeps
+        prm[itg.P_TTTOL] = s.tip_tip_tol
+        return prm
+
+    @property
+    def tips(self) -> np.ndarray:
+        """(nb, 6) tip node position [mm] and velocity [mm/s], world (kept current by the
+        kernels)."""
+        return self._tips[:, 0:6]
+
+    def reset(self, tcp_p, tcp_R, time: float) -> None:
+        """Straight, unstressed bristles at rest on a TCP at pose (tcp_p [mm], tcp_R)."""
+        m = self.model
+        N, nb = m.n_bodies, m.n_bristles
+        pos = np.zeros((N, 3))
+        rot = np.zeros((N, 3, 3))
+        for j in range(nb):
+            Rw = tcp_R @ m.root_R[j]
+            root_w = tcp_p + tcp_R @ m.root_p[j]
+            for k, i in enumerate(range(m.bstart[j], m.bstart[j + 1])):
+                pos[i] = root_w + (k + 0.5) * m.seg_len[i] * Rw[:, 0]
+                rot[i] = Rw
+        z = np.zeros((N, 3))
+        self.state = State(
+            pos,
+            rot,
+            z.copy(),
+            z.copy(),
+            pos.copy(),
+            rot.copy(),
+            z.copy(),
+            z.copy(),
+            np.zeros(nb, np.int64),
+            np.stack([tcp_p] * 4),
+            np.stack([tcp_R] * 4),
+            _fresh_tip_state(nb),
+            time,
+            0,
+            rec.make_newton_cache(N, nb),
+            pos.copy(),
+            rot.copy(),
+        )
+        self.root_wrench[:] = 0.0
+        itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
+
+    def set_tip_forces(self, forces) -> None:
+        self.tip_args[:, 0:3] = forces
+
+    @property
+    def tip_forces(self) -> np.ndarray:
+        return self.tip_args[:, 0:3]
+
+    def set_state(self, state: State) -> None:
+        self.state = state.copy()
+        st, m = self.state, self.model
+        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, self._tips)
+
+    def solve_static(self, tcp_p, tcp_R) -> tuple[int, int]:
+        """Static equilibrium at the TCP pose under the current tip loads (no halving)."""
+        prm = self._make_prm(static=True)
+        prm[itg.P_MAXLEV] = 0
+        counts = self._advance(tcp_p, tcp_R, prm, self.state.time, None)
+        self.state.hist_ok[:] = 0
+        return counts
+
+    def advance(self, tcp_p, tcp_R, t_new, rollback=None) -> tuple[int, int]:
+        return self._advance(tcp_p, tcp_R, self._prm, t_new, rollback)
+
+    def _advance(self, tcp_p, tcp_R, prm, t_new, snapshot) -> tuple[int, int]:
+        """One (internal) step as named stages: base motion -> per-bristle implicit solve
+        (contact search, beam, contact, friction, tip-tip inside Newton) -> acceptance or
+        rollback -> the drive moves on; returns (Newton iterations, sub-steps) of all bristles.
+        ``snapshot``: the state a divergence restores (None: this step's start)."""
+        if snapshot is None:
+            snapshot = self.snapshot()  # rollback target
+        self._base_motion(tcp_p, tcp_R)
+        self._solve_bristles(prm)
+        self._accept_or_rollback(snapshot, prm, t_new)
+        self._shift_drive(tcp_p, tcp_R, t_new)
+        out = self._out
+        return int(out.iters.sum()), int(out.nsub.sum())
+
+    def _base_motion(self, tcp_p, tcp_R) -> None:
+        """Stage 1: the prescribed TCP pose at t + dt (row 2 of the drive); the kernels
+        interpolate it over sub-steps (linear position, geodesic rotation)."""
+        st = self.state
+        st.tcp_p[2] = tcp_p
+        st.tcp_R[2] = tcp_R
+
+    def _solve_bristles(self, prm) -> None:
+        """Stage 2: every bristle's implicit step (integrator.step_bristles): per bristle, the
+        momentum balance (eq 11) with the beam elements (eq 1-5), the tip's contact search over
+        the surfaces and its pre-searched tip-tip partners (§2.2, ``tip_pairs``), the normal law
+        (eq 6), friction (eq 7-10) and tip-tip contact (Table 3), solved by Newton."""
+        st = self.state
+        chain = rec.Chain(
+            st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
+        )
+        drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
+        itg.step_bristles(
+            self._kmodel, chain, drive, prm, self._contact(), st.jac, self._ws, self._out
+        )
+
+    def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
+        """Stage 3: a bristle that failed on the smallest halving of its step, or a non-finite
+        state, restores the whole state and raises ``SimulationDivergence`` (never NaN)."""
+        st, m = self.state, self.model
+        bad = np.flatnonzero(self._out.status)
+        if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self.root_wrench)):
+            bad = np.arange(m.n_bristles)
+        if bad.size:
+            self.set_state(snapshot)
+            # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
+            # them all stale, so that what follows depends on the restored state alone
+            self.state.jac.key[:] = 0.0
+            raise SimulationDivergence(
+                t_new,
+                bad,
+                "Newton did not converge on the smallest "
+                f"halving of the solver step (h / 2**{int(prm[itg.P_MAXLEV])}, max_halvings)",
+            )
+
+    def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
+        """Stage 4: the TCP history moves on (t_{n-2} <- t_{n-1} <- t_n <- t_{n+1}), time too."""
+        st = self.state
+        st.tcp_p[3] = st.tcp_p[0]
+        st.tcp_R[3] = st.tcp_R[0]
+        st.tcp_p[0] = st.tcp_p[1]
+        st.tcp_R[0] = st.tcp_R[1]
+        st.tcp_p[1] = tcp_p
+        st.tcp_R[1] = tcp_R
+        st.time = t_new
+        st.steps += 1
+
+    def snapshot(self) -> State:
+        """Copy of the state into buffers kept across steps (no allocation per step).  The
+        Newton factors are shared, not copied: they are only a cache, and a failed step marks
+        them all stale (``_accept_or_rollback``)."""
+        st, snap = self.state, self._snap
+        if snap is None:
+            snap = self._snap = st.copy(with_jacobian=False)
+        else:
+            for name in _STATE_ARRAYS:
+                np.copyto(getattr(snap, name), getattr(st, name))
+            snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
+        return snap
+
+    def _contact(self) -> rec.ContactScene:
+        """The kernels' view of the contact scene and the per-tip state."""
+        return rec.ContactScene(
+            self.surfaces,
+            self.contact_params,
+            self._tips,
+            self.pair_ptr,
+            self.pair_idx,
+            self.mesh,
+            self.tip_args,
+            self.state.tip_state,
+            self.sdf,
+        )
+
+    def contact(self) -> TipContact:
+        ts = self.state.tip_state
+        fn = ts[:, ct.S_FN].copy()
+        touching = fn > 0.0
+        return TipContact(
+            fn,
+            ts[:, ct.S_FT : ct.S_FT + 3].copy(),
+            (ts[:, ct.S_SLIDE] > 0.0) & touching,
+            np.maximum(ts[:, ct.S_PEN], 0.0) * touching,
+            ts[:, ct.S_CP : ct.S_CP + 3].copy(),
+            ts[:, ct.S_FTT].copy(),
+            np.where(touching, ts[:, ct.S_SURF], -1.0).astype(np.int64),
+        )
+
+    def solver_info(self) -> dict:
+        count = self._ws.sw.count
+        return {
+            # sweeps and bristle re-solves of the (last internal) step, and whether its
+            # tip-tip partners settled within tip_tip_tol before the sweeps ran out
+            "sweeps": int(count[0]),
+            "resolves": int(count[1]),
+            "tip_tip_settled": bool(count[2] == 0),
+            "tip_tip_fallback": bool(count[2] == 2),
+        }
+
+    @property
+    def n_tip_pairs(self) -> int:
+        """Number of tip-tip pairs kept for this scene (each counted once)."""
+        return len(self.pair_idx) // 2
+
+
+#: the array fields of State (copied by Simulator._snapshot)
+_STATE_ARRAYS = (
+    "pos",
+    "rot",
+    "vel",
+    "omg",
+    "ppos",
+    "prot",
+    "pvel",
+    "pomg",
+    "pppos",
+    "pprot",
+    "hist_ok",
+    "tcp_p",
+    "tcp_R",
+    "tip_state",
+)
+
+
+def _fresh_tip_state(nb: int) -> np.ndarray:
+    """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
+    ts = np.zeros((nb, N_TIP_STATE))
+    ts[:, ct.S_SURF] = -1.0
+    return ts
+
+
+def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
+    """Kernel rows (kind, then the kind's numbers: contact.SURF_*) of the scene's surfaces, and
+    the baked SDF grids that rows of kind SURF_GRID index (in their order)."""
+    rows = np.zeros((len(surfaces), ct.N_SURF))
+    grids = []
+    for j, srf in enumerate(surfaces):
+        if hasattr(srf, "sdf_grid"):
+            rows[j, 0], rows[j, 1] = ct.SURF_GRID, len(grids)
+            grids.append(srf.sdf_grid())
+        else:
+            rows[j] = srf.kernel_row()
+    return rows, grids
+
+
+def tip_pairs(model: Model, scene, travel_fraction: float | None = None):
+    """Tip-tip pairs the scene can bring together, as CSR lists (each pair listed for both tips).
+
+    Two tips can touch only if their roots are closer than the sum of the tips' largest travels
+    plus the two sphere radii.  A tip's travel is bounded by its bristle length (it swings about
+    its root), times ``scene.tip_travel_fraction`` (default 0.6: a bristle pressed onto a plate
+    and dragged leans over but does not fold back, so its tip stays within ~0.6 L of the root
+    line; documented choice, checked against the full pair set in tests).
+    """
+    frac = (
+        getattr(scene, "tip_travel_fraction", 0.6) if travel_fraction is None else travel_fraction
+    )
+    nb = model.n_bristles
+    roots = model.root_p
+    reach = frac * model.length + model.tip_radius
+    d = np.linalg.norm(roots[:, None, :] - roots[None, :, :], axis=2)
+    ok = (d <= reach[:, None] + reach[None, :]) & ~np.eye(nb, dtype=bool)
+    ptr = np.zeros(nb + 1, np.int64)
+    ptr[1:] = np.cumsum(ok.sum(axis=1))
+    idx = np.nonzero(ok)[1].astype(np.int64)
+    return ptr, idx
