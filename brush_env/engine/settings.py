@@ -39,34 +39,32 @@ class SimSettings:
 
     dt [s] time step (the interval of ``step``); bodies_per_bristle [count]: every bristle
     discretised into this many rigid bodies (0: the brush file's own counts); model: the bristle
-    model behind the seam (``bristles.py``): "dfm" the full discrete flexible multibody chain
-    (eq 1-11), or a model registered with ``bristles.register_bristle_model``; max_substep [s]
-    the longest step the solver takes: a longer ``dt`` is split into ceil(dt / max_substep)
-    equal internal steps with the TCP pose interpolated between the two commanded poses (linear position, geodesic rotation), so
-    that a large control step does not hold an unstable (buckling) equilibrium or jump across a
-    stick-slip transition (default 1 ms: the 3 mm press's hold force is within 3 % of a 0.125 ms
-    run, docs/model.md); integrator "euler" (backward Euler) or "bdf2"; newton_rtol: Newton
-    tolerance on the residual relative to each bristle's force scale E I / L^2 [-];
-    newton_max_iter per attempt; max_halvings: a failing solver step is retried as halves, down
-    to its length / 2**max_halvings (the in-kernel halving; not the split of ``dt`` into solver steps);
-    jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at every
-    step; reuse changes iteration counts only, the converged state is set by the residual);
+    model behind the seam (``bristles.py``): "dfm" the full discrete flexible multibody chain (eq
+    1-11), or a model registered with ``bristles.register_bristle_model``; max_substep [s] the
+    longest step the solver takes: a longer ``dt`` is split into ceil(dt / max_substep) equal
+    internal steps with the TCP pose interpolated between the two commanded poses (linear position,
+    geodesic rotation), so that a large control step does not hold an unstable (buckling)
+    equilibrium or jump across a stick-slip transition (default 1 ms: the 3 mm press's hold force is
+    within 3 % of a 0.125 ms run, docs/model.md); integrator "euler" (backward Euler) or "bdf2";
+    newton_rtol: Newton tolerance on the residual relative to each bristle's force scale E I / L^2
+    [-]; newton_max_iter per attempt; max_halvings: a failing solver step is retried as halves, down
+    to its length / 2**max_halvings (the in-kernel halving; not the split of ``dt`` into solver
+    steps); jacobian_max_age: steps a bristle's factored Newton matrix may be reused (0: rebuild at
+    every step; reuse changes iteration counts only, the converged state is set by the residual);
     gravity [mm/s^2] as a world vector (default (0, 0, -9810); (0, 0, 0) switches it off);
-    max_tcp_speed [mm/s], max_tcp_angular_speed [rad/s]: the fastest TCP motion ``step``
-    accepts (default 1000 mm/s, a UR5's tool speed limit, and 10 turns/s): a faster command is
-    a jump, not a motion, and is refused with an error naming the speed;
-    element: the beam element formulation, "paper" (the paper's Adams-FIELD element, strain in
-    the proximal body's frame) or "mid" (co-rotational Timoshenko element in the mid-frame,
-    accurate with few bodies in buckled contact; docs/model.md);
-    tip_tip_sweeps: most sweeps over the bristles per (internal) step for tip-tip contact
-    (Table 3).  1 (default): one sweep, the partners solved later in the sweep held at their
-    start-of-step tips (the tip-tip force lags: 6 % on the flat-plate turn even at 0.125 ms).
-    > 1: after the first sweep the touching tips are placed by the coupled solve
-    (``coupling.py``) and the bristles whose partners moved by more than tip_tip_tol [mm] since
-    they were solved are solved again, so both sides of every tip-tip contact see the
-    end-of-step tips (action = reaction within 2 k tol); +50 % wall on the flat-plate turn at
-    1 ms, but up to ~7x on the four-turn reference experiment (docs/model.md); the fidelity
-    levels reference, paper and balanced use 8.
+    max_tcp_speed [mm/s], max_tcp_angular_speed [rad/s]: the fastest TCP motion ``step`` accepts
+    (default 1000 mm/s, a UR5's tool speed limit, and 10 turns/s): a faster command is a jump, not a
+    motion, and is refused with an error naming the speed; element: the beam element formulation,
+    "paper" (the paper's Adams-FIELD element, strain in the proximal body's frame) or "mid"
+    (co-rotational Timoshenko element in the mid-frame, accurate with few bodies in buckled contact;
+    docs/model.md); tip_tip_sweeps: most sweeps over the bristles per (internal) step for tip-tip
+    contact (Table 3).  1 (default): one sweep, the partners solved later in the sweep held at their
+    start-of-step tips (the tip-tip force lags: 6 % on the flat-plate turn even at 0.125 ms). > 1:
+    after the first sweep the touching tips are placed by the coupled solve (``coupling.py``) and
+    the bristles whose partners moved by more than tip_tip_tol [mm] since they were solved are
+    solved again, so both sides of every tip-tip contact see the end-of-step tips (action = reaction
+    within 2 k tol); +50 % wall on the flat-plate turn at 1 ms, but up to ~7x on the four-turn
+    reference experiment (docs/model.md); the fidelity levels reference, paper and balanced use 8.
     """
 
     dt: float = 1e-3
