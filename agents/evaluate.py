@@ -31,6 +31,7 @@ import json
 import subprocess
 import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import gymnasium as gym
@@ -291,7 +292,7 @@ def evaluate(
         "env_id": env_id,
         "config": config,
         "env_kwargs": env_kwargs,
-        "env_settings": _jsonable(cfg.__dict__),
+        "env_settings": _jsonable({f.name: getattr(cfg, f.name) for f in fields(cfg)}),
         "wall_time_s": wall,
         "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
         "mean": {k: v["mean"] for k, v in agg.items()},
