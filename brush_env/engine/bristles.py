@@ -96,6 +96,11 @@ class BristleModel(ABC):
     def contact(self) -> TipContact:
         """Per-tip contact of the last step."""
 
+    def tip_states(self) -> np.ndarray:
+        """(nb, 6) tip position [mm] and velocity [mm/s] of the current state (a model whose
+        state can be edited between steps computes them afresh)."""
+        return np.array(self.tips[:, 0:6])
+
     def solver_info(self) -> dict:
         """The model's own counters of the last step (e.g. sweeps); empty by default."""
         return {}

@@ -215,6 +215,13 @@ class DFMChain(BristleModel):
         kernels)."""
         return self._tips[:, 0:6]
 
+    def tip_states(self) -> np.ndarray:
+        """(nb, 6) tip node position and velocity computed from the current state."""
+        st, m = self.state, self.model
+        out = np.empty((m.n_bristles, 6))
+        itg.tip_states(m.bstart, m.bp, st.pos, st.rot, st.vel, st.omg, out)
+        return out
+
     def reset(self, tcp_p, tcp_R, time: float) -> None:
         """Straight, unstressed bristles at rest on a TCP at pose (tcp_p [mm], tcp_R)."""
         m = self.model

@@ -260,11 +260,11 @@ class Simulator:
     # ------------------------------------------------------------------ outputs
     def tip_positions(self) -> np.ndarray:
         """Tip node (sphere centre) of every bristle [mm, world], (nb, 3)."""
-        return self.bristles.tips[:, 0:3].copy()
+        return self.bristles.tip_states()[:, 0:3]
 
     def tip_velocities(self) -> np.ndarray:
         """Tip node velocity of every bristle [mm/s, world], (nb, 3)."""
-        return self.bristles.tips[:, 3:6].copy()
+        return self.bristles.tip_states()[:, 3:6]
 
     def _warn_penetration(self, pen: np.ndarray) -> None:
         """Once per simulator: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius."""
