@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import contact as ct
-from . import integrator as itg
 from . import records as rec
+from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from ._kernels import ELEMENTS
 from .beam import (
     bristle_frame,
@@ -32,13 +31,13 @@ from .beam import (
 )
 from .checks import ConfigError, Limit, check_choice, check_int, check_real
 from .config import BrushConfig
-from .contact import N_TIP_ARGS, N_TIP_STATE
+from .mesh_contact import build_mesh, empty_mesh
 from .rotation import expmap, logmap, pose_ok
 from .scene import MeshPlate, Scene
 from .sdf import pack_grids
 
 G_EARTH = 9810.0  # [mm/s^2]
-INTEGRATORS = {"euler": 0, "bdf2": 1}
+INTEGRATORS = {"euler": rec.METHOD_EULER, "bdf2": rec.METHOD_BDF2}
 
 
 #: a tip's penetration beyond this fraction of its radius is outside the penalty law's range
@@ -182,7 +181,7 @@ def build_model(brush: BrushConfig, element: str = "mid") -> Model:
     bstart = np.zeros(len(nbod) + 1, np.int64)
     bstart[1:] = np.cumsum(nbod)
     N = int(bstart[-1])
-    bp = np.zeros((N, rec.N_BP))
+    bp = np.zeros(N, rec.BODY)
     K = np.zeros((N, 6, 6))
     seg = np.zeros(N)
     R_head = brush.head_rotation()
@@ -203,12 +202,12 @@ def build_model(brush: BrushConfig, element: str = "mid") -> Model:
         fscale = mat.E * Imin / br.length**2
         sl = slice(bstart[j], bstart[j + 1])
         K[sl] = Kel
-        bp[sl, rec.B_MASS] = m
-        bp[sl, rec.B_JX : rec.B_JX + 3] = Jb
-        bp[sl, rec.B_HALF] = 0.5 * l
-        bp[sl, rec.B_LEN] = l
-        bp[sl, rec.B_BETA] = beta
-        bp[sl, rec.B_FSCALE] = fscale
+        bp["mass"][sl] = m
+        bp["J"][sl] = Jb
+        bp["half"][sl] = 0.5 * l
+        bp["length"][sl] = l
+        bp["beta"][sl] = beta
+        bp["fscale"][sl] = fscale
         seg[sl] = l
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
         # lean: rotate about the width axis so the tip moves toward the thickness direction
@@ -309,8 +308,8 @@ class Simulator:
         self.settings = settings or SimSettings()
         self.model = build_model(brush, self.settings.element)
         nb = self.model.n_bristles
-        self.tip_args = np.zeros((nb, N_TIP_ARGS))
-        self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
+        self.tip_args = np.zeros(nb, rec.TIP_ARGS)
+        self.tip_args["radius"] = self.model.tip_radius
         self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
         self.surfaces, grids = _surface_rows(scene.surfaces)
         self.sdf = pack_grids(grids)
@@ -319,7 +318,7 @@ class Simulator:
             raise ConfigError(
                 f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
             )
-        self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
+        self.mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
         self.pair_ptr, self.pair_idx = (
             tip_pairs(self.model, scene)
             if scene.tip_tip
@@ -327,7 +326,6 @@ class Simulator:
         )
         self._ws = rec.make_work(
             int(np.diff(self.model.bstart).max()),
-            N_TIP_STATE,
             self.model.n_bodies,
             nb,
             len(self.pair_idx),
@@ -348,20 +346,20 @@ class Simulator:
         self._pen_warned = False
 
     # ------------------------------------------------------------------ set-up
-    def _make_prm(self, static: bool) -> np.ndarray:
+    def _make_prm(self, static: bool) -> rec.StepParams:
         s = self.settings
-        prm = np.zeros(itg.N_PRM)
-        prm[itg.P_H] = s.dt if static else s.dt / s.substeps
-        prm[itg.P_METHOD] = INTEGRATORS[s.integrator]
-        prm[itg.P_STATIC] = 1.0 if static else 0.0
-        prm[itg.P_RTOL] = s.newton_rtol
-        prm[itg.P_MAXIT] = s.newton_max_iter
-        prm[itg.P_MAXLEV] = s.max_substep_levels
-        prm[itg.P_G : itg.P_G + 3] = s.gravity
-        prm[itg.P_JAGE] = s.jacobian_max_age
-        prm[itg.P_SWEEPS] = s.tip_tip_sweeps
-        prm[itg.P_TTTOL] = s.tip_tip_tol
-        return prm
+        return rec.StepParams(
+            h=float(s.dt if static else s.dt / s.substeps),
+            method=int(INTEGRATORS[s.integrator]),
+            static=bool(static),
+            rtol=float(s.newton_rtol),
+            maxit=int(s.newton_max_iter),
+            maxlev=int(s.max_substep_levels),
+            g=np.array(s.gravity, dtype=float),
+            jage=int(s.jacobian_max_age),
+            sweeps=int(s.tip_tip_sweeps),
+            tttol=float(s.tip_tip_tol),
+        )
 
     def reset(self, tcp_p=None, tcp_R=None, time: float = 0.0) -> StepResult:
         """Straight, unstressed bristles at rest on a TCP at pose (tcp_p [mm], tcp_R)."""
@@ -439,7 +437,7 @@ class Simulator:
                 f"tip forces must be finite with shape ({self.model.n_bristles}, 3)"
                 f", got shape {f.shape}"
             )
-        self.tip_args[:, 0:3] = f
+        self.tip_args["fext"] = f
 
     def get_state(self) -> State:
         return self.state.copy()
@@ -498,11 +496,13 @@ class Simulator:
         tcp_R = st.tcp_R[1].copy() if tcp_R is None else np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
         prm = self._make_prm(static=True)
-        prm[itg.P_MAXLEV] = 0
+        prm = prm._replace(maxlev=0)
         full = self.tip_args.copy()
         try:
             for k in range(1, increments + 1):
-                self.tip_args[:] = full * (k / increments)
+                # every field scaled, the tip radius too (kept as it was: bit-identical results)
+                for name in rec.TIP_ARGS.names:
+                    self.tip_args[name] = full[name] * (k / increments)
                 counts = self._advance(tcp_p, tcp_R, prm, st.time)
         finally:
             self.tip_args[:] = full
@@ -534,7 +534,7 @@ class Simulator:
         st.tcp_R[2] = tcp_R
 
     def _solve_bristles(self, prm) -> None:
-        """Stage 2: every bristle's implicit step (integrator.step_bristles): per bristle, the
+        """Stage 2: every bristle's implicit step (step.step_bristles): per bristle, the
         momentum balance (eq 11) with the beam elements (eq 1-5), the tip's contact search over
         the surfaces and its pre-searched tip-tip partners (§2.2, ``tip_pairs``), the normal law
         (eq 6), friction (eq 7-10) and tip-tip contact (Table 3), solved by Newton."""
@@ -562,8 +562,7 @@ class Simulator:
             raise SimulationDivergence(
                 t_new,
                 bad,
-                "Newton did not converge on the smallest "
-                f"sub-step (dt / 2**{int(prm[itg.P_MAXLEV])})",
+                f"Newton did not converge on the smallest sub-step (dt / 2**{prm.maxlev})",
             )
 
     def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
@@ -638,7 +637,7 @@ class Simulator:
     def _penetration(self) -> np.ndarray:
         """(nb,) [mm] each tip's penetration, 0 where it does not touch."""
         ts = self.state.tip_state
-        return np.maximum(ts[:, ct.S_PEN], 0.0) * (ts[:, ct.S_FN] > 0.0)
+        return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
 
     def _warn_penetration(self, pen: np.ndarray) -> None:
         """Once per simulator: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius."""
@@ -664,7 +663,7 @@ class Simulator:
         itg.tcp_wrench(R_tcp, self.model.root_p, self._rootw, w)
         F, M = w[0:3], w[3:6]
         ts = st.tip_state
-        fn = ts[:, ct.S_FN].copy()
+        fn = ts["fn"].copy()
         tips = self._tips[:, 0:6].copy()  # step_bristles / tip_states keep them current
         return StepResult(
             st.time,
@@ -677,15 +676,15 @@ class Simulator:
             iters,
             nsub,
             fn,
-            ts[:, ct.S_FT : ct.S_FT + 3].copy(),
+            ts["ft"].copy(),
             fn > 0.0,
-            (ts[:, ct.S_SLIDE] > 0.0) & (fn > 0.0),
+            (ts["slide"] > 0) & (fn > 0.0),
             self._penetration(),
-            ts[:, ct.S_CP : ct.S_CP + 3].copy(),
+            ts["cpt"].copy(),
             extra={
-                "tip_tip_force": ts[:, ct.S_FTT].copy(),
+                "tip_tip_force": ts["ftt"].copy(),
                 # index of the surface each tip touches deepest (-1: none; Scene.surfaces order)
-                "tip_surface": np.where(fn > 0.0, ts[:, ct.S_SURF], -1.0).astype(np.int64),
+                "tip_surface": np.where(fn > 0.0, ts["surf"], -1),
                 # sweeps and bristle re-solves of the (last internal) step, and whether its
                 # tip-tip partners settled within tip_tip_tol before the sweeps ran out
                 "sweeps": int(self._ws.sw.count[0]),
@@ -716,20 +715,20 @@ _STATE_ARRAYS = (
 
 
 def _fresh_tip_state(nb: int) -> np.ndarray:
-    """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
-    ts = np.zeros((nb, N_TIP_STATE))
-    ts[:, ct.S_SURF] = -1.0
+    """Tip states of untouched tips: zeros, no surface (surf = -1)."""
+    ts = np.zeros(nb, rec.TIP_STATE)
+    ts["surf"] = -1
     return ts
 
 
 def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
-    """Kernel rows (kind, then the kind's numbers: contact.SURF_*) of the scene's surfaces, and
-    the baked SDF grids that rows of kind SURF_GRID index (in their order)."""
-    rows = np.zeros((len(surfaces), ct.N_SURF))
+    """The scene's surfaces as kernel records (``records.SURFACE``), and the baked SDF grids that
+    records of kind SURF_GRID index (in their order)."""
+    rows = np.zeros(len(surfaces), rec.SURFACE)
     grids = []
     for j, srf in enumerate(surfaces):
         if hasattr(srf, "sdf_grid"):
-            rows[j, 0], rows[j, 1] = ct.SURF_GRID, len(grids)
+            rows[j] = rec.surface_row(rec.SURF_GRID, grid=len(grids))
             grids.append(srf.sdf_grid())
         else:
             rows[j] = srf.kernel_row()
