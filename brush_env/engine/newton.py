@@ -176,7 +176,7 @@ def _step_cap(br, model, chain, sub, con, ws):
     if apen < alpha:
         alpha = max(apen, 1e-3)
     if not sub.static:
-        aslip = slip_step_limit(pt, dp, tip_state, sub.c0, sub.inv_h, con.cp.v_d)
+        aslip = slip_step_limit(pt, dp, tip_state, sub.c0, sub.inv_h, con.cp[0].v_d)
         if aslip < alpha:
             alpha = max(aslip, 1e-4)
     return alpha
