@@ -54,7 +54,7 @@ def test_no_position_indexed_context_or_parameter_columns(path):
         sl = node.slice
         if name in ("ctx", "jac", "ws", "sw", "small") and isinstance(sl, ast.Constant):
             bad.append(ast.unparse(node))
-        # bp[i, 4]: a parameter column by number (the columns are records.B_*)
+        # bp[i, 4]: a parameter column by number (records.BODY has named fields)
         if name == "bp" and isinstance(sl, ast.Tuple) and len(sl.elts) == 2:
             col = sl.elts[1]
             if isinstance(col, ast.Constant) or (

@@ -197,10 +197,10 @@ def test_two_facing_bristles_push_apart_with_table3_law_and_no_friction():
 def _energy(sim):
     """Kinetic + elastic (1/2 e^T K e per element) energy of the bristles [N mm]."""
     st, m = sim.state, sim.model
-    ke = 0.5 * np.sum(m.bp[:, 0] * np.sum(st.vel**2, axis=1))
+    ke = 0.5 * np.sum(m.bp["mass"] * np.sum(st.vel**2, axis=1))
     for i in range(m.n_bodies):
         om_b = st.rot[i].T @ st.omg[i]
-        ke += 0.5 * np.sum(m.bp[i, 1:4] * om_b**2)
+        ke += 0.5 * np.sum(m.bp[i]["J"] * om_b**2)
     from brush_env.engine.modal import element_strains
 
     e = element_strains(sim)

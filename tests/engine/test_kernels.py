@@ -85,7 +85,7 @@ def test_tcp_wrench_and_tip_states_match_the_formulas():
     st.vel[:] = rng.normal(size=st.vel.shape)
     st.omg[:] = rng.normal(size=st.omg.shape)
     last = m.bstart[1:] - 1
-    r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
+    r = m.bp["half"][last][:, None] * st.rot[last][:, :, 0]
     np.testing.assert_allclose(sim.tip_positions(), st.pos[last] + r, rtol=1e-15, atol=1e-14)
     np.testing.assert_allclose(
         sim.tip_velocities(), st.vel[last] + np.cross(st.omg[last], r), rtol=1e-14, atol=1e-14
