@@ -1,8 +1,18 @@
 """Named records of the kernels' data: what the numba kernels take instead of long argument lists.
 
-Every record is a ``collections.namedtuple`` (numba-native: passed to and built inside nopython
-code, read by field name, no allocation).  Arrays in a record are views owned by the Python side
-(``Simulator``); the kernels write into them in place.
+Two kinds of record, both read by field name (never by a column constant, issue 27):
+
+- ``collections.namedtuple`` (numba-native: passed to and built inside nopython code, no
+  allocation): the argument bundles below and ``StepParams`` (the integrator's settings, typed
+  scalars: integers as integers, the static flag as a bool);
+- numpy structured dtypes for per-body / per-tip / per-surface tables (``BODY``, ``TIP_ARGS``,
+  ``TIP_STATE``, ``CONTACT_LAW``, ``SURFACE``): numba reads ``bp[i].half``, ``st.delta[a]``,
+  ``srf.kind`` at the same byte offsets the float64 columns they replaced had, so the kernels'
+  loads and stores are unchanged; Python reads ``ts["fn"]``.  Integers (a surface's kind and
+  grid, the tip's deepest surface and sliding flag) are int64.
+
+Arrays in a record are views owned by the Python side (``Simulator``); the kernels write into
+them in place.
 
 ==================  ========================================================================
 record              fields [unit]
@@ -39,6 +49,8 @@ record              fields [unit]
                     Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
 ``Sweeps``          the Gauss-Seidel sweeps' start state, warm starts and partner tips
 ``Work``            the scratch of ``step_bristles`` (allocated once per Simulator)
+``StepParams``      the integrator's settings: h, method, static, rtol, maxit, maxlev, g, jage,
+                    sweeps, tttol (see the class comment)
 ==================  ========================================================================
 """
 

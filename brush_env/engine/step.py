@@ -28,18 +28,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .advance import scheme_coefficients
-from .coupling import place_partners
-from .sweeps import (
-    FALLBACK_MOVE,
-    SWEEP_AGAIN,
-    SWEEP_FIRST,
-    SWEEP_PLAIN,
-    _max_partner_move,
-    _save_all,
-    _sweep,
-    _tip_node_state,
-)
+from .sweeps import SWEEP_FIRST, _settle_tip_tip, _start_sweeps, _sweep, _tip_node_state
 
 
 @njit(**HOT)
@@ -64,38 +53,9 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     [sweeps run, re-solves, 0 settled / 1 out of sweeps with partners still moving by less than
     FALLBACK_MOVE / 2 fell back to the plain sweep].
     """
-    nb = model.bstart.shape[0] - 1
-    sw = ws.sw
-    npair = con.pair_idx.shape[0]
-    sweeps = prm.sweeps if npair > 0 else 1
-    # the coupling's tip-tip damping weight c0 / h: the scheme's c0 on a whole step with history
-    # (it only steers the placement of partners; each bristle's own step uses its own c0)
-    c0 = scheme_coefficients(prm, True)[0]
-    c0_inv_h = 0.0 if prm.static else c0 / prm.h
-    for b in range(nb):
-        out.iters[b] = 0
-        for a in range(6):
-            sw.tips0[b, a] = con.tips[b, a]
-    if sweeps > 1:
-        _save_all(chain, con, drive, sw)
-    sw.count[0] = 1
-    sw.count[1] = 0
-    sw.count[2] = 0
-    _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)
-    for sweep in range(1, sweeps + 1):
-        moved = _max_partner_move(nb, con, sw.used)
-        if moved <= prm.tttol:
-            break
-        if sweep == sweeps:
-            sw.count[2] = 1  # out of sweeps with partners still moving
-            if sweeps > 1 and moved > FALLBACK_MOVE:
-                # far from settled (the coupled step went astray): the plain sweep instead
-                sw.count[2] = 2
-                _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
-            break
-        sw.count[0] = sweep + 1
-        place_partners(model, chain, con, jc, ws, c0_inv_h)
-        _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)
+    _start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
+    _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle, in order
+    _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
 
 
 @njit(**HOT)

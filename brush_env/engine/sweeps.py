@@ -13,8 +13,8 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .advance import _advance_bristle
-from .coupling import store_tip_load
+from .advance import _advance_bristle, scheme_coefficients
+from .coupling import place_partners, store_tip_load
 from .predict import _save_chain
 from .records import Bristle
 
@@ -156,3 +156,49 @@ def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
     out[b, 3] = vel[il, 0] + omg[il, 1] * r2 - omg[il, 2] * r1
     out[b, 4] = vel[il, 1] + omg[il, 2] * r0 - omg[il, 0] * r2
     out[b, 5] = vel[il, 2] + omg[il, 0] * r1 - omg[il, 1] * r0
+
+
+@njit(**HOT, inline="always")
+def _start_sweeps(model, chain, drive, prm, con, ws, out):
+    """Before the first sweep: no Newton iterations yet, every tip's start (sw.tips0) and, if
+    more than one sweep may run, every bristle's start-of-step state (``_save_all``)."""
+    nb = model.bstart.shape[0] - 1
+    sw = ws.sw
+    sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
+    for b in range(nb):
+        out.iters[b] = 0
+        for a in range(6):
+            sw.tips0[b, a] = con.tips[b, a]
+    if sweeps > 1:
+        _save_all(chain, con, drive, sw)
+    sw.count[0] = 1
+    sw.count[1] = 0
+    sw.count[2] = 0
+
+
+@njit(**HOT, inline="always")
+def _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
+    """After the first sweep: while touching partners moved by more than prm.tttol since a
+    bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN);
+    out of sweeps far from settled: the plain sweep (SWEEP_PLAIN).  Sets sw.count."""
+    nb = model.bstart.shape[0] - 1
+    sw = ws.sw
+    sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
+    # the coupling's tip-tip damping weight c0 / h: the scheme's c0 on a whole step with history
+    # (it only steers the placement of partners; each bristle's own step uses its own c0)
+    c0 = scheme_coefficients(prm, True)[0]
+    c0_inv_h = 0.0 if prm.static else c0 / prm.h
+    for sweep in range(1, sweeps + 1):
+        moved = _max_partner_move(nb, con, sw.used)
+        if moved <= prm.tttol:
+            break
+        if sweep == sweeps:
+            sw.count[2] = 1  # out of sweeps with partners still moving
+            if sweeps > 1 and moved > FALLBACK_MOVE:
+                # far from settled (the coupled step went astray): the plain sweep instead
+                sw.count[2] = 2
+                _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+            break
+        sw.count[0] = sweep + 1
+        place_partners(model, chain, con, jc, ws, c0_inv_h)
+        _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)
