@@ -173,7 +173,7 @@ def test_the_walk_sees_the_package():
     } <= set(graph)
     # the resolver turns relative imports into module names (one known edge of each kind)
     sim = {n for n, _, _ in graph["brush_env.engine.simulator"]}
-    assert "brush_env.engine.integrator" in sim  # from . import integrator as itg
+    assert "brush_env.engine.step" in sim  # from . import step as itg
     assert "brush_env.engine.rotation" in sim  # from .rotation import pose_ok
 
 

@@ -26,7 +26,7 @@ Returns
     rollback state and raises ``SimulationDivergence`` (never NaN).  After every call: ``tips``
     (nb,6) tip-node position [mm] and velocity [mm/s], world; ``root_wrench`` (nb,6) the force
     [N] and moment [N mm] about the root node with which each bristle pushes on the head, world
-    (the TCP wrench is minus their sum, moments carried to the TCP: ``integrator.tcp_wrench``);
+    (the TCP wrench is minus their sum, moments carried to the TCP: ``step.tcp_wrench``);
     ``contact()`` a :class:`TipContact`; ``solver_info()``
     a dict of the model's own counters (may be empty).
 """

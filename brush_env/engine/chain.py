@@ -2,7 +2,7 @@
 bristle a chain of rigid bodies (eq 11) joined by Timoshenko beam elements (eq 1-5, the paper's
 element or the mid-frame one), its tip sphere in penalty contact with the surfaces (eq 6) with
 stick-slip friction (eq 7-10) and with neighbouring tips (Table 3), integrated implicitly per
-bristle (``integrator.step_bristles``).  Registered as bristle model ``"dfm"``; the fidelity
+bristle (``step.step_bristles``).  Registered as bristle model ``"dfm"``; the fidelity
 levels reference, paper and balanced use it.
 """
 
@@ -12,9 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import contact as ct
-from . import integrator as itg
 from . import records as rec
+from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from ._kernels import ELEMENTS
 from .beam import (
     bristle_frame,
@@ -26,7 +25,7 @@ from .beam import (
 from .bristles import BristleModel, TipContact
 from .checks import ConfigError
 from .config import BrushConfig
-from .contact import N_TIP_ARGS, N_TIP_STATE
+from .mesh_contact import build_mesh, empty_mesh
 from .scene import MeshPlate
 from .sdf import pack_grids
 from .settings import INTEGRATORS, SimSettings, SimulationDivergence
@@ -66,7 +65,7 @@ def build_model(brush: BrushConfig, element: str = "mid") -> Model:
     bstart = np.zeros(len(nbod) + 1, np.int64)
     bstart[1:] = np.cumsum(nbod)
     N = int(bstart[-1])
-    bp = np.zeros((N, rec.N_BP))
+    bp = np.zeros(N, rec.BODY)
     K = np.zeros((N, 6, 6))
     seg = np.zeros(N)
     R_head = brush.head_rotation()
@@ -87,12 +86,12 @@ def build_model(brush: BrushConfig, element: str = "mid") -> Model:
         fscale = mat.E * Imin / br.length**2
         sl = slice(bstart[j], bstart[j + 1])
         K[sl] = Kel
-        bp[sl, rec.B_MASS] = m
-        bp[sl, rec.B_JX : rec.B_JX + 3] = Jb
-        bp[sl, rec.B_HALF] = 0.5 * l
-        bp[sl, rec.B_LEN] = l
-        bp[sl, rec.B_BETA] = beta
-        bp[sl, rec.B_FSCALE] = fscale
+        bp["mass"][sl] = m
+        bp["J"][sl] = Jb
+        bp["half"][sl] = 0.5 * l
+        bp["length"][sl] = l
+        bp["beta"][sl] = beta
+        bp["fscale"][sl] = fscale
         seg[sl] = l
         root_p[j] = np.asarray(brush.head_offset, float) + R_head @ np.asarray(br.root, float)
         # lean: rotate about the width axis so the tip moves toward the thickness direction
@@ -157,8 +156,8 @@ class DFMChain(BristleModel):
         self.settings = settings
         self.model = build_model(scene.brush, settings.element)
         nb = self.model.n_bristles
-        self.tip_args = np.zeros((nb, N_TIP_ARGS))
-        self.tip_args[:, ct.A_RADIUS] = self.model.tip_radius
+        self.tip_args = np.zeros(nb, rec.TIP_ARGS)
+        self.tip_args["radius"] = self.model.tip_radius
         self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
         self.surfaces, grids = _surface_rows(scene.surfaces)
         self.sdf = pack_grids(grids)
@@ -167,7 +166,7 @@ class DFMChain(BristleModel):
             raise ConfigError(
                 f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
             )
-        self.mesh = ct.build_mesh(*meshes[0].triangles()) if meshes else ct.empty_mesh()
+        self.mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
         self.pair_ptr, self.pair_idx = (
             tip_pairs(self.model, scene)
             if scene.tip_tip
@@ -175,7 +174,6 @@ class DFMChain(BristleModel):
         )
         self._ws = rec.make_work(
             int(np.diff(self.model.bstart).max()),
-            N_TIP_STATE,
             self.model.n_bodies,
             nb,
             len(self.pair_idx),
@@ -194,20 +192,22 @@ class DFMChain(BristleModel):
         self._snap: State | None = None  # rollback buffers (see snapshot)
         self._prm = self._make_prm(static=False)
 
-    def _make_prm(self, static: bool) -> np.ndarray:
+    def _make_prm(self, static: bool) -> rec.StepParams:
+        """The kernels' step parameters (``records.StepParams``) from the settings: ``h`` the
+        solver step (dt / substeps), ``maxlev`` = max_halvings."""
         s = self.settings
-        prm = np.zeros(itg.N_PRM)
-        prm[itg.P_H] = s.dt if static else s.dt / s.substeps
-        prm[itg.P_METHOD] = INTEGRATORS[s.integrator]
-        prm[itg.P_STATIC] = 1.0 if static else 0.0
-        prm[itg.P_RTOL] = s.newton_rtol
-        prm[itg.P_MAXIT] = s.newton_max_iter
-        prm[itg.P_MAXLEV] = s.max_halvings
-        prm[itg.P_G : itg.P_G + 3] = s.gravity
-        prm[itg.P_JAGE] = s.jacobian_max_age
-        prm[itg.P_SWEEPS] = s.tip_tip_sweeps
-        prm[itg.P_TTTOL] = s.tip_tip_tol
-        return prm
+        return rec.StepParams(
+            h=float(s.dt if static else s.dt / s.substeps),
+            method=int(INTEGRATORS[s.integrator]),
+            static=bool(static),
+            rtol=float(s.newton_rtol),
+            maxit=int(s.newton_max_iter),
+            maxlev=int(s.max_halvings),
+            g=np.array(s.gravity, dtype=float),
+            jage=int(s.jacobian_max_age),
+            sweeps=int(s.tip_tip_sweeps),
+            tttol=float(s.tip_tip_tol),
+        )
 
     @property
     def tips(self) -> np.ndarray:
@@ -258,11 +258,11 @@ class DFMChain(BristleModel):
         itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
 
     def set_tip_forces(self, forces) -> None:
-        self.tip_args[:, 0:3] = forces
+        self.tip_args["fext"] = forces
 
     @property
     def tip_forces(self) -> np.ndarray:
-        return self.tip_args[:, 0:3]
+        return self.tip_args["fext"]
 
     def set_state(self, state: State) -> None:
         self.state = state.copy()
@@ -271,8 +271,7 @@ class DFMChain(BristleModel):
 
     def solve_static(self, tcp_p, tcp_R) -> tuple[int, int]:
         """Static equilibrium at the TCP pose under the current tip loads (no halving)."""
-        prm = self._make_prm(static=True)
-        prm[itg.P_MAXLEV] = 0
+        prm = self._make_prm(static=True)._replace(maxlev=0)
         counts = self._advance(tcp_p, tcp_R, prm, self.state.time, None)
         self.state.hist_ok[:] = 0
         return counts
@@ -302,7 +301,7 @@ class DFMChain(BristleModel):
         st.tcp_R[2] = tcp_R
 
     def _solve_bristles(self, prm) -> None:
-        """Stage 2: every bristle's implicit step (integrator.step_bristles): per bristle, the
+        """Stage 2: every bristle's implicit step (step.step_bristles): per bristle, the
         momentum balance (eq 11) with the beam elements (eq 1-5), the tip's contact search over
         the surfaces and its pre-searched tip-tip partners (§2.2, ``tip_pairs``), the normal law
         (eq 6), friction (eq 7-10) and tip-tip contact (Table 3), solved by Newton."""
@@ -331,7 +330,7 @@ class DFMChain(BristleModel):
                 t_new,
                 bad,
                 "Newton did not converge on the smallest "
-                f"halving of the solver step (h / 2**{int(prm[itg.P_MAXLEV])}, max_halvings)",
+                f"halving of the solver step (h / 2**{prm.maxlev}, max_halvings)",
             )
 
     def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
@@ -375,16 +374,16 @@ class DFMChain(BristleModel):
 
     def contact(self) -> TipContact:
         ts = self.state.tip_state
-        fn = ts[:, ct.S_FN].copy()
+        fn = ts["fn"].copy()
         touching = fn > 0.0
         return TipContact(
             fn,
-            ts[:, ct.S_FT : ct.S_FT + 3].copy(),
-            (ts[:, ct.S_SLIDE] > 0.0) & touching,
-            np.maximum(ts[:, ct.S_PEN], 0.0) * touching,
-            ts[:, ct.S_CP : ct.S_CP + 3].copy(),
-            ts[:, ct.S_FTT].copy(),
-            np.where(touching, ts[:, ct.S_SURF], -1.0).astype(np.int64),
+            ts["ft"].copy(),
+            (ts["slide"] > 0) & touching,
+            np.maximum(ts["pen"], 0.0) * touching,
+            ts["cpt"].copy(),
+            ts["ftt"].copy(),
+            np.where(touching, ts["surf"], -1).astype(np.int64),
         )
 
     def solver_info(self) -> dict:
@@ -424,20 +423,20 @@ _STATE_ARRAYS = (
 
 
 def _fresh_tip_state(nb: int) -> np.ndarray:
-    """Tip states of untouched tips: zeros, no surface (S_SURF = -1)."""
-    ts = np.zeros((nb, N_TIP_STATE))
-    ts[:, ct.S_SURF] = -1.0
+    """Tip states of untouched tips: zeros, no surface (surf = -1)."""
+    ts = np.zeros(nb, rec.TIP_STATE)
+    ts["surf"] = -1
     return ts
 
 
 def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
-    """Kernel rows (kind, then the kind's numbers: contact.SURF_*) of the scene's surfaces, and
-    the baked SDF grids that rows of kind SURF_GRID index (in their order)."""
-    rows = np.zeros((len(surfaces), ct.N_SURF))
+    """The scene's surfaces as kernel records (``records.SURFACE``), and the baked SDF grids that
+    records of kind SURF_GRID index (in their order)."""
+    rows = np.zeros(len(surfaces), rec.SURFACE)
     grids = []
     for j, srf in enumerate(surfaces):
         if hasattr(srf, "sdf_grid"):
-            rows[j, 0], rows[j, 1] = ct.SURF_GRID, len(grids)
+            rows[j] = rec.surface_row(rec.SURF_GRID, grid=len(grids))
             grids.append(srf.sdf_grid())
         else:
             rows[j] = srf.kernel_row()

@@ -21,7 +21,7 @@ tip (|v| >= max(v_s, v_d)) carries exactly mu_d Fn against its slip.
 
 Tip-tip contact (Table 3): the same normal law between two tip spheres along the line of centres,
 no friction.  The partner tip is held at its latest position (Gauss-Seidel splitting across
-bristles, see integrator.step_bristles).
+bristles, see step.step_bristles).
 """
 
 from __future__ import annotations
@@ -30,53 +30,9 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .sdf import (
-    FAR,
-    capsule_gap,
-    ellipsoid_gap,
-    ellipsoid_rate,
-    grid_gap,
-    grid_rate,
-    round_rate,
-    sphere_gap,
-)
-
-# --- tip_args row (per bristle, float64)
-A_FEXT = 0  # 0:3 external dead force [N, world]
-A_RADIUS = 3  # tip sphere radius [mm]
-N_TIP_ARGS = 4
-
-# --- tip_state row (per bristle, float64)
-S_DELTA = 0  # 0:3 stiction deformation Delta [mm, world] (committed)
-S_HIST = 3  # 3:6 c1 p_n + c2 p_{n-1} of the tip node (rate history) [mm]
-S_PN = 6  # 6:9 tip node at the step start [mm]
-S_FN = 9  # normal force of the last evaluation [N]
-S_FT = 10  # 10:13 tangential (friction) force [N, world]
-S_SLIDE = 13  # 1 if sliding (|v| > v_s)
-S_PEN = 14  # penetration [mm]
-S_CP = 15  # 15:18 contact point [mm]
-S_DNEW = 18  # 18:21 trial stiction deformation of the last evaluation
-S_FTT = 21  # tip-tip normal force magnitude (sum) [N]
-S_BETA = 22  # beta of the step start (committed), see tip_load
-S_BNEW = 23  # beta at the slip speed of the last evaluation
-S_SURF = 24  # index of the deepest surface the tip touched at the last evaluation (-1: none)
-N_TIP_STATE = 25
-
-# --- contact parameter vector cp (per scene: scene.ContactParams.as_array(), Tables 2-3)
-C_K, C_M1, C_C, C_M2, C_M3 = 0, 1, 2, 3, 4  # tip-surface normal law (Table 2)
-C_MUS, C_MUD, C_VS, C_VD, C_DMAX = 5, 6, 7, 8, 9  # friction (Table 2)
-C_KT, C_M1T, C_CT, C_M2T, C_M3T = 10, 11, 12, 13, 14  # tip-tip normal law (Table 3)
-N_CP = 15
-
-# --- surface rows surf (ns, 8): kind, point (3), normal/axis (3), radius
-SURF_PLANE = 0.0
-SURF_CYLINDER = 1.0  # outside of an infinite cylinder: point on the axis, axis dir, radius
-SURF_MESH = 2.0  # the scene's triangle mesh (ctx mesh arrays); row: kind, search radius [mm]
-SURF_SPHERE = 3.0  # sdf.sphere_gap: centre (3), -, -, -, radius
-SURF_CAPSULE = 4.0  # sdf.capsule_gap: end a (3), end b (3), radius
-SURF_ELLIPSOID = 5.0  # sdf.ellipsoid_gap: centre (3), semi-axes (3), -
-SURF_GRID = 6.0  # a baked SDF grid (ctx sdf arrays); row: kind, grid index
-N_SURF = 8
+from .records import SURF_MESH, SURF_PLANE
+from .sdf import FAR
+from .surfaces import normal_rate, surface_gap
 
 PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
 
@@ -122,175 +78,6 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
     return F, dF_dd, dF_dv
 
 
-@njit(**HOT)
-def _closest_on_triangle(p, a, b, c):
-    """Closest point (x, y, z) to p on triangle abc (Ericson, Real-Time Collision Detection
-    5.1.5)."""
-    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
-    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
-    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2]
-    bp0, bp1, bp2 = p[0] - b[0], p[1] - b[1], p[2] - b[2]
-    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
-    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
-    if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2]
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        v = d1 / (d1 - d3)
-        return a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
-    cp0, cp1, cp2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
-    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
-    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
-    if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2]
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])
-    den = 1.0 / (va + vb + vc)
-    v = vb * den
-    w = vc * den
-    return a[0] + ab0 * v + ac0 * w, a[1] + ab1 * v + ac1 * w, a[2] + ab2 * v + ac2 * w
-
-
-@njit(cache=True)
-def _mesh_gap(pt, search, mesh, nrm, cpt):
-    """Signed distance from pt to the mesh (>0 on the side the triangle normals point to), the
-    contact normal and the closest point, over the triangles of the grid cells within ``search``
-    of pt (uniform-grid spatial index).  Returns 1e300 if no triangle is that close."""
-    verts, tris, tnrm, gf, cell_start, cell_tris = mesh
-    if tris.shape[0] == 0:
-        return 1e300
-    cell = gf[3]
-    nx, ny, nz = int(gf[4]), int(gf[5]), int(gf[6])
-    lo0 = max(int(np.floor((pt[0] - search - gf[0]) / cell)), 0)
-    lo1 = max(int(np.floor((pt[1] - search - gf[1]) / cell)), 0)
-    lo2 = max(int(np.floor((pt[2] - search - gf[2]) / cell)), 0)
-    hi0 = min(int(np.floor((pt[0] + search - gf[0]) / cell)), nx - 1)
-    hi1 = min(int(np.floor((pt[1] + search - gf[1]) / cell)), ny - 1)
-    hi2 = min(int(np.floor((pt[2] + search - gf[2]) / cell)), nz - 1)
-    if lo0 > hi0 or lo1 > hi1 or lo2 > hi2:
-        return 1e300
-    best = 1e300
-    bestd = 1e300
-    for ix in range(lo0, hi0 + 1):
-        for iy in range(lo1, hi1 + 1):
-            for iz in range(lo2, hi2 + 1):
-                c = (ix * ny + iy) * nz + iz
-                for k in range(cell_start[c], cell_start[c + 1]):
-                    t = cell_tris[k]
-                    q0, q1, q2 = _closest_on_triangle(
-                        pt, verts[tris[t, 0]], verts[tris[t, 1]], verts[tris[t, 2]]
-                    )
-                    d0 = pt[0] - q0
-                    d1 = pt[1] - q1
-                    d2 = pt[2] - q2
-                    dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                    if dist < bestd:
-                        bestd = dist
-                        side = d0 * tnrm[t, 0] + d1 * tnrm[t, 1] + d2 * tnrm[t, 2]
-                        if (
-                            dist > 1e-12 * (1.0 + abs(pt[0]) + abs(pt[1]) + abs(pt[2]))
-                            and abs(side) < (1.0 - 1e-12) * dist
-                        ):
-                            # closest point on an edge or vertex: normal along p - q
-                            sg = 1.0 if side >= 0.0 else -1.0
-                            nrm[0] = sg * d0 / dist
-                            nrm[1] = sg * d1 / dist
-                            nrm[2] = sg * d2 / dist
-                            best = sg * dist
-                        else:  # face interior: the face normal, exactly as for a plane
-                            for a in range(3):
-                                nrm[a] = tnrm[t, a]
-                            best = side
-                        cpt[0] = q0
-                        cpt[1] = q1
-                        cpt[2] = q2
-    return best
-
-
-@njit(**HOT)
-def _surface_gap(surf, pt, nrm, cpt, mesh, sdf):
-    """Signed distance from the sphere centre to the surface (>0 outside), normal, closest point
-    (plane, cylinder, triangle mesh here; the SDF kinds in ``sdf.py``)."""
-    kind = surf[0]
-    if kind == SURF_MESH:
-        return _mesh_gap(pt, surf[1], mesh, nrm, cpt)
-    if kind == SURF_GRID:
-        return grid_gap(int(surf[1]), sdf, pt, nrm, cpt)
-    if kind == SURF_SPHERE:
-        return sphere_gap(surf, pt, nrm, cpt)
-    if kind == SURF_CAPSULE:
-        return capsule_gap(surf, pt, nrm, cpt)
-    if kind == SURF_ELLIPSOID:
-        return ellipsoid_gap(surf, pt, nrm, cpt)
-    if kind == SURF_PLANE:
-        for a in range(3):
-            nrm[a] = surf[4 + a]
-        d = 0.0
-        for a in range(3):
-            d += (pt[a] - surf[1 + a]) * nrm[a]
-        for a in range(3):
-            cpt[a] = pt[a] - d * nrm[a]
-        return d
-    # cylinder (outer surface)
-    rel0 = pt[0] - surf[1]
-    rel1 = pt[1] - surf[2]
-    rel2 = pt[2] - surf[3]
-    ax = rel0 * surf[4] + rel1 * surf[5] + rel2 * surf[6]
-    r0 = rel0 - ax * surf[4]
-    r1 = rel1 - ax * surf[5]
-    r2 = rel2 - ax * surf[6]
-    rr = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-    if rr < 1e-12:
-        rr = 1e-12
-    nrm[0] = r0 / rr
-    nrm[1] = r1 / rr
-    nrm[2] = r2 / rr
-    for a in range(3):
-        cpt[a] = surf[1 + a] + ax * surf[4 + a] + surf[7] * nrm[a]
-    return rr - surf[7]
-
-
-@njit(**HOT)
-def _normal_rate(surf, pt, nrm, gap, sdf, J, gd):
-    """How the contact geometry moves with the sphere centre, after ``_surface_gap`` gave
-    (gap, nrm) at pt: gd <- d gap / d pt [-] and J <- d nrm / d pt [1/mm].
-
-    J carries the curvature term Fn dn/dpt of the contact force Fn n: a tip pressed on a crown of
-    radius r has a tangential stiffness of ~Fn / r (0.03 N/mm at 0.1 N on 3 mm), tens of times
-    the bristle's own bending stiffness at its tip, so a Newton tangent without it turns the
-    normal force against the bristle at each iterate.  Exact for the analytic kinds; the grid's
-    is the derivative of its interpolation (what the residual sees).  Plane and triangle mesh:
-    J = 0 (flat faces; a mesh's edges and vertices are left out) and gd = n."""
-    kind = surf[0]
-    if kind == SURF_GRID:  # sets both
-        grid_rate(int(surf[1]), sdf, pt, J, gd)
-        return
-    for a in range(3):  # exact distances: their gradient is the normal
-        gd[a] = nrm[a]
-    if kind == SURF_SPHERE:
-        round_rate(surf, 0, pt, nrm, gap, J)
-    elif kind == SURF_CAPSULE:
-        round_rate(surf, 1, pt, nrm, gap, J)
-    elif kind == SURF_CYLINDER:
-        round_rate(surf, 2, pt, nrm, gap, J)
-    elif kind == SURF_ELLIPSOID:
-        ellipsoid_rate(surf, nrm, gap, J)
-    else:
-        for a in range(3):
-            for b in range(3):
-                J[a, b] = 0.0
-
-
 @njit(**HOT, inline="always")
 def _from_partner(pt, tips, j):
     """(d, |d|): the vector from partner tip j's centre to ``pt`` [mm] and its length."""
@@ -313,26 +100,26 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
     tw: ``records.TipScratch``.
     """
     state = con.tip_state[b]
-    R = con.tip_args[b, A_RADIUS]
+    R = con.tip_args[b].radius
     vt = tw.vt
     for a in range(3):
-        F[a] = con.tip_args[b, A_FEXT + a]
+        F[a] = con.tip_args[b].fext[a]
         for bb in range(3):
             Kt[a, bb] = 0.0
         # tip velocity from the discrete rate formula (zero for statics)
-        vt[a] = 0.0 if sub.static else (sub.c0 * pt[a] + state[S_HIST + a]) * sub.inv_h
-    state[S_FN] = 0.0
-    state[S_FT] = 0.0
-    state[S_FT + 1] = 0.0
-    state[S_FT + 2] = 0.0
-    state[S_SLIDE] = 0.0
-    state[S_PEN] = 0.0
-    state[S_FTT] = 0.0
-    state[S_BNEW] = 0.0
-    state[S_SURF] = -1.0
+        vt[a] = 0.0 if sub.static else (sub.c0 * pt[a] + state.hist[a]) * sub.inv_h
+    state.fn = 0.0
+    state.ft[0] = 0.0
+    state.ft[1] = 0.0
+    state.ft[2] = 0.0
+    state.slide = 0
+    state.pen = 0.0
+    state.ftt = 0.0
+    state.bnew = 0.0
+    state.surf = -1
     for a in range(3):
-        state[S_DNEW + a] = 0.0
-        state[S_CP + a] = pt[a]
+        state.dnew[a] = 0.0
+        state.cpt[a] = pt[a]
     _surface_load(pt, R, sub, con, state, F, Kt, tw)
     _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt)
 
@@ -351,19 +138,19 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     surface alone flipped its plane between Newton iterates where two surfaces were equally
     deep, and Newton failed even at dt/256."""
     surf = con.surf
-    cp = con.cp
+    cp = con.cp[0]
     vt = tw.vt
     nrm = tw.nrm
     cpt = tw.cpt
     if surf.shape[0] > 1 or (
-        surf.shape[0] == 1 and surf[0, 0] != SURF_PLANE and surf[0, 0] != SURF_MESH
+        surf.shape[0] == 1 and surf[0].kind != SURF_PLANE and surf[0].kind != SURF_MESH
     ):
         Fn = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
-        if Fn > 0.0 and (cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0):
+        if Fn > 0.0 and (cp.mu_s > 0.0 or cp.mu_d > 0.0):
             # friction ~ |R|: its Newton coupling dF_t = (F_t / |R|) d|R|, d|R| = -g^T dpt with
-            # g = -A^T n (tw.pcpt, from _several_surfaces), not kk n
+            # g = -A^T n (tw.gres, from _several_surfaces), not kk n
             _friction_load(pt, Fn, 0.0, sub, cp, state, F, Kt, tw)
-            g = tw.pcpt
+            g = tw.gres
             ft = tw.ft
             for a in range(3):
                 for bb in range(3):
@@ -371,19 +158,19 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
         return
     if surf.shape[0] == 0:
         return
-    best = _surface_gap(surf[0], pt, nrm, cpt, con.mesh, con.sdf)
+    best = surface_gap(surf, 0, pt, nrm, cpt, con.mesh, con.sdf)
     if best >= R:
         return
     delta = R - best
     vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
-    Fn, kn, cn = normal_law(delta, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])  # eq 6
+    Fn, kn, cn = normal_law(delta, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3)  # eq 6
     for a in range(3):
-        state[S_CP + a] = cpt[a]
-    state[S_PEN] = delta
-    state[S_SURF] = 0.0
+        state.cpt[a] = cpt[a]
+    state.pen = delta
+    state.surf = 0
     if Fn <= 0.0:
         return
-    state[S_FN] = Fn
+    state.fn = Fn
     # normal force and tangent: delta = R - n.(pt - p0) -> d delta/d pt = -n;
     # d(ddelta)/d pt = -(c0/h) n
     kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
@@ -391,7 +178,7 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
         F[a] += Fn * nrm[a]
         for bb in range(3):
             Kt[a, bb] -= kk * nrm[a] * nrm[bb]
-    if cp[C_MUS] > 0.0 or cp[C_MUD] > 0.0:
+    if cp.mu_s > 0.0 or cp.mu_d > 0.0:
         _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw)
 
 
@@ -399,10 +186,10 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
 def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
     inside another surface is hidden in their union); adds them to F, Kt, stores the total in
-    S_FN, the deepest in S_PEN, S_CP, S_SURF.  Leaves the resultant's direction in tw.nrm and
-    d|R|/dpt's negative in tw.pcpt for friction and returns its magnitude |R| (0: no friction)."""
+    state.fn, the deepest in state.pen, .cpt, .surf.  Leaves the resultant's direction in tw.nrm and
+    d|R|/dpt's negative in tw.gres for friction and returns its magnitude |R| (0: no friction)."""
     surf = con.surf
-    cp = con.cp
+    cp = con.cp[0]
     vt = tw.vt
     nrm = tw.pnrm
     cpt = tw.pcpt
@@ -410,7 +197,7 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     ibest = -1
     touched = 0  # bit s: surface s is within R (only those are evaluated again below)
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
+        gap = surface_gap(surf, s, pt, nrm, cpt, con.mesh, con.sdf)
         if gap < R and s < 63:
             touched |= 1 << s
         if gap < best:
@@ -432,27 +219,27 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     for s in range(surf.shape[0]):
         if s < 63 and not (touched >> s) & 1:
             continue
-        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf)
+        gap = surface_gap(surf, s, pt, nrm, cpt, con.mesh, con.sdf)
         if gap >= R:
             continue
         if s != ibest:
             hidden = False
             for o in range(surf.shape[0]):
-                if o != s and _surface_gap(surf[o], cpt, tw.vs, tw.dn, con.mesh, con.sdf) < -1e-3:
+                if o != s and surface_gap(surf, o, cpt, tw.vs, tw.dn, con.mesh, con.sdf) < -1e-3:
                     hidden = True
                     break
             if hidden:
                 continue
         vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
-        Fn, kn, cn = normal_law(R - gap, -vn, cp[C_K], cp[C_M1], cp[C_C], cp[C_M2], cp[C_M3])
+        Fn, kn, cn = normal_law(R - gap, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3)
         if s == ibest:
             for a in range(3):
-                state[S_CP + a] = cpt[a]
-            state[S_PEN] = R - gap
-            state[S_SURF] = s
+                state.cpt[a] = cpt[a]
+            state.pen = R - gap
+            state.surf = s
         if Fn <= 0.0:
             continue
-        _normal_rate(surf[s], pt, nrm, gap, con.sdf, J, gd)
+        normal_rate(surf, s, pt, nrm, gap, con.sdf, J, gd)
         # d(Fn n) = n dFn + Fn J dpt, with dFn = -kn gd^T dpt - cn (rate n + J^T v)^T dpt
         # (delta = R - gap, ddelta = -v.n)
         for bb in range(3):
@@ -469,7 +256,7 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     for a in range(3):
         for bb in range(3):
             Kt[a, bb] += A[a, bb]
-    state[S_FN] = total
+    state.fn = total
     f_res = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if f_res <= 0.0:
         return 0.0
@@ -477,7 +264,7 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     tw.nrm[0], tw.nrm[1], tw.nrm[2] = n0, n1, n2
     # d|R|/dpt = n^T A = -g: friction's Newton coupling to the normal force
     for bb in range(3):
-        tw.pcpt[bb] = -(n0 * A[0, bb] + n1 * A[1, bb] + n2 * A[2, bb])
+        tw.gres[bb] = -(n0 * A[0, bb] + n1 * A[1, bb] + n2 * A[2, bb])
     return f_res
 
 
@@ -486,7 +273,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
     """Friction on a tip pressed with Fn [N] (normal tangent kk [N/mm]): eq 7 (F_mu = stiction +
     sliding), eq 8 (stiction), eq 9 (sliding), with the steps of eq 10; adds force and Newton
     tangent to F, Kt and stores the trial stiction deformation and beta in ``state``."""
-    mus = cp[C_MUS]
+    mus = cp.mu_s
     nrm = tw.nrm
     vt = tw.vt
     vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
@@ -497,21 +284,21 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
     vmag = np.sqrt(vs[0] ** 2 + vs[1] ** 2 + vs[2] ** 2)
     dn = tw.dn
     for a in range(3):
-        dn[a] = state[S_DELTA + a] + pt[a] - state[S_PN + a]
+        dn[a] = state.delta[a] + pt[a] - state.pn[a]
     dnn = dn[0] * nrm[0] + dn[1] * nrm[1] + dn[2] * nrm[2]
     for a in range(3):
         dn[a] -= dnn * nrm[a]
     dmag = np.sqrt(dn[0] ** 2 + dn[1] ** 2 + dn[2] ** 2)
-    dmax = cp[C_DMAX]
+    dmax = cp.delta_max
     dtrial = dmag  # before the clamp: the tangent of the clamped Delta scales with dmax / dtrial
     if dmag > dmax:
         for a in range(3):
             dn[a] *= dmax / dmag
         dmag = dmax
     for a in range(3):
-        state[S_DNEW + a] = dn[a]
-    v_s = cp[C_VS]
-    v_d = cp[C_VD]
+        state.dnew[a] = dn[a]
+    v_s = cp.v_s
+    v_d = cp.v_d
     # beta: C1 form step(|v|, 0, 0, v_s, 1).  The printed step(|v|, -v_s, -1, v_s, 1) has the same
     # end values but a kink at v = 0 (slope 1.5/v_s in |v|), which makes Newton cycle around v = 0
     # for a sticking tip.  beta is taken at the slip speed of the step start (lagged one step):
@@ -519,12 +306,12 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
     # and an implicit step through the falling branch has no unique solution for a nearly massless
     # tip; with beta frozen within the step the friction force rises monotonically with |v| and
     # |Delta|, and the break-away still happens, over one step.
-    beta = state[S_BETA]
-    state[S_BNEW] = step10(vmag, 0.0, 0.0, v_s, 1.0)
+    beta = state.beta
+    state.bnew = step10(vmag, 0.0, 0.0, v_s, 1.0)
     gst = step10(dmag / dmax, -1.0, -1.0, 1.0, 1.0)
     gsl = step10(vmag / v_d, -1.0, -1.0, 1.0, 1.0)
     fst = (1.0 - beta) * mus * Fn * gst  # eq 8: stiction force magnitude
-    fsl = cp[C_MUD] * Fn * gsl  # eq 9: sliding force magnitude
+    fsl = cp.mu_d * Fn * gsl  # eq 9: sliding force magnitude
     ft = tw.ft
     for a in range(3):
         ft[a] = 0.0
@@ -536,8 +323,8 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
             ft[a] -= fsl * vs[a] / vmag
     for a in range(3):  # eq 7: F_mu = F_stiction + F_sliding
         F[a] += ft[a]
-        state[S_FT + a] = ft[a]
-    state[S_SLIDE] = 1.0 if vmag > v_s else 0.0
+        state.ft[a] = ft[a]
+    state.slide = 1 if vmag > v_s else 0
     # Exact Newton tangent of F_t w.r.t. pt (beta is frozen within the step):
     # dDelta/dpt = P_t (unclamped), dv/dpt = (c0/h) P_t; for a magnitude f(|x|) along
     # u = x/|x|:  d(-f u)/dx = -f' u u^T - (f/|x|)(P_t - u u^T).
@@ -560,7 +347,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
                 Kt[a, bb] -= kst * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
     if rate > 0.0:
         if vmag > 0.0:
-            dfv = cp[C_MUD] * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d
+            dfv = cp.mu_d * Fn * step10_dx(vmag / v_d, -1.0, -1.0, 1.0, 1.0) / v_d
             ftr = fsl / vmag
             for a in range(3):
                 ua = vs[a] / vmag
@@ -569,7 +356,7 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
                     pab = (1.0 if a == bb else 0.0) - nrm[a] * nrm[bb]
                     Kt[a, bb] -= rate * (dfv * ua * ub + ftr * (pab - ua * ub))
         else:
-            dfv = cp[C_MUD] * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
+            dfv = cp.mu_d * Fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / v_d
             for a in range(3):
                 for bb in range(3):
                     Kt[a, bb] -= rate * dfv * ((1.0 if a == bb else 0.0) - nrm[a] * nrm[bb])
@@ -587,7 +374,7 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
     if pair_ptr.shape[0] <= b + 1:
         return
     tips = con.tips
-    cp = con.cp
+    cp = con.cp[0]
     for q in range(pair_ptr[b], pair_ptr[b + 1]):
         j = con.pair_idx[q]
         d0, d1, d2, dist = _from_partner(pt, tips, j)
@@ -601,10 +388,10 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
         rv = 0.0
         if not sub.static:
             rv = u0 * (vt[0] - tips[j, 3]) + u1 * (vt[1] - tips[j, 4]) + u2 * (vt[2] - tips[j, 5])
-        Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
+        Fn, kn, cn = normal_law(delta, -rv, cp.k_tt, cp.m1_tt, cp.c_tt, cp.m2_tt, cp.m3_tt)
         if Fn <= 0.0:
             continue
-        state[S_FTT] += Fn
+        state.ftt += Fn
         kk = kn + (0.0 if sub.static else cn * sub.c0 * sub.inv_h)
         F[0] += Fn * u0
         F[1] += Fn * u1
@@ -625,7 +412,7 @@ def pair_law(b, j, pj, con, c0_inv_h, f, C):
     the pair's term in b's own tangent (``_tip_tip_load``); c0_inv_h = c0 / h weighs the damping
     (0 for statics).  Returns False (f, C untouched) if the tips do not touch."""
     tips = con.tips
-    cp = con.cp
+    cp = con.cp[0]
     d0 = tips[b, 0] - pj[0]
     d1 = tips[b, 1] - pj[1]
     d2 = tips[b, 2] - pj[2]
@@ -637,7 +424,7 @@ def pair_law(b, j, pj, con, c0_inv_h, f, C):
     rv = 0.0
     for a in range(3):
         rv += u[a] * (tips[b, 3 + a] - tips[j, 3 + a])
-    Fn, kn, cn = normal_law(delta, -rv, cp[C_KT], cp[C_M1T], cp[C_CT], cp[C_M2T], cp[C_M3T])
+    Fn, kn, cn = normal_law(delta, -rv, cp.k_tt, cp.m1_tt, cp.c_tt, cp.m2_tt, cp.m3_tt)
     if Fn <= 0.0:
         return False
     kk = kn + cn * c0_inv_h
@@ -663,7 +450,7 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
     pair_ptr = con.pair_ptr
     amax = 1.0
     for s in range(surf.shape[0]):
-        gap = _surface_gap(surf[s], pt, nrm, cpt, con.mesh, con.sdf) - R  # < 0: penetrating
+        gap = surface_gap(surf, s, pt, nrm, cpt, con.mesh, con.sdf) - R  # < 0: penetrating
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
@@ -692,8 +479,8 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
 
 @njit(**HOT, inline="always")
 def in_contact(state):
-    """True if the tip's last evaluation touched a surface or a partner tip (S_FN or S_FTT > 0)."""
-    return state[S_FN] > 0.0 or state[S_FTT] > 0.0
+    """True if the tip's last evaluation touched a surface or a partner tip (fn or ftt > 0)."""
+    return state.fn > 0.0 or state.ftt > 0.0
 
 
 @njit(**HOT)
@@ -710,11 +497,11 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     tangent converges.  Uses the contact normal of the last evaluation; 1 when not in contact or
     static.
     """
-    if state[S_FN] <= 0.0 or inv_h == 0.0:
+    if state.fn <= 0.0 or inv_h == 0.0:
         return 1.0
-    n0 = pt[0] - state[S_CP]
-    n1 = pt[1] - state[S_CP + 1]
-    n2 = pt[2] - state[S_CP + 2]
+    n0 = pt[0] - state.cpt[0]
+    n1 = pt[1] - state.cpt[1]
+    n2 = pt[2] - state.cpt[2]
     nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     if nn < 1e-12:
         return 1.0
@@ -722,9 +509,9 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     n1 /= nn
     n2 /= nn
     rate = c0 * inv_h
-    v0 = (c0 * pt[0] + state[S_HIST]) * inv_h
-    v1 = (c0 * pt[1] + state[S_HIST + 1]) * inv_h
-    v2 = (c0 * pt[2] + state[S_HIST + 2]) * inv_h
+    v0 = (c0 * pt[0] + state.hist[0]) * inv_h
+    v1 = (c0 * pt[1] + state.hist[1]) * inv_h
+    v2 = (c0 * pt[2] + state.hist[2]) * inv_h
     w0 = rate * dp[0]
     w1 = rate * dp[1]
     w2 = rate * dp[2]
@@ -750,66 +537,3 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     disc = vw * vw - ww * (vv - vb * vb)
     a_band = (-vw - np.sqrt(disc)) / ww if disc > 0.0 else a_close
     return min(1.0, a_band, a_close)
-
-
-def empty_mesh():
-    """The mesh arrays of a scene without a triangle mesh (numba needs fixed types)."""
-    return (
-        np.zeros((0, 3)),
-        np.zeros((0, 3), np.int64),
-        np.zeros((0, 3)),
-        np.zeros(7),
-        np.zeros(1, np.int64),
-        np.zeros(0, np.int64),
-    )
-
-
-def build_mesh(vertices, triangles, cell: float | None = None):
-    """Mesh arrays with a uniform-grid index: every triangle is listed in each cell its bounding
-    box overlaps.  ``cell`` [mm] defaults to twice the mean edge length."""
-    V = np.ascontiguousarray(vertices, dtype=float)
-    T = np.ascontiguousarray(triangles, dtype=np.int64)
-    e1 = V[T[:, 1]] - V[T[:, 0]]
-    e2 = V[T[:, 2]] - V[T[:, 0]]
-    n = np.cross(e1, e2)
-    area2 = np.linalg.norm(n, axis=1)
-    if np.any(area2 <= 0):
-        raise ValueError("mesh has degenerate triangles (zero area)")
-    n = n / area2[:, None]
-    if cell is None:
-        cell = 2.0 * float(np.mean(np.linalg.norm(e1, axis=1)))
-    lo = V.min(axis=0) - 1e-9
-    dims = np.maximum(np.ceil((V.max(axis=0) + 1e-9 - lo) / cell).astype(np.int64), 1)
-    tlo = np.floor((V[T].min(axis=1) - lo) / cell).astype(np.int64)
-    thi = np.floor((V[T].max(axis=1) - lo) / cell).astype(np.int64)
-    thi = np.minimum(thi, dims - 1)
-    buckets = [[] for _ in range(int(np.prod(dims)))]
-    for t in range(len(T)):
-        for ix in range(tlo[t, 0], thi[t, 0] + 1):
-            for iy in range(tlo[t, 1], thi[t, 1] + 1):
-                for iz in range(tlo[t, 2], thi[t, 2] + 1):
-                    buckets[(ix * dims[1] + iy) * dims[2] + iz].append(t)
-    start = np.zeros(len(buckets) + 1, np.int64)
-    start[1:] = np.cumsum([len(bk) for bk in buckets])
-    flat = np.array([t for bk in buckets for t in bk], np.int64)
-    gf = np.array([lo[0], lo[1], lo[2], cell, dims[0], dims[1], dims[2]], float)
-    return (V, T, n, gf, start, flat)
-
-
-@njit(cache=True)
-def _mesh_query_many(mesh, P, search):
-    d = np.empty(P.shape[0])
-    N = np.zeros((P.shape[0], 3))
-    nrm = np.zeros(3)
-    cpt = np.zeros(3)
-    for i in range(P.shape[0]):
-        d[i] = _mesh_gap(P[i], search, mesh, nrm, cpt)
-        N[i] = nrm
-    return d, N
-
-
-def mesh_query(mesh, points, search: float = 1.0):
-    """(d (n,), normal (n, 3)) at points (n, 3) [mm] by the exact closest-triangle search over
-    the triangles within ``search`` [mm] (1e300 beyond): the validation path of sdf grids."""
-    P = np.ascontiguousarray(np.atleast_2d(points), dtype=float)
-    return _mesh_query_many(mesh, P, float(search))

@@ -1,7 +1,7 @@
 """Coupled tip-tip contact: where to hold each bristle's partners so that both sides of every
 tip-tip contact (Table 3) see the end-of-step tips (numba kernels).
 
-``integrator.step_bristles`` solves each bristle with its partners' tips held.  A partner solved
+``step.step_bristles`` solves each bristle with its partners' tips held.  A partner solved
 later in the sweep is held where it was, not where it ends: the tip-tip force lags.  The Table 3
 law is ~10^3-10^4 times stiffer than a bristle's bending, so repeating the sweeps (block
 Gauss-Seidel) converges at a rate close to 1: 50 sweeps do not settle two facing bristles under a
@@ -25,7 +25,7 @@ overlaps much deeper than now, ``_safe_fraction``) and the group is solved again
 warm-started.  At the fixed
 point every bristle was solved against its partners' own solutions (within
 ``SimSettings.tip_tip_tol``).  A step whose partners still move by more than
-``integrator.FALLBACK_MOVE`` when the sweeps run out is solved again as one plain sweep.  H and C
+``sweeps.FALLBACK_MOVE`` when the sweeps run out is solved again as one plain sweep.  H and C
 only steer: the solution is set by the bristles' residuals alone.
 """
 
@@ -38,7 +38,7 @@ from numba import njit
 
 from ._kernels import HOT, _lu6, _lus6, lu_dense, lus_dense
 from .contact import pair_law
-from .records import B_HALF, MAX_GROUP  # a larger group keeps plain Gauss-Seidel
+from .records import MAX_GROUP  # a larger group keeps plain Gauss-Seidel
 from .tipblock import add_tip_block
 
 #: [mm] a placement may always create tip-tip overlaps up to this (Table 3: ~0.03 N at 3 um)
@@ -120,7 +120,7 @@ def _tip_stiffness(b, model, chain, jc, ws, load):
     add_tip_block(A6, model.bp, chain.rot, il, load, ws.blk)
     if not _lu6(A6, sw.piv6):
         return False
-    hl = model.bp[il, B_HALF]
+    hl = model.bp[il].half
     r0 = hl * chain.rot[il, 0, 0]
     r1 = hl * chain.rot[il, 1, 0]
     r2 = hl * chain.rot[il, 2, 0]

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import integrator as itg
 from . import records as rec
 from ._kernels import ELEM_MID
-from .records import B_HALF, B_JX, B_LEN, B_MASS
+from .residual import _jacobian
 from .rotation import expmap, logmap
 
 
@@ -24,7 +23,7 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[bristle]
     RA = st.tcp_R[1] @ m.root_R[bristle]
     D, U, L = (np.zeros((n, 6, 6)) for _ in range(3))
-    ws = rec.make_work(n, 1)
+    ws = rec.make_work(n)
     ws.hist.gs[:n] = 1.0  # statics: no damping, no rate history
     base = ws.base
     base.pAe[:], base.RAe[:] = pA, RA
@@ -33,7 +32,7 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     )
     sub = rec.Substep(1.0, 0.0, 0.0, 1.0, 1.0, True, np.zeros(3), 0.0, 0, 0.0)
     br = rec.Bristle(bristle, b0, n, b1 - 1)
-    itg._jacobian(br, m.arrays(), chain, sub, base, ws.hist, D, U, L, ws)
+    _jacobian(br, m.arrays(), chain, sub, base, ws.hist, D, U, L, ws)
     K = np.zeros((6 * n, 6 * n))
     M = np.zeros((6 * n, 6 * n))
     for k in range(n):
@@ -44,10 +43,8 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
         if k > 0:
             K[6 * k : 6 * k + 6, 6 * k - 6 : 6 * k] = L[k]
         R = st.rot[i]
-        M[6 * k : 6 * k + 3, 6 * k : 6 * k + 3] = m.bp[i, B_MASS] * np.eye(3)
-        M[6 * k + 3 : 6 * k + 6, 6 * k + 3 : 6 * k + 6] = (
-            R @ np.diag(m.bp[i, B_JX : B_JX + 3]) @ R.T
-        )
+        M[6 * k : 6 * k + 3, 6 * k : 6 * k + 3] = m.bp[i]["mass"] * np.eye(3)
+        M[6 * k + 3 : 6 * k + 6, 6 * k + 3 : 6 * k + 6] = R @ np.diag(m.bp[i]["J"]) @ R.T
     return K, M
 
 
@@ -71,9 +68,9 @@ def element_strains(sim) -> np.ndarray:
         pA = st.tcp_p[1] + st.tcp_R[1] @ m.root_p[j]
         RA = st.tcp_R[1] @ m.root_R[j]
         for i in range(m.bstart[j], m.bstart[j + 1]):
-            pB = st.pos[i] + m.bp[i, B_HALF] * st.rot[i][:, 0]
+            pB = st.pos[i] + m.bp[i]["half"] * st.rot[i][:, 0]
             out[i, 3:] = logmap(RA.T @ st.rot[i])
-            chord = m.bp[i, B_LEN]
+            chord = m.bp[i]["length"]
             Rf = RA
             if m.elem[i] == ELEM_MID:  # mid-frame and the arc's chord (_kernels._element_mid)
                 Rf = RA @ expmap(0.5 * out[i, 3:])

@@ -1,13 +1,23 @@
 """Named records of the kernels' data: what the numba kernels take instead of long argument lists.
 
-Every record is a ``collections.namedtuple`` (numba-native: passed to and built inside nopython
-code, read by field name, no allocation).  Arrays in a record are views owned by the Python side
-(``Simulator``); the kernels write into them in place.
+Two kinds of record, both read by field name (never by a column constant, issue 27):
+
+- ``collections.namedtuple`` (numba-native: passed to and built inside nopython code, no
+  allocation): the argument bundles below and ``StepParams`` (the integrator's settings, typed
+  scalars: integers as integers, the static flag as a bool);
+- numpy structured dtypes for per-body / per-tip / per-surface tables (``BODY``, ``TIP_ARGS``,
+  ``TIP_STATE``, ``CONTACT_LAW``, ``SURFACE``): numba reads ``bp[i].half``, ``st.delta[a]``,
+  ``srf.kind`` at the same byte offsets the float64 columns they replaced had, so the kernels'
+  loads and stores are unchanged; Python reads ``ts["fn"]``.  Integers (a surface's kind and
+  grid, the tip's deepest surface and sliding flag) are int64.
+
+Arrays in a record are views owned by the Python side (``Simulator``); the kernels write into
+them in place.
 
 ==================  ========================================================================
 record              fields [unit]
 ==================  ========================================================================
-``ModelArrays``     bstart (nb+1,) body ranges; bp (N, 8) body parameters, columns ``B_*``;
+``ModelArrays``     bstart (nb+1,) body ranges; bp (N,) body parameters (``BODY``);
                     K (N, 6, 6) element stiffness (eq 1-3); root_p (nb, 3) [mm], root_R (nb, 3, 3)
                     root pose in the TCP frame; elem (N,) element formulation of each body's
                     element (``ELEM_*``)
@@ -15,11 +25,11 @@ record              fields [unit]
                     prot, pvel, pomg at t_{n-1}; pppos, pprot at t_{n-2} (all bodies)
 ``Drive``           hist_ok (nb,) whole steps of history; tcp_p (4, 3) [mm], tcp_R (4, 3, 3): TCP
                     at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0-3)
-``ContactScene``    surf (ns, 8) surface rows; cp (15,) contact laws (Tables 2-3, ``C_*``); tips
-                    (nb, 7) every tip's node, velocity and radius; pair_ptr, pair_idx tip-tip pairs
-                    (CSR); mesh (the scene's triangle mesh); tip_args (nb, 4) and tip_state
-                    (nb, 25) per tip (``A_*``, ``S_*`` in contact.py); sdf (hdr, vals) the
-                    scene's baked SDF grids (sdf.py)
+``ContactScene``    surf (ns,) surfaces (``SURFACE``); cp (1,) contact laws (Tables 2-3,
+                    ``CONTACT_LAW``); tips (nb, 7) every tip's node, velocity and radius;
+                    pair_ptr, pair_idx tip-tip pairs (CSR); mesh (the scene's triangle mesh);
+                    tip_args (nb,) and tip_state (nb,) per tip (``TIP_ARGS``, ``TIP_STATE``);
+                    sdf (hdr, vals) the scene's baked SDF grids (sdf.py)
 ``NewtonCache``     per-bristle factored Newton matrices kept across steps: D, G, L (N, 6, 6),
                     piv (N, 6), key (nb,) the c0/h they were built for, age (nb,) steps,
                     S (nb, 6, 6) the tip body's Schur complement without the tip load
@@ -35,10 +45,12 @@ record              fields [unit]
 ``Trial``           a Newton correction to search along: capped step alpha, slope g0 = dq . r,
                     residual norm nrm at its start
 ``Damp``            element rate terms: ehist (6,), gs, hs (see ``_kernels.element_force``)
-``History``         constants of a (sub)step (``integrator._prepare``): cm, vm, Lm, thp (n, 3),
+``History``         constants of a (sub)step (``predict._prepare``): cm, vm, Lm, thp (n, 3),
                     Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
 ``Sweeps``          the Gauss-Seidel sweeps' start state, warm starts and partner tips
 ``Work``            the scratch of ``step_bristles`` (allocated once per Simulator)
+``StepParams``      the integrator's settings: h, method, static, rtol, maxit, maxlev, g, jage,
+                    sweeps, tttol (see the class comment)
 ==================  ========================================================================
 """
 
@@ -51,14 +63,130 @@ import numpy as np
 #: largest group of touching bristles the tip-tip coupling solves as one dense system
 MAX_GROUP = 256
 
-# columns of the body parameter table ``bp`` (N, N_BP)
-B_MASS = 0  # [t]
-B_JX = 1  # 1, 2, 3: principal inertia Jx, Jy, Jz [t mm^2]
-B_HALF = 4  # half body length: centre to node [mm]
-B_LEN = 5  # element length l [mm]
-B_BETA = 6  # stiffness-proportional damping beta [s]
-B_FSCALE = 7  # bristle force scale E I / L^2 [N] (Newton tolerance)
-N_BP = 8
+# --- structured records: numpy dtypes read by field name in the kernels (``bp[i].half``,
+# ``st.delta[a]``).  Each keeps the byte layout of the float64 columns it replaced, so a kernel's
+# loads and stores are the ones it had; integers are int64 (8 bytes, as the float they replace).
+
+#: one body's parameters, ``ModelArrays.bp`` (N,): mass [t]; J principal inertia Jx, Jy, Jz
+#: [t mm^2]; half body length, centre to node [mm]; element length l [mm]; stiffness-proportional
+#: damping beta [s]; fscale: the bristle's force scale E I / L^2 [N] (Newton tolerance)
+BODY = np.dtype(
+    [
+        ("mass", "f8"),
+        ("J", "f8", 3),
+        ("half", "f8"),
+        ("length", "f8"),
+        ("beta", "f8"),
+        ("fscale", "f8"),
+    ]
+)
+
+#: a tip's arguments, ``ContactScene.tip_args`` (nb,): external dead force fext [N, world];
+#: tip sphere radius [mm]
+TIP_ARGS = np.dtype([("fext", "f8", 3), ("radius", "f8")])
+
+#: a tip's contact state, ``ContactScene.tip_state`` (nb,) (contact.py writes it):
+#: delta: stiction deformation Delta [mm, world] (committed); hist: c1 p_n + c2 p_{n-1} of the
+#: tip node (rate history) [mm]; pn: tip node at the step start [mm]; fn: normal force of the last
+#: evaluation [N]; ft: tangential (friction) force [N, world]; slide: 1 if sliding (|v| > v_s);
+#: pen: penetration [mm]; cpt: contact point [mm]; dnew: trial stiction deformation of the last
+#: evaluation; ftt: tip-tip normal force magnitude (sum) [N]; beta: beta of the step start
+#: (committed), see ``contact.tip_load``; bnew: beta at the slip speed of the last evaluation;
+#: surf: index of the deepest surface the tip touched at the last evaluation (-1: none)
+TIP_STATE = np.dtype(
+    [
+        ("delta", "f8", 3),
+        ("hist", "f8", 3),
+        ("pn", "f8", 3),
+        ("fn", "f8"),
+        ("ft", "f8", 3),
+        ("slide", "i8"),
+        ("pen", "f8"),
+        ("cpt", "f8", 3),
+        ("dnew", "f8", 3),
+        ("ftt", "f8"),
+        ("beta", "f8"),
+        ("bnew", "f8"),
+        ("surf", "i8"),
+    ]
+)
+
+#: the contact laws, ``ContactScene.cp`` (1,): the fields of ``scene.ContactParams`` (Tables 2-3):
+#: tip-surface normal law k, m1, c, m2, m3 (eq 6); friction mu_s, mu_d, v_s, v_d, delta_max
+#: (eq 7-10); tip-tip normal law k_tt, m1_tt, c_tt, m2_tt, m3_tt (Table 3)
+CONTACT_LAW = np.dtype(
+    [
+        (name, "f8")
+        for name in (
+            "k",
+            "m1",
+            "c",
+            "m2",
+            "m3",
+            "mu_s",
+            "mu_d",
+            "v_s",
+            "v_d",
+            "delta_max",
+            "k_tt",
+            "m1_tt",
+            "c_tt",
+            "m2_tt",
+            "m3_tt",
+        )
+    ]
+)
+
+# kinds of surface (``SURFACE.kind``)
+SURF_PLANE = 0  # a: a point, b: the unit outward normal
+SURF_CYLINDER = 1  # outside of an infinite cylinder: a: point on the axis, b: axis dir, radius
+SURF_MESH = 2  # the scene's triangle mesh (``ContactScene.mesh``); radius: search radius [mm]
+SURF_SPHERE = 3  # sdf.sphere_gap: a: centre, radius
+SURF_CAPSULE = 4  # sdf.capsule_gap: a: end a, b: end b, radius
+SURF_ELLIPSOID = 5  # sdf.ellipsoid_gap: a: centre, b: semi-axes
+SURF_GRID = 6  # a baked SDF grid (``ContactScene.sdf``); grid: its index
+SURF_KINDS = ("plane", "cylinder", "mesh", "sphere", "capsule", "ellipsoid", "grid")
+
+#: a surface, ``ContactScene.surf`` (ns,): kind (SURF_*), two points/vectors a, b [mm], a radius
+#: [mm] and an SDF grid's index.  sdf.py's kernels read a surface as its float64 row
+#: (``surface_floats``: kind's slot, a, b, radius at 0, 1-3, 4-6, 7)
+SURFACE = np.dtype(
+    [("kind", "i8"), ("a", "f8", 3), ("b", "f8", 3), ("radius", "f8"), ("grid", "i8")]
+)
+#: float64 slots of one SURFACE record
+SURF_FLOATS = SURFACE.itemsize // 8
+
+
+def surface_row(kind: int, a=(0.0, 0.0, 0.0), b=(0.0, 0.0, 0.0), radius=0.0, grid=0):
+    """One SURFACE record (a 0-d structured array)."""
+    row = np.zeros((), SURFACE)
+    row["kind"] = kind
+    row["a"] = a
+    row["b"] = b
+    row["radius"] = radius
+    row["grid"] = grid
+    return row
+
+
+def surface_floats(surf) -> np.ndarray:
+    """SURFACE records (ns,) or one (0-d) as the float64 rows (ns, SURF_FLOATS) sdf.py reads."""
+    surf = np.ascontiguousarray(np.atleast_1d(surf))
+    return surf.view(np.float64).reshape(-1, SURF_FLOATS)
+
+
+#: the integrator's settings (``DFMChain._make_prm``): time step h [s]; method METHOD_EULER or
+#: METHOD_BDF2; static equilibrium (no inertia, no damping); Newton tolerance rtol on the residual
+#: relative to the bristle force scale; Newton iterations per attempt maxit; sub-stepping levels
+#: maxlev (h / 2**maxlev is the smallest step); gravity g (3,) [mm/s^2]; steps a factored Newton
+#: matrix may be reused jage; most Gauss-Seidel sweeps over the bristles per step (1: one sweep,
+#: the tip-tip lag); tttol [mm]: a partner tip that moved by less than this does not call for
+#: another sweep
+StepParams = namedtuple(
+    "StepParams",
+    ["h", "method", "static", "rtol", "maxit", "maxlev", "g", "jage", "sweeps", "tttol"],
+)
+METHOD_EULER = 0
+METHOD_BDF2 = 1
 
 ModelArrays = namedtuple("ModelArrays", ["bstart", "bp", "K", "root_p", "root_R", "elem"])
 Chain = namedtuple(
@@ -86,9 +214,14 @@ ElementScratch = namedtuple(
     "ElementScratch", ["e", "out12", "base12", "pert12", "cP", "RP", "zero6", "th", "pt"]
 )
 #: scratch of the tip load (eq 6-10, Table 3) and the penetration limit
-#: J (3, 3): a surface's dn/dpt [1/mm]; A (3, 3): d(sum_s Fn_s n_s)/dpt [N/mm]; gd: grad of gap
+#: vt: tip velocity; nrm, cpt: the contact normal and point; vs, dn: slip velocity and stiction
+#: deformation in the tangent plane; ft: friction force; pnrm, pcpt: normal and contact point of
+#: one surface in a loop over surfaces; gd: grad of a gap; J (3, 3): a surface's dn/dpt [1/mm];
+#: A (3, 3): d(sum_s Fn_s n_s)/dpt [N/mm]; gres (3,) = -d|R|/dpt [N/mm], R = sum_s Fn_s n_s:
+#: friction's Newton coupling to the normal forces of several surfaces
 TipScratch = namedtuple(
-    "TipScratch", ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A"]
+    "TipScratch",
+    ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A", "gres"],
 )
 #: scratch of the tip block of the Newton matrix (3x3 products)
 BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFSr"])
@@ -182,9 +315,7 @@ Work = namedtuple(
 )
 
 
-def make_work(
-    nmax: int, n_tip_state: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries: int = 0
-) -> Work:
+def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries: int = 0) -> Work:
     """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies per
     bristle; n_bodies, n_bristles, n_pair_entries: the whole brush, for the sweeps)."""
 
@@ -215,13 +346,13 @@ def make_work(
     tipw = TipScratch(*(v(3, 3) if f in ("J", "A") else v(3) for f in TipScratch._fields))
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
     mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
-    backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), v(n_tip_state))
+    backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), np.zeros(1, TIP_STATE))
     # the coupling's dense system: only with tip-tip pairs, at most MAX_GROUP bristles
     n3 = 3 * min(n_bristles, MAX_GROUP) if n_pair_entries else 1
     sw = Sweeps(
         v(7, n_bodies, 3),
         v(3, n_bodies, 3, 3),
-        v(n_bristles, n_tip_state),
+        np.zeros(n_bristles, TIP_STATE),
         np.zeros(n_bristles, np.int64),
         v(n_bodies, 3),
         v(n_bodies, 3, 3),

@@ -36,6 +36,16 @@ import tomllib
 
 from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
+from .records import (
+    CONTACT_LAW,
+    SURF_CAPSULE,
+    SURF_CYLINDER,
+    SURF_ELLIPSOID,
+    SURF_MESH,
+    SURF_PLANE,
+    SURF_SPHERE,
+    surface_row,
+)
 from .sdf import bake_mesh_cached
 
 
@@ -48,7 +58,7 @@ class Plane:
 
     def kernel_row(self):
         n = np.asarray(self.normal, float)
-        return np.r_[0.0, self.point, n / np.linalg.norm(n), 0.0]
+        return surface_row(SURF_PLANE, self.point, n / np.linalg.norm(n))
 
 
 @dataclass(frozen=True)
@@ -62,7 +72,7 @@ class Cylinder:
 
     def kernel_row(self):
         a = np.asarray(self.axis, float)
-        return np.r_[1.0, self.point, a / np.linalg.norm(a), self.radius]
+        return surface_row(SURF_CYLINDER, self.point, a / np.linalg.norm(a), self.radius)
 
 
 @dataclass(frozen=True)
@@ -82,7 +92,7 @@ class MeshPlate:
             raise ConfigError(f"mesh_plate.divisions = {self.divisions!r}: must be in [1, 1000]")
 
     def kernel_row(self):
-        return np.r_[2.0, 2.0, np.zeros(6)]  # kind, search radius [mm] (> tip radius)
+        return surface_row(SURF_MESH, radius=2.0)  # search radius [mm] (> tip radius)
 
     def triangles(self):
         n = int(self.divisions)
@@ -109,7 +119,7 @@ class Sphere:
     label: str = "sphere"
 
     def kernel_row(self):
-        return np.r_[3.0, self.center, 0.0, 0.0, 0.0, self.radius]
+        return surface_row(SURF_SPHERE, self.center, radius=self.radius)
 
 
 @dataclass(frozen=True)
@@ -122,7 +132,7 @@ class Capsule:
     label: str = "capsule"
 
     def kernel_row(self):
-        return np.r_[4.0, self.a, self.b, self.radius]
+        return surface_row(SURF_CAPSULE, self.a, self.b, self.radius)
 
 
 @dataclass(frozen=True)
@@ -134,7 +144,7 @@ class Ellipsoid:
     label: str = "ellipsoid"
 
     def kernel_row(self):
-        return np.r_[5.0, self.center, self.semi_axes, 0.0]
+        return surface_row(SURF_ELLIPSOID, self.center, self.semi_axes)
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,8 +171,8 @@ class MeshSurface:
 
     def exact_query(self, points) -> tuple[np.ndarray, np.ndarray]:
         """(d (n,), normal (n, 3)) at points (n, 3) [mm] by the exact closest-triangle search
-        (``contact._mesh_gap``): the validation path of the baked grid."""
-        from .contact import build_mesh, mesh_query
+        (``mesh_contact.mesh_gap``): the validation path of the baked grid."""
+        from .mesh_contact import build_mesh, mesh_query
 
         return mesh_query(build_mesh(self.vertices, self.triangles), points, self.band)
 
@@ -199,8 +209,9 @@ class ContactParams:
             check_real(f"contact.{f.name}", getattr(self, f.name), CONTACT_LIMITS[f.name])
 
     def as_array(self) -> np.ndarray:
-        """The kernels' parameter vector (contact.C_* columns), in the order of the fields."""
-        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+        """The kernels' contact laws: one ``records.CONTACT_LAW`` record (shape (1,)), whose fields
+        are this class's fields."""
+        return np.array([tuple(float(getattr(self, f.name)) for f in fields(self))], CONTACT_LAW)
 
 
 _STIFF = Limit("N/mm^m1", gt=0, le=1e7)

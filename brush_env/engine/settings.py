@@ -13,11 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import records as rec
 from ._kernels import ELEMENTS
 from .checks import ConfigError, Limit, check_choice, check_int, check_real
 
 G_EARTH = 9810.0  # [mm/s^2]
-INTEGRATORS = {"euler": 0, "bdf2": 1}
+INTEGRATORS = {"euler": rec.METHOD_EULER, "bdf2": rec.METHOD_BDF2}
 
 
 class SimulationDivergence(RuntimeError):

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import integrator as itg
+from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from .bristles import make_bristle_model
 from .chain import State
 from .config import BrushConfig

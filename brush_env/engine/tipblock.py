@@ -1,6 +1,6 @@
 """The tip load's block of a bristle's Newton matrix (numba kernels): the derivative of the tip
 load (eq 6-10, Table 3) and its moment about the tip body's centre with respect to the tip body's
-(dc, dtheta).  Used by the per-bristle Newton (integrator.py) and the tip-tip coupling
+(dc, dtheta).  Used by the per-bristle Newton (newton.py, residual.py) and the tip-tip coupling
 (coupling.py)."""
 
 from __future__ import annotations
@@ -8,7 +8,6 @@ from __future__ import annotations
 from numba import njit
 
 from ._kernels import HOT
-from .records import B_HALF
 
 
 @njit(**HOT, inline="always")
@@ -42,7 +41,7 @@ def add_tip_block(Dk, bp, rot, il, it, blk):
     tipF = it.tipF
     tipK = it.tipK
     Sr = blk.Sr
-    hl = bp[il, B_HALF]
+    hl = bp[il].half
     _skew_into(hl * rot[il, 0, 0], hl * rot[il, 1, 0], hl * rot[il, 2, 0], Sr)
     _skew_into(tipF[0], tipF[1], tipF[2], blk.SF)
     _mul3(tipK, Sr, blk.KS)

@@ -45,15 +45,15 @@ def test_bench_teeth_ellipsoid_rows_are_one_surface_twice():
     (3/8) h^2 max|Hess d| <= (3/8) h^2 / r_min (r_min = a_min^2 / a_max, the smallest radius of
     curvature) plus the facet sagitta e^2 / (8 r_min) of the mesh's longest edge e."""
     from brush_env.bench.teeth import ellipsoid_scenes
-    from brush_env.engine import contact as ct
-    from brush_env.engine import sdf
+    from brush_env.engine import mesh_contact, sdf
+    from brush_env.engine.surfaces import surface_gap
 
     analytic, baked = ellipsoid_scenes("fast")
     assert [s.label for s in analytic.surfaces][-1] == "gum"
     rng = np.random.default_rng(0)
-    mesh, grids = ct.empty_mesh(), sdf.empty_sdf()
+    mesh, grids = mesh_contact.empty_mesh(), sdf.empty_sdf()
     for e, m in zip(analytic.surfaces[:4], baked.surfaces[:4], strict=True):
-        row = e.kernel_row()
+        row = np.atleast_1d(e.kernel_row())
         ax = np.asarray(e.semi_axes)
         r_min = ax.min() ** 2 / ax.max()
         V, T = m.vertices, m.triangles
@@ -62,7 +62,7 @@ def test_bench_teeth_ellipsoid_rows_are_one_surface_twice():
         u = rng.normal(size=(400, 3))
         u /= np.linalg.norm(u, axis=1)[:, None]
         P = np.asarray(e.center) + u * ax * rng.uniform(1.0, 1.2, (400, 1))
-        d_ex = np.array([ct._surface_gap(row, p, np.zeros(3), np.zeros(3), mesh, grids) for p in P])
+        d_ex = np.array([surface_gap(row, 0, p, np.zeros(3), np.zeros(3), mesh, grids) for p in P])
         d_gr, _ = m.sdf_grid().query(P)
         near = (d_ex > 0.0) & (d_ex < 0.8)
         assert near.sum() > 200

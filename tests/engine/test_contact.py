@@ -28,6 +28,7 @@ from brush_env.engine import (
     load_scene,
 )
 from brush_env.engine import contact as ct
+from brush_env.engine import records as rec
 from brush_env.engine.scene import ContactParams
 from brush_env.engine.simulator import PENETRATION_WARN_FRACTION
 
@@ -147,7 +148,7 @@ def test_stick_then_slide_at_the_friction_coefficients_and_reversal():
             out = sim.step(np.array([x, 0.0, z]), R0)
             ft = out.tip_tangential_force[0]
             ratios.append(np.sign(ft[0]) * np.linalg.norm(ft) / out.tip_normal_force[0])
-            deltas.append(np.linalg.norm(sim.state.tip_state[0, ct.S_DELTA : ct.S_DELTA + 3]))
+            deltas.append(np.linalg.norm(sim.state.tip_state[0]["delta"]))
             sliding.append(bool(out.tip_sliding[0]))
     r = np.abs(np.array(ratios))
     slow = r[:4000]
@@ -196,16 +197,16 @@ def test_two_facing_bristles_push_apart_with_table3_law_and_no_friction():
 def _energy(sim):
     """Kinetic + elastic (1/2 e^T K e per element) energy of the bristles [N mm]."""
     st, m = sim.state, sim.model
-    ke = 0.5 * np.sum(m.bp[:, 0] * np.sum(st.vel**2, axis=1))
+    ke = 0.5 * np.sum(m.bp["mass"] * np.sum(st.vel**2, axis=1))
     for i in range(m.n_bodies):
         om_b = st.rot[i].T @ st.omg[i]
-        ke += 0.5 * np.sum(m.bp[i, 1:4] * om_b**2)
+        ke += 0.5 * np.sum(m.bp[i]["J"] * om_b**2)
     from brush_env.engine.modal import element_strains
 
     e = element_strains(sim)
     pe = 0.5 * np.einsum("ni,nij,nj->", e, m.K, e)
     # penalty contact potential of eq 6's elastic part: k delta^(m1+1) / (m1 + 1)
-    pen = st.tip_state[:, ct.S_PEN] * (st.tip_state[:, ct.S_FN] > 0)
+    pen = st.tip_state["pen"] * (st.tip_state["fn"] > 0)
     pc = np.sum(CP.k * pen ** (CP.m1 + 1.0) / (CP.m1 + 1.0))
     return ke + pe + pc
 
@@ -371,12 +372,12 @@ def test_slip_step_limit_stops_a_newton_step_at_the_slip_turning_point(case):
     its closest approach to zero if the path passes the band; steps that do not slow the slip, or
     a tip already inside the band, are not limited."""
     h, v_d = 1e-3, CP.v_d
-    state = np.zeros(ct.N_TIP_STATE)
-    state[ct.S_FN] = 0.1
+    state = np.zeros(1, rec.TIP_STATE)[0]
+    state["fn"] = 0.1
     pt = np.array([0.0, 0.0, 0.43])
-    state[ct.S_CP : ct.S_CP + 3] = (0.0, 0.0, 0.0)
+    state["cpt"] = (0.0, 0.0, 0.0)
     v0 = np.array([0.0 if case == "inside" else 5.0, 0.0, 0.0]) + (case == "inside") * 0.5
-    state[ct.S_HIST : ct.S_HIST + 3] = v0 * h - pt  # backward Euler: v = (pt + hist) / h
+    state["hist"] = v0 * h - pt  # backward Euler: v = (pt + hist) / h
     dv = {
         "reversal": [-10.0, 0.0, 0.0],
         "band": [-10.0, 2.0, 0.0],

@@ -32,15 +32,15 @@ def _setup(surfaces):
     sim = Simulator(Scene(one_bristle(bodies=2), tuple(surfaces), tip_tip=False), SimSettings())
     sim.reset(np.array([0.0, 0.0, 50.0]), R0)
     con = sim.bristles._contact()
-    con.cp[ct.C_MUS] = 0.0
-    con.cp[ct.C_MUD] = 0.0
+    con.cp["mu_s"] = 0.0
+    con.cp["mu_d"] = 0.0
     return con
 
 
 def _load(con, pt):
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
-    tw = rec.make_work(1, ct.N_TIP_STATE).tipw
+    tw = rec.make_work(1).tipw
     sub = rec.Substep(C0, C1, C2, H, 1.0 / H, False, np.zeros(3), 0.0, 0, 0.0)
     ct.tip_load(0, np.asarray(pt, float), sub, con, F, Kt, tw)
     return F, Kt
@@ -49,10 +49,10 @@ def _load(con, pt):
 def _state(con, pt, v, delta, beta):
     """Tip at pt [mm] moving at v [mm/s] with stiction deformation delta [mm] and frozen beta."""
     st = con.tip_state[0]
-    st[ct.S_PN : ct.S_PN + 3] = pt - np.asarray(v) * H  # the tip a step ago
-    st[ct.S_HIST : ct.S_HIST + 3] = np.asarray(v) * H - C0 * np.asarray(pt)
-    st[ct.S_DELTA : ct.S_DELTA + 3] = delta
-    st[ct.S_BETA] = beta
+    st["pn"] = pt - np.asarray(v) * H  # the tip a step ago
+    st["hist"] = np.asarray(v) * H - C0 * np.asarray(pt)
+    st["delta"] = delta
+    st["beta"] = beta
 
 
 def _fd_tangent(con, pt, eps=1e-7):
@@ -112,7 +112,7 @@ def test_tangent_is_the_load_derivative_on_curves(kind, motion):
     else:  # into the surface
         _state(con, pt, 0.2 * t1 - 20.0 * n, 0.0, 0.0)
     F, Kt = _load(con, pt)
-    fn = con.tip_state[0, ct.S_FN]
+    fn = con.tip_state[0]["fn"]
     assert fn > 0.0
     K = _fd_tangent(con, pt)
     # the curvature terms are what this checks: without them Kt misses K by ~Fn / r
@@ -132,7 +132,7 @@ def test_tangent_in_a_gap_between_two_surfaces():
     pt = np.array([0.0, 0.1, 0.8])  # 0.04 mm into both
     _state(con, pt, (0.0, 30.0, -1.0), 0.0, 1.0)
     F, Kt = _load(con, pt)
-    assert con.tip_state[0, ct.S_FN] > 0.0
+    assert con.tip_state[0]["fn"] > 0.0
     assert abs(F[0]) < 1e-9 * abs(F[2])  # symmetric walls: no net x force
     K = _fd_tangent(con, pt)
     assert np.abs(Kt - K).max() <= 1e-5 * np.abs(K).max(), (Kt, K)
@@ -154,7 +154,7 @@ def test_tangent_on_a_baked_crown():
         t1, _ = _tangent_dirs(nr[t])
         _state(con, pt, 30.0 * t1 - nr[t], 0.0, 1.0)
         F, Kt = _load(con, pt)
-        if con.tip_state[0, ct.S_FN] <= 0.0:
+        if con.tip_state[0]["fn"] <= 0.0:
             continue
         K = _fd_tangent(con, pt, eps=1e-8)
         if np.abs(_fd_tangent(con, pt, eps=2e-8) - K).max() > 1e-3 * np.abs(K).max():

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from brush_env.engine import SimSettings, SimulationDivergence, Simulator, load_brush
-from brush_env.engine import integrator as itg
 from brush_env.engine import records as rec
 from brush_env.engine._kernels import _lu6, block_factor, block_factor_head, block_solve
+from brush_env.engine.predict import _extrapolate
 from brush_env.engine.rotation import pose_ok
+from brush_env.engine.step import tcp_wrench
 
 R0 = np.diag([1.0, -1.0, -1.0])
 
@@ -71,7 +72,7 @@ def test_tcp_wrench_and_tip_states_match_the_formulas():
     root_p = rng.normal(size=(nb, 3))
     rootw = rng.normal(size=(nb, 6))
     w = np.zeros(6)
-    itg.tcp_wrench(R, root_p, rootw, w)
+    tcp_wrench(R, root_p, rootw, w)
     x = root_p @ R.T  # root nodes relative to the TCP, world axes
     np.testing.assert_allclose(w[0:3], -rootw[:, 0:3].sum(0), rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(
@@ -84,7 +85,7 @@ def test_tcp_wrench_and_tip_states_match_the_formulas():
     st.vel[:] = rng.normal(size=st.vel.shape)
     st.omg[:] = rng.normal(size=st.omg.shape)
     last = m.bstart[1:] - 1
-    r = m.bp[last, 4][:, None] * st.rot[last][:, :, 0]
+    r = m.bp["half"][last][:, None] * st.rot[last][:, :, 0]
     np.testing.assert_allclose(sim.tip_positions(), st.pos[last] + r, rtol=1e-15, atol=1e-14)
     np.testing.assert_allclose(
         sim.tip_velocities(), st.vel[last] + np.cross(st.omg[last], r), rtol=1e-14, atol=1e-14
@@ -179,11 +180,11 @@ def test_predictor_is_exact_for_polynomial_motion(order):
     (pq, Rq), (pp, Rp), (ps, Rs), (pe, Re) = (world(k * h) for k in (-2, -1, 0, 1))
     (bq, BQ), (bp, BP), (bs, BS), (be, BE) = (base(k * h) for k in (-2, -1, 0, 1))
     pos, rot = np.zeros((n, 3)), np.zeros((n, 3, 3))
-    ws = rec.make_work(n, 1)
+    ws = rec.make_work(n)
     ws.it.s_pos[:], ws.it.s_rot[:] = ps, Rs
     z = np.zeros((n, 3))
     chain = rec.Chain(pos, rot, z, z, pp, Rp, z, z, pq, Rq)
     base = rec.Base(bs, BS, be, BE, bp, BP, bq, BQ)
-    itg._extrapolate(rec.Bristle(0, 0, n, n - 1), chain, order, base, ws.it, ws.mot)
+    _extrapolate(rec.Bristle(0, 0, n, n - 1), chain, order, base, ws.it, ws.mot)
     np.testing.assert_allclose(pos, pe, rtol=0, atol=1e-11)
     np.testing.assert_allclose(rot, Re, rtol=0, atol=1e-11)

@@ -33,9 +33,9 @@ def _static_load(surfaces, pt, radius=0.44):
     con = sim.bristles._contact()
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
-    tw = rec.make_work(1, ct.N_TIP_STATE).tipw
+    tw = rec.make_work(1).tipw
     sub = rec.Substep(1.0, 0.0, 0.0, 1.0, 1.0, True, np.zeros(3), 0.0, 0, 0.0)
-    con.tip_state[0, ct.S_PN : ct.S_PN + 3] = pt
+    con.tip_state[0]["pn"] = pt
     ct.tip_load(0, np.asarray(pt, float), sub, con, F, Kt, tw)
     return F, con.tip_state[0].copy()
 
@@ -89,7 +89,7 @@ def test_tip_on_sphere_capsule_cylinder_matches_closed_form(k):
     F, st = _static_load([Sphere(tuple(c), r)], pt)
     Fref, delta = _closed_form_force(R - depth, u)
     np.testing.assert_allclose(F, Fref, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(st[ct.S_CP : ct.S_CP + 3], c + r * u, atol=1e-12)
+    np.testing.assert_allclose(st["cpt"], c + r * u, atol=1e-12)
     # capsule along x through c, from x = -3 to +3 about c: a point beyond an end sees the cap
     a, b = c - [3.0, 0, 0], c + [3.0, 0, 0]
     q = c + np.array([4.0 * u[0], 0.0, 0.0])  # an axis point, clamped to the segment
@@ -114,7 +114,7 @@ def test_ellipsoid_distance_matches_numerical_minimum(k):
     t = 1.0 / math.sqrt(sum((u[i] / ax[i]) ** 2 for i in range(3)))
     p = np.asarray(c) + (t + (-0.15 if k % 2 == 0 else 0.3)) * u
     nrm, cpt = np.zeros(3), np.zeros(3)
-    d = sdf.ellipsoid_gap(Ellipsoid(c, ax).kernel_row(), p, nrm, cpt)
+    d = sdf.ellipsoid_gap(rec.surface_floats(Ellipsoid(c, ax).kernel_row())[0], p, nrm, cpt)
     ref = _ellipsoid_distance(p, c, ax)
     assert abs(d) == pytest.approx(ref, abs=1e-6)
     assert (d < 0) == (k % 2 == 0)
@@ -152,7 +152,7 @@ def tooth_row():
 
 
 def test_tooth_row_grid_matches_exact_mesh_query_within_the_grid_bound(tooth_row):
-    """Every crown against the exact closest-triangle query (contact._mesh_gap):
+    """Every crown against the exact closest-triangle query (mesh_contact.mesh_gap):
 
     * anywhere in the band: |d_grid - d| <= sqrt(3) h (rigorous: trilinear weights are a convex
       combination and d is 1-Lipschitz);
@@ -254,7 +254,7 @@ def test_bristle_dragged_over_a_cylinder_edge_and_into_a_gap():
         if not out.tip_in_contact[0]:
             continue
         tip, cp = out.tip_pos[0], out.tip_contact_point[0]
-        j = int(sim.state.tip_state[0, ct.S_SURF])
+        j = int(sim.state.tip_state[0]["surf"])
         visited.add(j)
         ax = -a if j == 0 else a
         radial = np.array([tip[0] - ax, 0.0, tip[2] + r])
@@ -264,7 +264,7 @@ def test_bristle_dragged_over_a_cylinder_edge_and_into_a_gap():
         assert out.tip_penetration[0] < 0.025
     assert visited == {0, 1}
     assert dip < -1.0
-    assert int(sim.state.tip_state[0, ct.S_SURF]) == 1 and out.tip_pos[0][0] > 0.0
+    assert int(sim.state.tip_state[0]["surf"]) == 1 and out.tip_pos[0][0] > 0.0
 
 
 def test_tooth_row_scene_labels_and_bad_surface_keys(tmp_path):

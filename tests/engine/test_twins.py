@@ -27,10 +27,11 @@ from scipy.spatial.transform import Rotation
 
 from brush_env.engine import SimSettings, Simulator, load_scene
 from brush_env.engine import contact as ct
-from brush_env.engine import integrator as itg
 from brush_env.engine import records as rec
 from brush_env.engine._kernels import ELEM_PAPER, _element_gen
-from brush_env.engine.records import B_BETA, B_HALF
+from brush_env.engine.mesh_contact import empty_mesh
+from brush_env.engine.predict import _prepare
+from brush_env.engine.residual import _residual
 from brush_env.engine.scene import ContactParams
 from brush_env.engine.sdf import empty_sdf
 
@@ -39,7 +40,7 @@ from . import twins
 EULER = (1.0, -1.0, 0.0)
 BDF2 = (1.5, -2.0, 0.5)
 CP = {f.name: getattr(ContactParams(), f.name) for f in dataclasses.fields(ContactParams)}
-_MESH = ct.empty_mesh()
+_MESH = empty_mesh()
 _SDF = empty_sdf()
 
 
@@ -110,20 +111,18 @@ def kernel_tip_load(
     pt = np.asarray(pt, float)
     p_n = pt if p_n is None else np.asarray(p_n, float)
     p_p = p_n if p_p is None else np.asarray(p_p, float)
-    args = np.zeros(ct.N_TIP_ARGS)
-    args[ct.A_FEXT : ct.A_FEXT + 3] = fext
-    args[ct.A_RADIUS] = radius
-    st = np.zeros(ct.N_TIP_STATE)
-    st[ct.S_DELTA : ct.S_DELTA + 3] = delta
-    st[ct.S_BETA] = beta
-    st[ct.S_PN : ct.S_PN + 3] = p_n
-    st[ct.S_HIST : ct.S_HIST + 3] = 0.0 if static else c[1] * p_n + c[2] * p_p
-    surf = np.zeros((len(planes), ct.N_SURF))
+    args = np.zeros(1, rec.TIP_ARGS)
+    args["fext"] = fext
+    args["radius"] = radius
+    st = np.zeros(1, rec.TIP_STATE)
+    st["delta"] = delta
+    st["beta"] = beta
+    st["pn"] = p_n
+    st["hist"] = 0.0 if static else c[1] * p_n + c[2] * p_p
+    surf = np.zeros(len(planes), rec.SURFACE)
     for j, (p0, nrm) in enumerate(planes):
-        surf[j, 0] = ct.SURF_PLANE
-        surf[j, 1:4] = p0
-        surf[j, 4:7] = nrm
-    cpa = np.array([cp[f.name] for f in dataclasses.fields(ContactParams)])
+        surf[j] = rec.surface_row(rec.SURF_PLANE, p0, nrm)
+    cpa = np.array([tuple(float(cp[f]) for f in rec.CONTACT_LAW.names)], rec.CONTACT_LAW)
     tips = np.zeros((max(len(partners), 1), 7))
     for j, (pj, vj, rj) in enumerate(partners):
         tips[j] = [*pj, *vj, rj]
@@ -131,22 +130,20 @@ def kernel_tip_load(
     pair_idx = np.arange(len(partners), dtype=np.int64)
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
-    tw = rec.make_work(1, ct.N_TIP_STATE).tipw
-    con = rec.ContactScene(
-        surf, cpa, tips, pair_ptr, pair_idx, _MESH, args[None, :], st[None, :], _SDF
-    )
+    tw = rec.make_work(1).tipw
+    con = rec.ContactScene(surf, cpa, tips, pair_ptr, pair_idx, _MESH, args, st, _SDF)
     sub = rec.Substep(c[0], c[1], c[2], h, 1.0 / h, static, np.zeros(3), 0.0, 0, 0.0)
     ct.tip_load(0, pt, sub, con, F, Kt, tw)
     st = con.tip_state[0]
     out = dict(
-        Fn=st[ct.S_FN],
-        Ft=st[ct.S_FT : ct.S_FT + 3].copy(),
-        pen=st[ct.S_PEN],
-        cpt=st[ct.S_CP : ct.S_CP + 3].copy(),
-        dnew=st[ct.S_DNEW : ct.S_DNEW + 3].copy(),
-        bnew=st[ct.S_BNEW],
-        slide=st[ct.S_SLIDE],
-        Ftt=st[ct.S_FTT],
+        Fn=st["fn"],
+        Ft=st["ft"].copy(),
+        pen=st["pen"],
+        cpt=st["cpt"].copy(),
+        dnew=st["dnew"].copy(),
+        bnew=st["bnew"],
+        slide=float(st["slide"]),
+        Ftt=st["ftt"],
     )
     return F, Kt, out
 
@@ -179,12 +176,12 @@ def kernel_residual(
     slide_beta,
     ctx,
 ):
-    """``integrator._residual`` of bristle b (after ``_prepare``, as ``_newton`` calls them).
+    """``residual._residual`` of bristle b (after ``_prepare``, as ``_newton`` calls them).
 
-    bp (n, 8), K (n, 6, 6): the bristle's rows of the model arrays; (pos, rot): the trial chain at
-    t_{n+1}; *_n / *_p: the chain at t_n / t_{n-1}; base*: (root node, head rotation) at t_{n+1},
-    t_n, t_{n-1}; c = (c0, c1, c2), h [s]; tip_args/tip_state: the bristle's rows (the tip history
-    slots are filled here); ctx: the simulator's contact context.
+    bp (n,) ``records.BODY``, K (n, 6, 6): the bristle's rows of the model arrays; (pos, rot):
+    the trial chain at t_{n+1}; *_n / *_p: the chain at t_n / t_{n-1}; base*: (root node, head
+    rotation) at t_{n+1}, t_n, t_{n-1}; c = (c0, c1, c2), h [s]; tip_args/tip_state: the
+    bristle's rows (the tip history slots are filled here); ctx: the simulator's contact context.
     Returns (res (n, 6), root load (6,), tip force (3,), tip stiffness (3, 3), scaled norm).
     """
     n = len(bp)
@@ -202,7 +199,7 @@ def kernel_residual(
     )
     br = rec.Bristle(b, 0, n, n - 1)
     sub = rec.Substep(c0, c1, c2, h, 1.0 / h, static, np.asarray(gravity, float), 0.0, 0, 0.0)
-    ws = rec.make_work(n, ct.N_TIP_STATE)
+    ws = rec.make_work(n)
     z3, z33 = np.zeros((n, 3)), np.zeros((n, 3, 3))
     at_n = rec.Chain(
         *(np.ascontiguousarray(a, float) for a in (pos_n, rot_n, vel_n, omg_n)),
@@ -213,24 +210,24 @@ def kernel_residual(
     base_rec = rec.Base(
         *(np.ascontiguousarray(a, float) for a in (*base_n, *base, *base_p)), np.zeros(3), z33[0]
     )
-    itg._prepare(br, model, at_n, sub, base_rec, ws.hist, ws.el)
+    _prepare(br, model, at_n, sub, base_rec, ws.hist, ws.el)
     tip_args = ctx.tip_args.copy()
     tip_state = ctx.tip_state.copy()
-    tip_args[b] = 0.0
-    tip_args[b, ct.A_FEXT : ct.A_FEXT + 3] = fext
-    tip_args[b, ct.A_RADIUS] = radius
-    st = tip_state[b]
-    st[:] = 0.0
-    st[ct.S_DELTA : ct.S_DELTA + 3] = delta
-    st[ct.S_BETA] = slide_beta
-    ptn = pos_n[-1] + bp[-1, B_HALF] * rot_n[-1][:, 0]
-    ptp = pos_p[-1] + bp[-1, B_HALF] * rot_p[-1][:, 0]
-    st[ct.S_PN : ct.S_PN + 3] = ptn
-    st[ct.S_HIST : ct.S_HIST + 3] = c1 * ptn + c2 * ptp
+    tip_args[b] = np.zeros((), rec.TIP_ARGS)
+    tip_args[b]["fext"] = fext
+    tip_args[b]["radius"] = radius
+    tip_state[b] = np.zeros((), rec.TIP_STATE)
+    st = tip_state[b : b + 1]
+    st["delta"] = delta
+    st["beta"] = slide_beta
+    ptn = pos_n[-1] + bp[-1]["half"] * rot_n[-1][:, 0]
+    ptp = pos_p[-1] + bp[-1]["half"] * rot_p[-1][:, 0]
+    st["pn"] = ptn
+    st["hist"] = c1 * ptn + c2 * ptp
     con = ctx._replace(tip_args=tip_args, tip_state=tip_state)
     trial = at_n._replace(pos=np.array(pos, float), rot=np.array(rot, float))
     rootw = np.zeros(6)
-    nrm = itg._residual(br, model, trial, sub, base_rec, con, ws, rootw)
+    nrm = _residual(br, model, trial, sub, base_rec, con, ws, rootw)
     res = ws.it.res[:n].copy()
     tipF = ws.it.tipF.copy()
     tipK = ws.it.tipK.copy()
@@ -239,8 +236,7 @@ def kernel_residual(
 
 def committed_contact(tip_state_row):
     """(Delta, beta) committed in a simulator's tip_state row (the inputs of a step's contact)."""
-    row = np.asarray(tip_state_row)
-    return row[ct.S_DELTA : ct.S_DELTA + 3].copy(), float(row[ct.S_BETA])
+    return np.array(tip_state_row["delta"]), float(tip_state_row["beta"])
 
 
 # =========================================================================== helpers
@@ -646,13 +642,13 @@ def test_residual_matches_the_twin(pressed_brush, mode):
 
         # the twin's tip load: the scene's planes, the partner tips from the state itself
         last = np.array([m.bstart[j + 1] - 1 for j in range(m.n_bristles)])
-        r = m.bp[last, B_HALF][:, None] * st.rot[last][:, :, 0]
+        r = m.bp["half"][last][:, None] * st.rot[last][:, :, 0]
         tips_p, tips_v = st.pos[last] + r, st.vel[last] + np.cross(st.omg[last], r)
         partners = [
             (tips_p[j], tips_v[j], m.tip_radius[j])
             for j in sim.bristles.pair_idx[sim.bristles.pair_ptr[b] : sim.bristles.pair_ptr[b + 1]]
         ]
-        pt_n = hist["pos_n"][-1] + bp[-1, B_HALF] * hist["rot_n"][-1][:, 0]
+        pt_n = hist["pos_n"][-1] + bp[-1]["half"] * hist["rot_n"][-1][:, 0]
         tips = []
 
         def tip_force(pt, v, tip=tip, beta=beta, pt_n=pt_n, partners=partners, tips=tips):
@@ -671,11 +667,11 @@ def test_residual_matches_the_twin(pressed_brush, mode):
             return out["F"]
 
         tres, troot = twins.residual(
-            mass=bp[:, 0],
-            inertia=bp[:, 1:4],
-            half=bp[:, 4],
-            length=bp[:, 5],
-            beta=bp[:, B_BETA],
+            mass=bp["mass"],
+            inertia=bp["J"],
+            half=bp["half"],
+            length=bp["length"],
+            beta=bp["beta"],
             K=K,
             pos=pos,
             rot=rot,
@@ -695,7 +691,7 @@ def test_residual_matches_the_twin(pressed_brush, mode):
         assert_close(res[:, 3:], tres[:, 3:], 1e-10, f"bristle {b} moments")
         assert_close(rootw, troot, 1e-10, f"bristle {b} root load")
         assert_close(tipF, tips[0]["F"], 1e-12, f"bristle {b} tip force")  # fext makes it > 0
-        fs, ls = bp[:, 7:8], bp[:, 7:8] * bp[:, 5:6]
+        fs, ls = bp["fscale"][:, None], bp["fscale"][:, None] * bp["length"][:, None]
         tnrm = max(np.abs(tres[:, :3] / fs).max(), np.abs(tres[:, 3:] / ls).max())
         assert nrm == pytest.approx(tnrm, rel=1e-9)
     assert in_contact >= 2, "the pressed brush should have tips on the plate"

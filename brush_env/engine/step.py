@@ -1,0 +1,98 @@
+"""Implicit time stepping of the brush (eq 1-11): ``step_bristles`` lists the stages in order.
+
+Scheme: the momentum balance of eq 11 for every body, discretised with the two-step formula
+``y'(t_{n+1}) ~ (c0 y_{n+1} + c1 y_n + c2 y_{n-1}) / h`` applied to positions, velocities, angular
+momenta and the element strains of the damping term (eq 4-5): backward Euler ``(1, -1, 0)``
+(L-stable, first order) or BDF2 ``(3/2, -2, 1/2)`` (L-stable, second order), chosen in
+``advance.scheme_coefficients``.  Rotations are updated multiplicatively, ``R <- exp([dtheta]) R``,
+and enter the rates through rotation vectors relative to ``R_n``.
+
+Each bristle is an open chain, so its Newton matrix is block tridiagonal (6x6 blocks) and is solved
+by block Thomas in O(n).  The stages, one module each:
+
+- ``residual.py``: the residual of eq 11 (inertia, elements eq 1-5, tip load eq 6-10 / Table 3)
+  and its Newton matrix;
+- ``predict.py``: the (sub)step's constants and Newton's starting point (predictors);
+- ``newton.py``: direction, step cap, line search, the Newton loop, commit;
+- ``advance.py``: the scheme's coefficients, one bristle over one step with sub-step halving;
+- ``sweeps.py``: the Gauss-Seidel sweeps over the bristles and their tip-tip partners (Table 3);
+- ``coupling.py``: where touching partners are held between sweeps.
+
+The kernels take the named records of ``records.py`` (model, chain state, drive, contact scene,
+Newton cache, scratch), never position-indexed tuples or columns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._kernels import HOT
+from .sweeps import SWEEP_FIRST, _settle_tip_tip, _start_sweeps, _sweep, _tip_node_state
+
+
+@njit(**HOT)
+def step_bristles(model, chain, drive, prm, con, jc, ws, out):
+    """Advance every bristle by one step h = prm.h (in place); prm: ``records.StepParams``.
+
+    drive: TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3) and hist_ok (whole steps
+    behind each bristle's history, 0, 1 or 2; after a sub-stepped step the history is not on the
+    step grid: 0).  con: surfaces, contact laws (Tables 2-3), every tip's node, velocity and radius,
+    the tip-tip partner lists (CSR), the scene's mesh, tip arguments and per-contact state.
+
+    Bristles are coupled only through tip-tip contact (Table 3).  Each is solved with its
+    partners' tips held (``con.tips``), in order (a Gauss-Seidel sweep): a partner solved earlier
+    in the sweep at its new tip, one solved later at its start-of-step tip.
+    With prm.sweeps > 1, while some bristle's touching partners have moved by more than
+    prm.tttol since it was solved, the partners are placed where the linearised coupled
+    problem puts them (``coupling.place_partners``) and those bristles are solved again from the
+    step's start, warm-started at their last solution: at convergence both sides of every
+    tip-tip contact see the end-of-step tips (no lag).  Outputs per bristle in ``out``: rootw
+    (force, moment of the root element on the head, at the root node, world), iters (Newton
+    iterations, all sweeps), nsub (sub-steps used), status (OK / NEWTON_FAILED); ws.sw.count =
+    [sweeps run, re-solves, 0 settled / 1 out of sweeps with partners still moving by less than
+    FALLBACK_MOVE / 2 fell back to the plain sweep].
+    """
+    _start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
+    _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle, in order
+    _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
+
+
+@njit(**HOT)
+def tip_states(bstart, bp, pos, rot, vel, omg, out):
+    """Tip node position and velocity of every bristle into out (nb, >= 6), see _tip_node_state."""
+    for b in range(bstart.shape[0] - 1):
+        _tip_node_state(b, bstart[b + 1] - 1, bp, pos, rot, vel, omg, out)
+
+
+@njit(**HOT)
+def tcp_wrench(R_tcp, root_p, rootw, out):
+    """Wrench the TCP applies to the brush, out = (F [N], M [N mm] about the TCP), world.
+
+    The (massless) head carries every root element's reaction: the elements push on the head with
+    rootw (force, moment at the root node); the root node sits at R_tcp root_p from the TCP."""
+    for a in range(6):
+        out[a] = 0.0
+    for b in range(root_p.shape[0]):
+        x0 = R_tcp[0, 0] * root_p[b, 0] + R_tcp[0, 1] * root_p[b, 1] + R_tcp[0, 2] * root_p[b, 2]
+        x1 = R_tcp[1, 0] * root_p[b, 0] + R_tcp[1, 1] * root_p[b, 1] + R_tcp[1, 2] * root_p[b, 2]
+        x2 = R_tcp[2, 0] * root_p[b, 0] + R_tcp[2, 1] * root_p[b, 1] + R_tcp[2, 2] * root_p[b, 2]
+        f0 = rootw[b, 0]
+        f1 = rootw[b, 1]
+        f2 = rootw[b, 2]
+        out[0] -= f0
+        out[1] -= f1
+        out[2] -= f2
+        out[3] -= rootw[b, 3] + x1 * f2 - x2 * f1
+        out[4] -= rootw[b, 4] + x2 * f0 - x0 * f2
+        out[5] -= rootw[b, 5] + x0 * f1 - x1 * f0
+
+
+@njit(**HOT)
+def all_finite(x):
+    """True if every entry of the 2-D array x is finite."""
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            if not np.isfinite(x[i, j]):
+                return False
+    return True

@@ -1,0 +1,204 @@
+"""The Gauss-Seidel sweeps over the bristles and their tip-tip partners (Table 3).
+
+Bristles are coupled only through tip-tip contact (Table 3, no friction).  ``_sweep`` solves
+each bristle (``advance.py``) with its partners' tips held at their latest positions; a later
+sweep re-solves, warm-started, the bristles whose touching partners moved by more than the
+tolerance (``_partners_moved``), after ``coupling.place_partners`` placed them.  ``_save_all``
+and ``_restore_bristle`` keep every bristle's start-of-step state for those re-solves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._kernels import HOT
+from .advance import _advance_bristle, scheme_coefficients
+from .coupling import place_partners, store_tip_load
+from .predict import _save_chain
+from .records import Bristle
+
+#: modes of ``_sweep``
+SWEEP_FIRST = 0  # every bristle, from the step's start
+SWEEP_AGAIN = 1  # the bristles whose partners moved (or were placed), warm-started
+SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at their start
+#: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
+#: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
+FALLBACK_MOVE = 1e-4
+
+
+@njit(**HOT)
+def _sweep(model, chain, drive, prm, con, jc, ws, out, mode):
+    """One pass over the bristles in order (``step_bristles``); ``mode``: SWEEP_*."""
+    bstart = model.bstart
+    nb = bstart.shape[0] - 1
+    sw = ws.sw
+    npair = con.pair_idx.shape[0]
+    coupled = prm.sweeps > 1 and npair > 0
+    if mode == SWEEP_PLAIN:
+        for b in range(nb):
+            for a in range(6):
+                con.tips[b, a] = sw.tips0[b, a]
+    for b in range(nb):
+        b0 = bstart[b]
+        n = bstart[b + 1] - b0
+        br = Bristle(b, b0, n, b0 + n - 1)
+        if mode == SWEEP_AGAIN:
+            if not _partners_moved(b, con, sw.used, prm.tttol):
+                if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
+                    for a in range(6):
+                        con.tips[b, a] = sw.xs[b, a]
+                continue
+            sw.count[1] += 1
+            _save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
+        if mode != SWEEP_FIRST:
+            _restore_bristle(br, chain, con, drive, sw)
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            for a in range(3):
+                sw.used[q, a] = con.tips[j, a]
+        prev = out.iters[b]
+        _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
+        out.iters[b] += prev
+        _tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
+        if coupled:
+            store_tip_load(b, ws.it, sw)
+
+
+@njit(**HOT, inline="always")
+def _max_partner_move(nb, con, used):
+    """The largest move [mm] of a partner within contact reach of a bristle since that bristle
+    was solved (``_partners_moved``), over all bristles."""
+    m = 0.0
+    for b in range(nb):
+        m = max(m, _partner_move(b, con, used))
+    return m
+
+
+@njit(**HOT, inline="always")
+def _partners_moved(b, con, used, tol):
+    """True if a partner of bristle b that is (or was, when b was solved) within contact reach
+    of b's tip has moved by more than ``tol`` [mm] since b was solved."""
+    return _partner_move(b, con, used) > tol
+
+
+@njit(**HOT)
+def _partner_move(b, con, used):
+    """The largest move [mm] since bristle b was solved of a partner that is (or was, when b was
+    solved) within contact reach of b's tip."""
+    tips = con.tips
+    rb = tips[b, 6]
+    m = 0.0
+    for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+        j = con.pair_idx[q]
+        reach = rb + tips[j, 6]
+        dn0 = tips[b, 0] - tips[j, 0]
+        dn1 = tips[b, 1] - tips[j, 1]
+        dn2 = tips[b, 2] - tips[j, 2]
+        du0 = tips[b, 0] - used[q, 0]
+        du1 = tips[b, 1] - used[q, 1]
+        du2 = tips[b, 2] - used[q, 2]
+        m0 = tips[j, 0] - used[q, 0]
+        m1 = tips[j, 1] - used[q, 1]
+        m2 = tips[j, 2] - used[q, 2]
+        mv = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        r2 = (reach + mv) * (reach + mv)
+        if dn0 * dn0 + dn1 * dn1 + dn2 * dn2 > r2 and du0 * du0 + du1 * du1 + du2 * du2 > r2:
+            continue
+        m = max(m, mv)
+    return m
+
+
+@njit(**HOT, inline="always")
+def _save_all(chain, con, drive, sw):
+    """sw <- every bristle's state at the step's start (chain, contact state, hist_ok)."""
+    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
+    vR = (chain.rot, chain.prot, chain.pprot)
+    for k in range(chain.pos.shape[0]):
+        for a in range(3):
+            for q in range(7):
+                sw.v3[q, k, a] = v3[q][k, a]
+            for c in range(3):
+                for q in range(3):
+                    sw.R[q, k, a, c] = vR[q][k, a, c]
+    for b in range(con.tip_state.shape[0]):
+        sw.tip_state[b] = con.tip_state[b]
+        sw.hist_ok[b] = drive.hist_ok[b]
+
+
+@njit(**HOT, inline="always")
+def _restore_bristle(br, chain, con, drive, sw):
+    """One bristle <- its state at the step's start (``_save_all``)."""
+    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
+    vR = (chain.rot, chain.prot, chain.pprot)
+    for k in range(br.b0, br.b0 + br.n):
+        for a in range(3):
+            for q in range(7):
+                v3[q][k, a] = sw.v3[q, k, a]
+            for c in range(3):
+                for q in range(3):
+                    vR[q][k, a, c] = sw.R[q, k, a, c]
+    con.tip_state[br.b] = sw.tip_state[br.b]
+    drive.hist_ok[br.b] = sw.hist_ok[br.b]
+
+
+@njit(**HOT, inline="always")
+def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
+    """out[b, 0:3] <- tip node (sphere centre) [mm], out[b, 3:6] <- its velocity [mm/s] (world):
+    p = c + r, v = v_c + omega x r with r = half R e_x of the last body ``il``."""
+    hl = bp[il].half
+    r0 = hl * rot[il, 0, 0]
+    r1 = hl * rot[il, 1, 0]
+    r2 = hl * rot[il, 2, 0]
+    out[b, 0] = pos[il, 0] + r0
+    out[b, 1] = pos[il, 1] + r1
+    out[b, 2] = pos[il, 2] + r2
+    out[b, 3] = vel[il, 0] + omg[il, 1] * r2 - omg[il, 2] * r1
+    out[b, 4] = vel[il, 1] + omg[il, 2] * r0 - omg[il, 0] * r2
+    out[b, 5] = vel[il, 2] + omg[il, 0] * r1 - omg[il, 1] * r0
+
+
+@njit(**HOT, inline="always")
+def _start_sweeps(model, chain, drive, prm, con, ws, out):
+    """Before the first sweep: no Newton iterations yet, every tip's start (sw.tips0) and, if
+    more than one sweep may run, every bristle's start-of-step state (``_save_all``)."""
+    nb = model.bstart.shape[0] - 1
+    sw = ws.sw
+    sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
+    for b in range(nb):
+        out.iters[b] = 0
+        for a in range(6):
+            sw.tips0[b, a] = con.tips[b, a]
+    if sweeps > 1:
+        _save_all(chain, con, drive, sw)
+    sw.count[0] = 1
+    sw.count[1] = 0
+    sw.count[2] = 0
+
+
+@njit(**HOT, inline="always")
+def _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
+    """After the first sweep: while touching partners moved by more than prm.tttol since a
+    bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN);
+    out of sweeps far from settled: the plain sweep (SWEEP_PLAIN).  Sets sw.count."""
+    nb = model.bstart.shape[0] - 1
+    sw = ws.sw
+    sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
+    # the coupling's tip-tip damping weight c0 / h: the scheme's c0 on a whole step with history
+    # (it only steers the placement of partners; each bristle's own step uses its own c0)
+    c0 = scheme_coefficients(prm, True)[0]
+    c0_inv_h = 0.0 if prm.static else c0 / prm.h
+    for sweep in range(1, sweeps + 1):
+        moved = _max_partner_move(nb, con, sw.used)
+        if moved <= prm.tttol:
+            break
+        if sweep == sweeps:
+            sw.count[2] = 1  # out of sweeps with partners still moving
+            if sweeps > 1 and moved > FALLBACK_MOVE:
+                # far from settled (the coupled step went astray): the plain sweep instead
+                sw.count[2] = 2
+                _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+            break
+        sw.count[0] = sweep + 1
+        place_partners(model, chain, con, jc, ws, c0_inv_h)
+        _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)
