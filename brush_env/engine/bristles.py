@@ -118,14 +118,13 @@ def register_bristle_model(name: str, factory: Callable) -> None:
 
 
 def bristle_models() -> tuple[str, ...]:
-    """The registered bristle model names."""
-    _register_builtin()
+    """The registered bristle model names ("dfm" registers itself in ``chain.py``, which the
+    engine's ``__init__`` imports)."""
     return tuple(sorted(_MODELS))
 
 
 def make_bristle_model(scene, settings) -> BristleModel:
     """The bristle model ``settings.model`` for ``scene`` (ConfigError if none has that name)."""
-    _register_builtin()
     factory = _MODELS.get(settings.model)
     if factory is None:
         known = sorted(_MODELS)
@@ -134,10 +133,3 @@ def make_bristle_model(scene, settings) -> BristleModel:
             f"{did_you_mean(settings.model, known)} (known: {', '.join(known)})"
         )
     return factory(scene, settings)
-
-
-def _register_builtin() -> None:
-    if "dfm" not in _MODELS:
-        from .chain import DFMChain
-
-        _MODELS["dfm"] = DFMChain

@@ -22,7 +22,7 @@ from .beam import (
     segment_inertia,
     timoshenko_stiffness,
 )
-from .bristles import BristleModel, TipContact
+from .bristles import BristleModel, TipContact, register_bristle_model
 from .checks import ConfigError
 from .config import BrushConfig
 from .mesh_contact import build_mesh, empty_mesh
@@ -401,6 +401,9 @@ class DFMChain(BristleModel):
     def n_tip_pairs(self) -> int:
         """Number of tip-tip pairs kept for this scene (each counted once)."""
         return len(self.pair_idx) // 2
+
+
+register_bristle_model("dfm", DFMChain)
 
 
 #: the array fields of State (copied by Simulator._snapshot)
