@@ -51,26 +51,32 @@ class OutLock:
     """``with OutLock(out):`` holds ``out/.lock`` (flock, exclusive, non-blocking) or raises
     ``SweepLocked`` naming the holder's PID."""
 
-    def __init__(self, out) -> None:
+    def __init__(self, out, grace_s: float = 5.0) -> None:
         self.path = Path(out) / LOCK_NAME
+        self.grace_s = grace_s  # how long to wait for the workers of a holder that died
         self.fd: int | None = None
 
     def acquire(self) -> None:
         import fcntl
 
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            state = ""
-            if holder.isdigit() and not _pid_alive(int(holder)):
-                state = ", which has exited while its workers are still stopping"
-            raise SweepLocked(
-                f"{self.path.parent} is in use by another sweep (pid {holder}{state}; lock "
-                f"{self.path}): wait for it to finish or stop it, then rerun to resume"
-            ) from None
+        t_end = time.monotonic() + self.grace_s
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
+                dead = holder.isdigit() and not _pid_alive(int(holder))
+                if dead and time.monotonic() < t_end:
+                    time.sleep(0.1)  # the holder died: its workers are stopping (PDEATHSIG)
+                    continue
+                os.close(fd)
+                state = ", which has exited while its workers are still stopping" if dead else ""
+                raise SweepLocked(
+                    f"{self.path.parent} is in use by another sweep (pid {holder}{state}; lock "
+                    f"{self.path}): wait for it to finish or stop it, then rerun to resume"
+                ) from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         self.fd = fd
