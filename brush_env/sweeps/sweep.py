@@ -12,6 +12,12 @@ their units, the metrics, run time, error).  CSV, not Parquet:
 The table is rewritten after every finished run: an interrupted sweep resumes from what it holds,
 and ``done`` skips the runs whose ``summary.json`` or ``error.json`` exists.  ``DIR/spec.toml``
 is a copy of the spec; ``DIR/sweep.json`` holds the run list, the executor and the wall time.
+
+Faults (issue 28, ``safety.py``): a sweep holds ``DIR/.lock`` while it runs (a second one stops
+with ``SweepLocked``, naming the holder's PID); every file is written through a unique temp file
+and ``os.replace``; a run whose summary.json, error.json or timing.json cannot be read is named
+in one line on ``log``, its files are moved aside (``*.damaged-<UTC time>``) and it is redone.
+Every blank metric of a run says why in the table's error column (``_explain``).
 """
 
 from __future__ import annotations
