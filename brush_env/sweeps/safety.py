@@ -173,7 +173,8 @@ def watch_parent(sweep_pid: int, interval_s: float = 0.5) -> None:
     """
     parent = os.getppid()
     _set_pdeathsig(signal.SIGTERM)
-    if os.getppid() != parent or parent == 1 or not _pid_alive(sweep_pid):
+    orphaned = parent == 1 and sweep_pid != 1  # re-parented to init (a sweep may be PID 1)
+    if os.getppid() != parent or orphaned or not _pid_alive(sweep_pid):
         os._exit(1)  # the sweep died before we could ask to be told
 
     def watch() -> None:
