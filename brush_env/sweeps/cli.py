@@ -9,7 +9,8 @@ def add_arguments(parser) -> None:
     parser.description = (
         "Run a design sweep: every run of SPEC (configs/sweeps/*.toml or a path) with the "
         "reference experiment; one row per run in OUT/results.csv, each run's summary.json "
-        "under OUT/runs/; finished runs are skipped when rerun (resume)."
+        "under OUT/runs/; finished runs are skipped when rerun (resume). One sweep per OUT at "
+        "a time (OUT/.lock): a second one exits with code 2 naming the holder's PID."
     )
     parser.add_argument("spec", help="sweep spec: a TOML path or a name in configs/sweeps")
     parser.add_argument("--out", required=True, help="output directory (resumed if it exists)")

@@ -6,7 +6,9 @@ is byte-identical on either (tests/sweeps).
 
 * ``local``: ``concurrent.futures.ProcessPoolExecutor`` with ``workers`` processes (default all
   cores).  Each worker loads the numba kernels once, from the disk cache that the first
-  ``ensure_compiled`` filled (``init_worker``).
+  ``ensure_compiled`` filled (``init_worker``).  A worker stops when the sweep dies, even by
+  SIGKILL (``safety.watch_parent``: ``PR_SET_PDEATHSIG`` on Linux plus a watchdog thread on
+  ``os.getppid()``), so no orphan keeps writing into ``--out``.
 * ``ray``: ``ray.init(address)``, where address is ``"auto"`` for a running cluster,
   ``"HOST:PORT"``, or ``"local"`` for a fresh local instance.  One remote task per run, with the
   numba cache warmed in each task; results are gathered with ``ray.wait``.  Ray is the optional
@@ -24,8 +26,14 @@ from collections.abc import Callable
 from .run import execute
 
 
-def init_worker() -> None:
-    """Load (or compile once) the numba kernels in a worker before its first run."""
+def init_worker(sweep_pid: int | None = None) -> None:
+    """Load (or compile once) the numba kernels in a worker before its first run.  In a pool
+    worker (``sweep_pid`` given), first arrange for the worker to stop when the sweep dies
+    (``safety.watch_parent``: PR_SET_PDEATHSIG and a watchdog thread)."""
+    if sweep_pid is not None:
+        from .safety import watch_parent
+
+        watch_parent(sweep_pid)
     from ..engine.warmup import ensure_compiled
 
     ensure_compiled()
@@ -50,7 +58,9 @@ def run_local(jobs: list, workers: int | None, on_result: Callable, progress: bo
                 on_result(execute(job))
                 bar.update(1)
             return
-        with ProcessPoolExecutor(max_workers=workers, initializer=init_worker) as pool:
+        with ProcessPoolExecutor(
+            max_workers=workers, initializer=init_worker, initargs=(os.getpid(),)
+        ) as pool:
             futures = [pool.submit(execute, job) for job in jobs]
             for f in as_completed(futures):
                 on_result(f.result())

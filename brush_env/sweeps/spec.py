@@ -77,6 +77,9 @@ METRICS = {
     "tip_load_spread": ("-", "std / mean over tips of each tip's time-mean normal force"),
     "run_time_s": ("s", "wall time of the run (not in the bit-identical summaries)"),
 }
+#: the metrics measured on the circle after its first quarter (theta >= pi/2): n/a for ``press``
+CIRCLE_METRICS = ("peak_Fh_N", "peak_Fz_N", "mean_Fz_N", "mean_Fn_N",
+                  "jam1_angle_deg", "jam1_peak_N", "jam2_angle_deg", "jam2_peak_N")  # fmt: skip
 _SUFFIX_UNITS = (
     ("_mm", "mm"),
     ("_deg", "deg"),

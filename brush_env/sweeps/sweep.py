@@ -12,18 +12,27 @@ their units, the metrics, run time, error).  CSV, not Parquet:
 The table is rewritten after every finished run: an interrupted sweep resumes from what it holds,
 and ``done`` skips the runs whose ``summary.json`` or ``error.json`` exists.  ``DIR/spec.toml``
 is a copy of the spec; ``DIR/sweep.json`` holds the run list, the executor and the wall time.
+
+Faults (issue 28, ``safety.py``): a sweep holds ``DIR/.lock`` while it runs (a second one stops
+with ``SweepLocked``, naming the holder's PID); every file is written through a unique temp file
+and ``os.replace``; a run whose summary.json, error.json or timing.json cannot be read is named
+in one line on ``log``, its files are moved aside (``*.damaged-<UTC time>``) and it is redone.
+Every blank metric of a run says why in the table's error column (``_explain``).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
-import shutil
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from .executors import run_local, run_ray
-from .run import done, load_result, prepare
+from .run import DamagedFile, done, load_result, prepare, set_aside_damaged
+from .safety import OutLock, remove_stale_temps, write_bytes, write_text
 from .spec import METRICS, load_spec
 
 
@@ -35,16 +44,35 @@ def run_sweep(
     ray_address: str | None = None,
     progress: bool = True,
     limit: int | None = None,
+    log: Callable[[str], None] | None = None,
 ) -> dict:
-    """Run (or resume) a sweep; returns {runs, done_before, ran, failed, wall_s, table}.
-    ``limit``: stop after that many new runs (to test resuming)."""
+    """Run (or resume) a sweep; returns {runs, done_before, ran, failed, wall_s, table, damaged}.
+    ``limit``: stop after that many new runs (to test resuming).  ``log``: where the one-line
+    notes go (a damaged file set aside; default stderr).  Raises ``SweepLocked`` when another
+    sweep holds ``out``."""
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     spec = load_spec(spec_path)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    with OutLock(out):
+        return _run_locked(spec, out, workers, ray_address, progress, limit, log)
+
+
+def _run_locked(spec, out: Path, workers, ray_address, progress, limit, log) -> dict:
+    remove_stale_temps(out)
     jobs = [prepare(spec, r, out) for r in spec.runs()]  # every variant loads before any run
-    shutil.copyfile(spec.path, out / "spec.toml")
-    results = {j["id"]: load_result(j) for j in jobs if done(j)}
-    todo = [j for j in jobs if not done(j)]
+    write_bytes(out / "spec.toml", Path(spec.path).read_bytes())
+    results, damaged = {}, []
+    for j in jobs:
+        if not done(j):
+            continue
+        try:
+            results[j["id"]] = load_result(j)
+        except DamagedFile as e:
+            moved = set_aside_damaged(j, e)
+            damaged.append(str(e.path))
+            log(f"sweep: damaged {e} -- moved aside to {moved[0].name}; run {j['id']} is redone")
+    todo = [j for j in jobs if j["id"] not in results]
     if limit is not None:
         todo = todo[:limit]
     before = len(results)
@@ -69,38 +97,55 @@ def run_sweep(
         executor=f"ray {ray_address}" if ray_address else f"local x {workers or 'all cores'}",
         wall_s=wall,
         table=str(out / "results.csv"),
+        damaged=damaged,
     )
-    (out / "sweep.json").write_text(json.dumps(info, indent=1))
+    write_text(out / "sweep.json", json.dumps(info, indent=1))
     return info
 
 
+def _explain(r: dict, metric_cols: list) -> str:
+    """The error column: the error of a failed run, else why each blank metric is blank."""
+    if r.get("error"):
+        return r["error"]
+    notes = [] if r.get("status") in ("ok", None) else [f"run {r['status']}"]
+    blank = r.get("blank") or {}
+    m = r.get("metrics") or {}
+    by_reason: dict[str, list[str]] = {}
+    for c in metric_cols:
+        v = r.get("run_time_s") if c == "run_time_s" else m.get(c)
+        if v is None:
+            why = blank.get(c, "not recorded (run from an older version: rerun it)")
+            by_reason.setdefault(why, []).append(c)
+    notes += [f"{', '.join(cs)}: {why}" for why, cs in by_reason.items()]
+    return "; ".join(notes)
+
+
 def write_table(path: Path, spec, jobs: list, results: dict) -> None:
+    """Write results.csv atomically (a unique temp file, then os.replace)."""
     keys = [p.key for p in spec.params]
     cols = ["id", "motion", "status", *keys, *spec.metrics]
     if "run_time_s" not in cols:
         cols.append("run_time_s")
     cols.append("error")
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        w.writerow(
-            ["# unit", "", "", *[p.unit for p in spec.params],
-             *[METRICS[m][0] for m in cols[3 + len(keys) : -1]], ""]
-        )  # fmt: skip
-        for j in jobs:
-            r = results.get(j["id"])
-            if r is None:
-                continue
-            m = r.get("metrics") or {}
-            row = [j["id"], j["motion"], r.get("status")]
-            row += [repr(float(j["params"][k])) for k in keys]
-            for c in cols[3 + len(keys) : -1]:
-                v = r.get("run_time_s") if c == "run_time_s" else m.get(c)
-                row.append("" if v is None else repr(float(v)))
-            row.append(r.get("error", ""))
-            w.writerow(row)
-    tmp.replace(path)
+    metric_cols = cols[3 + len(keys) : -1]
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(cols)
+    w.writerow(["# unit", "", "", *[p.unit for p in spec.params],
+                *[METRICS[m][0] for m in metric_cols], ""])  # fmt: skip
+    for j in jobs:
+        r = results.get(j["id"])
+        if r is None:
+            continue
+        m = r.get("metrics") or {}
+        row = [j["id"], j["motion"], r.get("status")]
+        row += [repr(float(j["params"][k])) for k in keys]
+        for c in metric_cols:
+            v = r.get("run_time_s") if c == "run_time_s" else m.get(c)
+            row.append("" if v is None else repr(float(v)))
+        row.append(_explain(r, metric_cols))
+        w.writerow(row)
+    write_text(path, buf.getvalue())
 
 
 def read_table(path) -> tuple[list[str], list[str], list[dict]]:
