@@ -36,7 +36,7 @@ import tomllib
 
 from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
-from .sdf import bake_mesh_cached
+from ..geometry.sdf_bake import bake_mesh_cached
 
 
 @dataclass(frozen=True)
@@ -379,7 +379,7 @@ def surfaces_from_table(t: dict, base: Path, where: str = "surface") -> list:
 def mesh_surface(path, units="mm", cell=0.15, band=1.0, place="auto", label="mesh"):
     """A user's closed mesh file as a baked SDF surface; ``place="auto"`` centres its bounding box
     in x, y and puts its highest point at z = 0 (where the brush starts over a plate)."""
-    from .meshes import load_mesh_file
+    from ..geometry.meshes import load_mesh_file
 
     if place not in ("auto", "as_is"):
         raise ConfigError(f"mesh place = {place!r}: must be 'auto' or 'as_is'")
@@ -395,7 +395,7 @@ def tooth_row_surfaces(
 ) -> list:
     """The procedural tooth row of ``teeth.py``: one baked crown per tooth (label
     ``tooth:<name>``) and the gum capsule (label ``gum``)."""
-    from . import teeth as tt
+    from ..geometry import teeth as tt
 
     specs = tt.row_specs(teeth, gap_mm)
     out = [MeshSurface(*tt.tooth_mesh(s), cell, band, f"tooth:{s.name}") for s in specs]

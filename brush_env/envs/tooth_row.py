@@ -5,7 +5,7 @@ Description
 FlatPlate-v0's task on teeth: the same brush, engine, actions, observation layout and reward
 terms, on the tooth-row scene (``configs/scenes/tooth_row.toml``: four maxillary posterior crowns
 of Wheeler's dimensions with 0.7 mm interdental gaps, buccal surfaces facing the brush, the gum
-below the cemento-enamel junction; ``brush_env.engine.teeth``).  Contact with the crowns and the
+below the cemento-enamel junction; ``brush_env.geometry.teeth``).  Contact with the crowns and the
 gum uses signed distance fields (``brush_env.engine.sdf``).  The crowns' buccal height of contour
 is the plane z = 0 of FlatPlate-v0's plate, so the frames, the touch height ``z_t`` and the
 workspace read the same.  The reference policy is a horizontal scrub

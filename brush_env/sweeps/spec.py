@@ -191,7 +191,7 @@ def load_spec(path) -> SweepSpec:
     seed = data.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(path, "seed", f"{seed!r} must be an integer")
-    bases = _bases(path, data)
+    bases = base_tables(path, data)
     params = []
     vary = data.get("vary", [])
     if not vary:
@@ -272,7 +272,7 @@ def _sample(path, method, sample, params, seed) -> np.ndarray:
     return lo + u * (hi - lo)
 
 
-def _bases(path, data) -> dict:
+def base_tables(path, data) -> dict:
     """The dicts the keys point into: brush file, its material entry, scene file."""
     from ..engine.config import _brush_path
 

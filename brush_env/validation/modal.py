@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import integrator as itg
-from . import records as rec
-from ._kernels import ELEM_MID
-from .records import B_HALF, B_JX, B_LEN, B_MASS
-from .rotation import expmap, logmap
+from ..engine import integrator as itg
+from ..engine import records as rec
+from ..engine.records import B_HALF, B_JX, B_LEN, B_MASS
+from ..engine.rotation import expmap, logmap
+from ..engine.simulator import ELEMENTS
+
+ELEM_MID = ELEMENTS["mid"]  # the kernels' code of the mid-frame element
 
 
 def bristle_stiffness_mass(sim, bristle: int = 0):
