@@ -1,11 +1,13 @@
-"""Hashes of the engine's outputs on fixed runs, for refactors that must not change a bit (issue 27).
+"""Hashes of the engine's outputs on fixed runs, for refactors that must not change a bit
+(issue 27).
 
 Run ``python -m tests.golden [--quick] [--out FILE]``: it prints one line per case, ``case sha256
 steps``, hashing every array a step reports (TCP wrench, tips, contact forces and flags, Newton
 iterations).  Compare the file against one written before the change (``diff``).  Cases: the
 plate press-and-drag at ``fast`` with both beam elements and at ``balanced`` (coupled tip-tip),
 the tooth row's press-and-scrub (``bench steps``'s motion), a FlatPlate-v0 episode under fixed
-random actions, and a quarter turn of the reference experiment (its ``timeseries.csv`` and ``tips.npz``).
+random actions, and a quarter turn of the reference experiment (its ``timeseries.csv`` and
+``tips.npz``).
 """
 
 from __future__ import annotations
@@ -74,9 +76,7 @@ def tooth_row(level: str, max_steps: int) -> tuple[str, int]:
     from brush_env.experiments.tooth_row import DEFAULTS, scrub_motion
 
     dt = DEFAULTS["dt"]
-    sim = Simulator(
-        resolve_scene(None, "tooth_row", _bodies(level)), _settings(level, dt=dt)
-    )
+    sim = Simulator(resolve_scene(None, "tooth_row", _bodies(level)), _settings(level, dt=dt))
     traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": 1})
     ts = np.arange(min(int(traj.duration / dt), max_steps)) * dt
     P, R, _, _ = traj.sample(ts)

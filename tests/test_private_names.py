@@ -83,7 +83,9 @@ def test_no_private_name_crosses_modules():
     known = set(mods)
     bad = []
     for mod, path in mods.items():
-        for line, target, name in crossings(path.read_text(), mod, path.name == "__init__.py", known):
+        for line, target, name in crossings(
+            path.read_text(), mod, path.name == "__init__.py", known
+        ):
             if (mod, target, name) not in ALLOWED:
                 bad.append(f"{path.relative_to(ROOT)}:{line}: {target}.{name}")
     assert bad == [], "private names used across modules:\n" + "\n".join(bad)
@@ -111,6 +113,10 @@ def test_checker_sees_both_forms():
         "a.__dict__\n"
     )
     got = crossings(src, "pkg.c", False, known)
-    assert got == [(1, "pkg.a", "_x"), (4, "pkg.b", "_self_ok"), (5, "pkg.a", "_z"),
-                   (6, "pkg.b", "_w")]
+    assert got == [
+        (1, "pkg.a", "_x"),
+        (4, "pkg.b", "_self_ok"),
+        (5, "pkg.a", "_z"),
+        (6, "pkg.b", "_w"),
+    ]
     assert crossings("from ._q import f\n", "pkg.c", False, {"pkg", "pkg._q"}) == []

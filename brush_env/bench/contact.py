@@ -34,10 +34,10 @@ from ..motion import R0
 from .harness import (
     COLD_CONTACT,
     best_of,
-    print_cold_start,
     cold_start,
     emit,
     markdown_table,
+    print_cold_start,
     print_machine,
 )
 
@@ -342,9 +342,7 @@ def _grid_row(args, setting, motion, refs, grid: np.ndarray) -> dict:
     run = best_of(args, lambda: simulate_contact(bodies, dt, integ, tt, *motion))
     row = _contact_row(run, bodies, dt, integ, tt, contact_errors(run, ref, grid))
     ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
-    row["rms_force_error_same_bodies"] = (
-        contact_errors(run, same, grid)[0] if ok_same else math.nan
-    )
+    row["rms_force_error_same_bodies"] = contact_errors(run, same, grid)[0] if ok_same else math.nan
     if ref.status != "ok":
         row["error_window_s"] = float(ref.t[-1])
     return row

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion import R0
-from .harness import REF_RTOL, best_of, print_cold_start, cold_start, markdown_table, open_log
+from .harness import REF_RTOL, best_of, cold_start, markdown_table, open_log, print_cold_start
 
 P0 = np.array([0.0, 0.0, 10.0])  # [mm]
 

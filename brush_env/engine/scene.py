@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
+from ..geometry.sdf_bake import bake_mesh_cached
 from .checks import Limit, check_keys, check_real
 from .config import BrushConfig, ConfigError, configs_dir, load_brush
-from ..geometry.sdf_bake import bake_mesh_cached
 
 
 @dataclass(frozen=True)
@@ -408,6 +408,11 @@ def tooth_row_surfaces(
 def surface_labels(scene) -> list[str]:
     """Label of each surface of ``scene`` (its kind where it has none)."""
     return [getattr(s, "label", type(s).__name__.lower()) for s in scene.surfaces]
+
+
+def tooth_surfaces(scene) -> list:
+    """The crowns of a scene: its SDF mesh surfaces labelled ``tooth:...``."""
+    return [s for s in scene.surfaces if isinstance(s, MeshSurface) and s.label.startswith("tooth")]
 
 
 def with_mesh(scene, path, units="mm", cell=0.15, band=1.0) -> Scene:

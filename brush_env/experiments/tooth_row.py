@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..coverage import EffectiveSweep, crown_samples, gum_force
 from ..engine import SimSettings, SimulationDivergence, Simulator
 from ..engine.fidelity import load_fidelity
-from ..engine.scene import surface_labels, with_mesh
-from ..engine.scrub import crown_samples, tooth_surfaces
+from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled
 from ..motion import R0, Approach, Hold, Press, Sequence
 from .plan import resolve_scene
@@ -151,8 +151,7 @@ def run_tooth_row(
     tips_t, tips_p, tips_f = [], [], []
     status, message = "ok", None
     sim.reset(P[0], Rs[0])
-    prev_eff = np.zeros(sim.model.n_bristles, bool)
-    prev_cp = np.zeros((sim.model.n_bristles, 3))
+    sweep = EffectiveSweep(sim.model.n_bristles, TIP_WINDOW)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -169,8 +168,7 @@ def run_tooth_row(
             break
         iterations += out.iterations
         f = out.tip_normal_force
-        surf = out.extra["tip_surface"]
-        fg = float(f[(surf >= 0) & gum[np.maximum(surf, 0)]].sum()) if gum.any() else 0.0
+        fg = gum_force(out, gum)
         ph = int(np.searchsorted(phases, times[k], side="right") - 1)
         rows[k] = (
             times[k],
@@ -183,12 +181,9 @@ def run_tooth_row(
             out.tip_penetration.max(),
         )
         if cov is not None:
-            eff = out.tip_in_contact & (f >= TIP_WINDOW[0]) & (f <= TIP_WINDOW[1])
-            if eff.any():
-                cp = out.tip_contact_point[eff]
-                cov.stamp(np.where(prev_eff[eff][:, None], prev_cp[eff], cp), cp)
-                prev_cp[eff] = cp
-            prev_eff = eff
+            seg = sweep.segments(out)
+            if seg is not None:
+                cov.stamp(*seg)
         if k % stride == 0:
             tips_t.append(times[k])
             tips_p.append(out.tip_pos.copy())

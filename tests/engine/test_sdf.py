@@ -17,10 +17,10 @@ import pytest
 from scipy.optimize import minimize
 
 from brush_env.engine import ConfigError, Scene, SimSettings, Simulator, load_scene, sdf
-from brush_env.geometry import sdf_bake, teeth
 from brush_env.engine import contact as ct
 from brush_env.engine import records as rec
 from brush_env.engine.scene import Capsule, Cylinder, Ellipsoid, MeshSurface, Sphere
+from brush_env.geometry import sdf_bake, teeth
 
 from .test_contact import R0, one_bristle
 
