@@ -36,7 +36,8 @@ import tomllib
 
 from ..geometry.sdf_bake import bake_mesh_cached
 from .checks import Limit, check_keys, check_real
-from .config import BrushConfig, ConfigError, configs_dir, load_brush
+from .config import BrushConfig, ConfigError, load_brush
+from .config_files import resolve_config
 
 
 @dataclass(frozen=True)
@@ -241,13 +242,7 @@ class Scene:
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
     """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the
     file's."""
-    p = (
-        Path(path_or_name)
-        if path_or_name and ("/" in str(path_or_name) or str(path_or_name).endswith(".toml"))
-        else configs_dir() / "scenes" / f"{path_or_name or 'flat_plate'}.toml"
-    )
-    if not p.exists():
-        raise ConfigError(f"scene {str(path_or_name)!r}: no such file {p}")
+    p = resolve_config("scene", path_or_name)
     data = tomllib.loads(p.read_text())
     check_keys(str(p), data, ("name", "brush", "tip_tip", "surface", "contact"))
     table = data.get("contact", {})

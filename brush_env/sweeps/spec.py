@@ -45,7 +45,7 @@ import numpy as np
 import tomllib
 
 from ..engine.checks import ConfigError, did_you_mean
-from ..engine.config import configs_dir
+from ..engine.config_files import materials_path, resolve_config
 
 MOTIONS = ("circle", "press", "pitch")
 #: run_reference keywords a spec may vary or set, with their units
@@ -152,13 +152,7 @@ def _fail(path, where, msg):
 
 def load_spec(path) -> SweepSpec:
     """Parse and check a spec (module docstring); nothing is run."""
-    path = Path(path)
-    if not path.is_file():
-        alt = configs_dir() / "sweeps" / f"{path}.toml"
-        if alt.is_file():
-            path = alt
-        else:
-            raise ConfigError(f"sweep spec {str(path)!r}: no such file")
+    path = resolve_config("sweep", path)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
@@ -274,20 +268,16 @@ def _sample(path, method, sample, params, seed) -> np.ndarray:
 
 def base_tables(path, data) -> dict:
     """The dicts the keys point into: brush file, its material entry, scene file."""
-    from ..engine.config import _brush_path
-
-    brush_path = _brush_path(data.get("brush", "default"))
-    brush = tomllib.loads(Path(brush_path).read_text())
+    brush_path = resolve_config("brush", data.get("brush", "default"))
+    brush = tomllib.loads(brush_path.read_text())
     mfile = brush.get("materials_file")
-    mpath = (Path(brush_path).parent / mfile) if mfile else configs_dir() / "materials.toml"
+    mpath = materials_path(brush_path.parent / mfile if mfile else None)
     materials = tomllib.loads(mpath.read_text())
     mat = materials.get(brush.get("material", ""), {})
-    scene = data.get("scene", "flat_plate")
-    spath = (
-        Path(scene) if str(scene).endswith(".toml") else configs_dir() / "scenes" / f"{scene}.toml"
-    )
-    if not spath.is_file():
-        _fail(path, "scene", f"{scene!r}: no such scene file {spath}")
+    try:
+        spath = resolve_config("scene", data.get("scene", "flat_plate"))
+    except ConfigError as e:
+        _fail(path, "scene", str(e))
     return {
         "brush": brush,
         "material": mat,
