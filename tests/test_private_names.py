@@ -63,22 +63,20 @@ def _private_module(target: str, mod: str) -> bool:
     return False
 
 
-def crossings(source: str, mod: str, is_pkg: bool, known: set[str]) -> list[tuple[int, str, str]]:
-    """(line, imported module, private name) of every private name ``source`` takes from
-    another module of ``known`` (name ``"<module>"``: the import of a private module from
-    outside its package)."""
-    tree = ast.parse(source)
-    alias: dict[str, str] = {}  # local name -> module it stands for
-    out = []
+def _imports(tree, mod, is_pkg, known, out) -> dict[str, str]:
+    """Record private names taken by import statements in ``out``; returns the local names that
+    stand for modules of ``known`` (``import a.b``, ``from a import b``, ``as`` names)."""
+    alias: dict[str, str] = {}
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
-                if a.name in known and _private_module(a.name, mod):
+                if a.name not in known:
+                    continue
+                if _private_module(a.name, mod):
                     out.append((node.lineno, a.name, "<module>"))
-                if a.name in known:
-                    alias[a.asname or a.name.split(".")[0]] = (
-                        a.name if a.asname else a.name.split(".")[0]
-                    )
+                alias[a.asname or a.name.split(".")[0]] = (
+                    a.name if a.asname else a.name.split(".")[0]
+                )
         elif isinstance(node, ast.ImportFrom):
             target = _resolve(node, mod, is_pkg)
             if target in known and _private_module(target, mod):
@@ -87,21 +85,37 @@ def crossings(source: str, mod: str, is_pkg: bool, known: set[str]) -> list[tupl
                 sub = f"{target}.{a.name}"
                 if sub in known:  # a module: from pkg import module (as m)
                     alias[a.asname or a.name] = sub
-                    if _private(a.name) and sub != mod:
-                        out.append((node.lineno, target, a.name))
+                    if _private_module(sub, mod):
+                        out.append((node.lineno, sub, "<module>"))
                 elif _private(a.name) and target in known and target != mod:
                     out.append((node.lineno, target, a.name))
+    return alias
+
+
+def _attributes(tree, mod, known, alias, out) -> None:
+    """Record ``module._name`` attribute uses (through the local module names) in ``out``."""
     for node in ast.walk(tree):
-        if isinstance(node, ast.Attribute) and _private(node.attr):
-            chain = []
-            v: ast.AST = node.value
-            while isinstance(v, ast.Attribute):
-                chain.append(v.attr)
-                v = v.value
-            if isinstance(v, ast.Name) and v.id in alias:
-                target = ".".join([alias[v.id], *reversed(chain)])
-                if target in known and target != mod:
-                    out.append((node.lineno, target, node.attr))
+        if not (isinstance(node, ast.Attribute) and _private(node.attr)):
+            continue
+        chain = []
+        v: ast.AST = node.value
+        while isinstance(v, ast.Attribute):
+            chain.append(v.attr)
+            v = v.value
+        if isinstance(v, ast.Name) and v.id in alias:
+            target = ".".join([alias[v.id], *reversed(chain)])
+            if target in known and target != mod:
+                out.append((node.lineno, target, node.attr))
+
+
+def crossings(source: str, mod: str, is_pkg: bool, known: set[str]) -> list[tuple[int, str, str]]:
+    """(line, imported module, private name) of every private name ``source`` takes from
+    another module of ``known`` (name ``"<module>"``: the import of a private module from
+    outside its package)."""
+    tree = ast.parse(source)
+    out: list[tuple[int, str, str]] = []
+    alias = _imports(tree, mod, is_pkg, known, out)
+    _attributes(tree, mod, known, alias, out)
     return sorted(set(out))
 
 
@@ -138,7 +152,7 @@ def test_checker_sees_both_forms():
         "from pkg.a import _x, y, __all__\n"
         "from . import a\n"
         "import pkg.b\n"
-        "from .b import _self_ok\n"
+        "from .b import _y\n"
         "a._z\n"
         "pkg.b._w\n"
         "a.__dict__\n"
@@ -146,7 +160,7 @@ def test_checker_sees_both_forms():
     got = crossings(src, "pkg.c", False, known)
     assert got == [
         (1, "pkg.a", "_x"),
-        (4, "pkg.b", "_self_ok"),
+        (4, "pkg.b", "_y"),
         (5, "pkg.a", "_z"),
         (6, "pkg.b", "_w"),
     ]
