@@ -18,7 +18,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -88,7 +88,10 @@ LIMITS: dict[str, Limit] = {
 _PARALLEL_TOL = 1e-6
 
 
-def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
+Vec3 = tuple[float, float, float]
+
+
+def _frame(path: str, axis: Any, width_dir: Any) -> tuple[Vec3, Vec3]:
     """Unit bristle axis and width direction (Gram-Schmidt against the axis)."""
     a = check_unit(f"{path}.axis", axis)
     w = check_unit(f"{path}.width_dir", width_dir)
@@ -98,7 +101,7 @@ def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tup
             f"{path}.width_dir = {list(width_dir)!r} is invalid: must not be parallel to "
             f"axis = {list(axis)!r} (need |sin(angle)| > {_PARALLEL_TOL:g})"
         )
-    return tuple(a.tolist()), tuple((w / np.linalg.norm(w)).tolist())
+    return cast(Vec3, tuple(a.tolist())), cast(Vec3, tuple((w / np.linalg.norm(w)).tolist()))
 
 
 def _set(obj: Any, **fields: Any) -> None:
@@ -257,7 +260,7 @@ class BristleConfig:
 
 
 def _tip_limit(length: float) -> Limit:
-    return replace(LIMITS["tip_radius"], le=min(LIMITS["tip_radius"].le, length))
+    return replace(LIMITS["tip_radius"], le=min(cast(float, LIMITS["tip_radius"].le), length))
 
 
 def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -495,7 +498,7 @@ def _brush(t: Table, materials: dict[str, Material], source: str) -> BrushConfig
     return BrushConfig(
         name,
         head_offset,
-        tuple(math.radians(a) for a in head_rpy),
+        cast(Vec3, tuple(math.radians(a) for a in head_rpy)),
         tuple(bristles),
         source,
         math.radians(lean),

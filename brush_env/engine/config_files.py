@@ -10,6 +10,7 @@ names.  ``configs_dir()`` is ``$BRUSH_ENV_CONFIGS`` if set, else the repository'
 
 from __future__ import annotations
 
+import builtins
 import os
 import re
 from collections.abc import Mapping
@@ -146,19 +147,26 @@ class Table:
             raise ConfigError(f"{self.path}: missing required key {key!r} ({expected})")
         return default
 
-    def num(self, key: str, limit: Limit, default: Any = REQUIRED) -> float:
+    # the readers return None only when the caller's default is None, hence ``Any``
+    def num(self, key: str, limit: Limit, default: Any = REQUIRED) -> Any:
         v = self.get(key, default, f"a number that {limit.describe()}")
         return v if v is None else check_real(self.key(key), v, limit)
 
-    def int(self, key: str, limit: Limit, default: Any = REQUIRED) -> int:
+    def int(self, key: str, limit: Limit, default: Any = REQUIRED) -> Any:
         v = self.get(key, default, f"an integer that {limit.describe()}")
         return v if v is None else check_int(self.key(key), v, limit)
 
-    def vec(self, key: str, n: int, limit: Limit, default: Any = REQUIRED) -> tuple[float, ...]:
+    def vec(self, key: str, n: builtins.int, limit: Limit, default: Any = REQUIRED) -> Any:
         v = self.get(key, default, f"a list of {n} numbers ({limit.unit})")
         return v if v is None else check_vec(self.key(key), v, n, limit)
 
-    def str(self, key: str, default: Any = REQUIRED, choices: Any = None, what: str = "") -> str:
+    def str(
+        self,
+        key: builtins.str,
+        default: Any = REQUIRED,
+        choices: Any = None,
+        what: builtins.str = "",
+    ) -> Any:
         v = self.get(key, default, "a string" + (f" ({what})" if what else ""))
         if v is None:
             return v

@@ -393,7 +393,10 @@ def tooth_row_surfaces(
     from ..geometry import teeth as tt
 
     specs = tt.row_specs(teeth, gap_mm)
-    out = [MeshSurface(*tt.tooth_mesh(s), cell, band, f"tooth:{s.name}") for s in specs]
+    out: list = []
+    for s in specs:
+        V, T = tt.tooth_mesh(s)
+        out.append(MeshSurface(V, T, cell, band, f"tooth:{s.name}"))
     if gum:
         a, b, r = tt.gum_capsule(specs, gum_radius)
         out.append(Capsule(a, b, r, "gum"))

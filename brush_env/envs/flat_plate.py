@@ -157,6 +157,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -263,7 +264,7 @@ class BrushEnv(gym.Env):
         self._chain_idx = np.minimum(
             model.bstart[:-1, None] + np.arange(k)[None, :], model.bstart[1:, None] - 1
         )
-        self._renderer = None
+        self._renderer: Any = None  # a Renderer (or ToothRow-v0's FrameWindow), made on first use
         self._horizon = cfg.max_episode_steps
         self._started = False
         self._done = False
@@ -543,6 +544,7 @@ class BrushEnv(gym.Env):
         if not self._started:
             raise RuntimeError("call reset() before render()")
         out, st, m = self._last, self.sim.state, self.sim.model
+        assert st is not None  # reset() ran
         roots = self._p + m.root_p @ self._R.T
         chains = np.concatenate(
             [roots[:, None], st.pos[self._chain_idx], out.tip_pos[:, None]], axis=1

@@ -115,6 +115,7 @@ class ToothRowEnv(BrushEnv):
         if not self._started:
             raise RuntimeError("call reset() before render()")
         out, st = self._last, self.sim.state
+        assert st is not None  # reset() ran
         m = self.sim.model
         roots = self._p + m.root_p @ self._R.T
         chains = np.concatenate(

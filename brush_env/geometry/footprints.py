@@ -23,7 +23,9 @@ def min_root_gap(bristles) -> tuple[float, int, int]:
     (``bristles``: ``BristleConfig``s; see ``BrushConfig.min_root_gap``)."""
     n = len(bristles)
     centres = np.array([b.root[:2] for b in bristles])
-    corners, radii, normals = [], [], []
+    corners: list = []
+    radii: list = []
+    normals: list = []
     for b in bristles:
         w, t = np.asarray(b.width_dir)[:2], np.asarray(b.thickness_dir)[:2]
         if b.section.kind == "rect":
@@ -36,7 +38,7 @@ def min_root_gap(bristles) -> tuple[float, int, int]:
             radii.append(b.section.width / 2)
             normals.append(np.eye(2))
     poly = centres[:, None, :] + np.array(corners)  # (n, 4, 2)
-    radii, normals = np.array(radii), np.array(normals)  # (n,), (n, 2, 2)
+    rad, nrm = np.array(radii), np.array(normals)  # (n,), (n, 2, 2)
     best = (math.inf, -1, -1)
     for i in range(n - 1):
         j = np.arange(i + 1, n)
@@ -44,12 +46,12 @@ def min_root_gap(bristles) -> tuple[float, int, int]:
         dn = np.linalg.norm(d, axis=1, keepdims=True)
         line = np.where(dn > 1e-12, d / np.maximum(dn, 1e-12), [1.0, 0.0])
         axes = np.concatenate(
-            [np.broadcast_to(normals[i], (len(j), 2, 2)), normals[j], line[:, None, :]], axis=1
+            [np.broadcast_to(nrm[i], (len(j), 2, 2)), nrm[j], line[:, None, :]], axis=1
         )  # (m, 5, 2)
         pi = np.einsum("vd,mad->mav", poly[i], axes)
         pj = np.einsum("mvd,mad->mav", poly[j], axes)
-        lo_i, hi_i = pi.min(-1) - radii[i], pi.max(-1) + radii[i]
-        lo_j, hi_j = pj.min(-1) - radii[j, None], pj.max(-1) + radii[j, None]
+        lo_i, hi_i = pi.min(-1) - rad[i], pi.max(-1) + rad[i]
+        lo_j, hi_j = pj.min(-1) - rad[j, None], pj.max(-1) + rad[j, None]
         gap = np.maximum(lo_j - hi_i, lo_i - hi_j).max(axis=1)
         k = int(np.argmin(gap))
         if gap[k] < best[0]:

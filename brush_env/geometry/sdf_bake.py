@@ -177,7 +177,7 @@ def bake_mesh(vertices, triangles, cell: float = 0.2, band: float = 1.0) -> SdfG
     deep = ~known & ~outside
     if deep.any():
         dist[deep] = -band - cell * ndimage.distance_transform_edt(deep)[deep]
-        g = np.stack(np.gradient(dist, cell), axis=-1)
+        g = np.stack(list(np.gradient(dist, cell)), axis=-1)
         gn = np.linalg.norm(g, axis=-1)
         ok = deep & (gn > 1e-12)
         nrm[ok] = g[ok] / gn[ok][:, None]
