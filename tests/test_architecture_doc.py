@@ -78,3 +78,12 @@ def test_package_map_names_real_modules():
 def test_every_module_is_in_the_package_map():
     absent = sorted(str(p.relative_to(ROOT)) for p in package_modules() - listed_modules())
     assert absent == [], f"modules missing from docs/architecture.md's package map: {absent}"
+
+
+def test_ci_runs_the_readme_test_command():
+    """.ci/run's last command is the README's test command (the install line's tail)."""
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    readme = (ROOT / "README.md").read_text()
+    assert ci.startswith("ruff check . && ") and "python -m mypy" in ci
+    assert f'pip install -e ".[rl,test,cluster]" && {ci}\n' in readme
+    assert f"`{ci}`" in readme  # the Tests table's full tier
