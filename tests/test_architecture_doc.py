@@ -1,5 +1,5 @@
-"""docs/architecture.md: every `file:function` of the equation table exists, and every module of
-the package map is a real file."""
+"""docs/architecture.md: every `file:function` of the equation table exists, every module of the
+package map is a real file, and every module of brush_env/ and agents/ is in the map."""
 
 from __future__ import annotations
 
@@ -38,13 +38,52 @@ def test_equation_table_points_at_real_functions():
         assert name in _defined(ROOT / path), f"{path}:{name} not defined"
 
 
+def _map_rows() -> list[str]:
+    """The file cells of the package map: ``| `engine/checks.py` | ...`` (several per cell as
+    `` `a.py`, `b.py` `` or ``{a,b}.py``)."""
+    section = DOC.split("## Package map", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"^\| (`[^|]+`) \|", section, re.M)
+
+
+def listed_modules() -> set[Path]:
+    """The files the package map names (paths relative to brush_env/, except agents/...)."""
+    out = set()
+    for cell in _map_rows():
+        for item in re.findall(r"`([^`]+)`", cell):
+            folder, _, rest = item.rpartition("/")
+            braces = re.fullmatch(r"\{([\w,]+)\}\.py", rest)
+            names = braces.group(1).split(",") if braces else [rest.removesuffix(".py")]
+            base = ROOT if folder.split("/")[0] == "agents" else ROOT / "brush_env"
+            out |= {base / folder / f"{n}.py" for n in names}
+    return out
+
+
+def package_modules() -> set[Path]:
+    """Every module of brush_env/ and agents/ (package ``__init__.py`` files may be left out)."""
+    return {
+        p
+        for pkg in ("brush_env", "agents")
+        for p in (ROOT / pkg).rglob("*.py")
+        if p.name != "__init__.py"
+    }
+
+
 def test_package_map_names_real_modules():
-    rows = re.findall(
-        r"^\| `((?:engine|motion|experiments|validation|bench|envs)/[^`]+)` \|", DOC, re.M
-    )
-    assert len(rows) >= 20
-    for row in rows:
-        folder = row.split("/")[0]
-        for part in re.findall(r"\{([\w,]+)\}\.py|([\w]+)\.py", row):
-            for name in part[0].split(",") if part[0] else [part[1]]:
-                assert (ROOT / "brush_env" / folder / f"{name}.py").is_file(), row
+    listed = listed_modules()
+    assert len(listed) >= 40
+    missing = sorted(str(p.relative_to(ROOT)) for p in listed if not p.is_file())
+    assert missing == [], f"the package map names files that do not exist: {missing}"
+
+
+def test_every_module_is_in_the_package_map():
+    absent = sorted(str(p.relative_to(ROOT)) for p in package_modules() - listed_modules())
+    assert absent == [], f"modules missing from docs/architecture.md's package map: {absent}"
+
+
+def test_ci_runs_the_readme_test_command():
+    """.ci/run's last command is the README's test command (the install line's tail)."""
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    readme = (ROOT / "README.md").read_text()
+    assert ci.startswith("ruff check . && ") and "python -m mypy" in ci
+    assert f'pip install -e ".[rl,test,cluster]" && {ci}\n' in readme
+    assert f"`{ci}`" in readme  # the Tests table's full tier

@@ -8,6 +8,11 @@ function-level imports included: a lazy upward import is still an upward import)
   experiments (and the old single-module ``experiment``), bench, validation, envs, cli, agents,
   nor gymnasium / torch / matplotlib / stable_baselines3.
 * ``brush_env.motion`` (robot trajectories) imports none of those either (except the engine).
+* ``brush_env.geometry`` (tooth crowns, mesh files, SDF baking) sits beside the engine: the engine
+  may import it; it imports none of the layers above the engine, nor ``brush_env.coverage``, nor
+  gymnasium / torch / matplotlib.
+* ``brush_env.coverage`` (what the tips cleaned; envs and experiments use it) imports nothing
+  above the engine and geometry, and the engine does not import it.
 * ``brush_env.envs`` imports no agents and nothing of the rooms above it (cli, bench,
   experiments, validation).
 * no module of ``brush_env`` imports ``agents`` (agents sit on top);
@@ -29,6 +34,7 @@ import pytest
 PKG_DIR = Path(__file__).resolve().parents[1] / "brush_env"
 
 ABOVE_ENGINE = (
+    "brush_env.coverage",
     "brush_env.motion",
     "brush_env.experiments",
     "brush_env.experiment",
@@ -44,6 +50,9 @@ NO_ML_OR_PLOTS = ("gymnasium", "torch", "matplotlib", "stable_baselines3")
 RULES = {
     "brush_env.engine": ABOVE_ENGINE + NO_ML_OR_PLOTS,
     "brush_env.motion": tuple(p for p in ABOVE_ENGINE if p != "brush_env.motion") + NO_ML_OR_PLOTS,
+    "brush_env.geometry": ABOVE_ENGINE + NO_ML_OR_PLOTS,
+    "brush_env.coverage": tuple(p for p in ABOVE_ENGINE if p != "brush_env.coverage")
+    + NO_ML_OR_PLOTS,
     "brush_env.envs": (
         "agents",
         "brush_env.cli",
@@ -175,6 +184,15 @@ def test_the_walk_sees_the_package():
     sim = {n for n, _, _ in graph["brush_env.engine.simulator"]}
     assert "brush_env.engine.step" in sim  # from . import step as itg
     assert "brush_env.engine.rotation" in sim  # from .rotation import pose_ok
+
+
+def test_the_engine_may_use_geometry_and_geometry_stays_below_the_rooms():
+    graph = import_graph()
+    scene = {n for n, _, _ in graph["brush_env.engine.scene"]}
+    assert "brush_env.geometry.sdf_bake" in scene  # the engine imports geometry (allowed edge)
+    assert "brush_env.geometry" not in RULES["brush_env.engine"]
+    for room in ("brush_env.envs", "brush_env.experiments", "brush_env.coverage"):
+        assert room in RULES["brush_env.geometry"]
 
 
 def test_layers_import_nothing_from_above():

@@ -32,12 +32,12 @@ import numpy as np
 
 from ..motion import R0
 from .harness import (
-    _COLD_CONTACT,
-    _best_of,
-    _print_cold_start,
+    COLD_CONTACT,
+    best_of,
     cold_start,
     emit,
     markdown_table,
+    print_cold_start,
     print_machine,
 )
 
@@ -117,7 +117,7 @@ def simulate_contact(
     from dataclasses import replace
 
     from ..engine import SimSettings, SimulationDivergence, Simulator, load_scene
-    from ..experiments.plan import _plate_height
+    from ..experiments.plan import plate_height
 
     if sim_settings is None:
         extra = {} if element is None else {"element": element}
@@ -129,7 +129,7 @@ def simulate_contact(
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     sim = Simulator(scene, sim_settings)
-    touch_z = sim.touch_height(R0, _plate_height(scene))
+    touch_z = sim.touch_height(R0, plate_height(scene))
     traj, starts = _press_and_circle(touch_z, press, hold)
     t_circle = starts[-1]
     n = int(round((t_circle + arc) / dt))
@@ -201,7 +201,7 @@ def _on_grid(grid: np.ndarray, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(grid, t, Y[:, c]) for c in range(3)], axis=1)
 
 
-def _contact_errors(run: ContactRun, ref: ContactRun, grid: np.ndarray) -> tuple[float, float]:
+def contact_errors(run: ContactRun, ref: ContactRun, grid: np.ndarray) -> tuple[float, float]:
     """(whole run, circle only): RMS_t |F - F_ref| / RMS_t |F_ref| on ``grid``; NaN if ``run``
     diverged (even after the end of the grid, when the reference itself stopped earlier)."""
     if run.status != "ok" or run.t[-1] < grid[-1] - 1e-9:
@@ -235,7 +235,7 @@ def _contact_row(run: ContactRun, bodies, dt, integ, tip_tip, errs, reference=Fa
     }
 
 
-def _arc_seconds(g: dict) -> float:
+def arc_seconds(g: dict) -> float:
     """``g['arc']`` [s], or for "turn" the whole circle (ramps included) rounded up to a multiple
     of 4 ms, so that every dt of the grid ends on the same time."""
     if g["arc"] != "turn":
@@ -248,7 +248,7 @@ def bench_contact(args) -> int:
     """``brush-env bench contact``: the references, then the grid against them (rows as JSON
     lines with ``--json``, else a table); see the module docstring."""
     g = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
-    g = dict(g, arc=_arc_seconds(g))
+    g = dict(g, arc=arc_seconds(g))
     log = sys.stderr if args.json else sys.stdout
     cold = _warm_up(args, log)
     motion = (g["press"], g["hold"], g["arc"])
@@ -257,7 +257,7 @@ def bench_contact(args) -> int:
     rows = []
     for tt, ref in refs.items():
         rows += _tip_tip_rows(args, g, tt, ref, motion, log)
-    _print_cold_start(cold, log, " (flat_plate scene)")
+    print_cold_start(cold, log, " (flat_plate scene)")
     if not args.json:
         print(format_contact_table(rows))
     return 0
@@ -271,8 +271,8 @@ def _warm_up(args, log) -> dict:
     if args.quick or args.no_cold_start:
         return {}
     return {
-        "compile (empty numba cache)": cold_start(True, _COLD_CONTACT),
-        "cache load": cold_start(False, _COLD_CONTACT),
+        "compile (empty numba cache)": cold_start(True, COLD_CONTACT),
+        "cache load": cold_start(False, COLD_CONTACT),
     }
 
 
@@ -346,12 +346,10 @@ def _grid_row(args, setting, motion, refs, grid: np.ndarray) -> dict:
     bodies, dt, integ, tt = setting
     ref, same = refs
     print(f"  {bodies} bodies, dt={dt:g}, {integ}, tip_tip={tt} ...", file=sys.stderr, flush=True)
-    run = _best_of(args, lambda: simulate_contact(bodies, dt, integ, tt, *motion))
-    row = _contact_row(run, bodies, dt, integ, tt, _contact_errors(run, ref, grid))
+    run = best_of(args, lambda: simulate_contact(bodies, dt, integ, tt, *motion))
+    row = _contact_row(run, bodies, dt, integ, tt, contact_errors(run, ref, grid))
     ok_same = same.status == "ok" and same.t[-1] >= grid[-1] - 1e-9
-    row["rms_force_error_same_bodies"] = (
-        _contact_errors(run, same, grid)[0] if ok_same else math.nan
-    )
+    row["rms_force_error_same_bodies"] = contact_errors(run, same, grid)[0] if ok_same else math.nan
     if ref.status != "ok":
         row["error_window_s"] = float(ref.t[-1])
     return row

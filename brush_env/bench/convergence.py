@@ -16,8 +16,8 @@ import numpy as np
 from .contact import (
     CONTACT_GRID_FULL,
     CONTACT_GRID_QUICK,
-    _arc_seconds,
-    _contact_errors,
+    arc_seconds,
+    contact_errors,
     simulate_contact,
 )
 from .harness import markdown_table, open_log
@@ -36,7 +36,7 @@ def bench_convergence(args) -> int:
     discretisation's."""
     g = CONVERGENCE_GRID_QUICK if args.quick else CONVERGENCE_GRID_FULL
     c = CONTACT_GRID_QUICK if args.quick else CONTACT_GRID_FULL
-    c = dict(c, arc=_arc_seconds(c))
+    c = dict(c, arc=arc_seconds(c))
     motion = (c["press"], c["hold"], c["arc"])
     open_log(args)
     rows = []
@@ -59,7 +59,7 @@ def bench_convergence(args) -> int:
         grid = np.arange(0.0, ref.t[-1] + 1e-12, c["sample"])
         for k in keys:
             run = runs[k]
-            whole, circ = _contact_errors(run, ref, grid) if k != finest else (0.0, 0.0)
+            whole, circ = contact_errors(run, ref, grid) if k != finest else (0.0, 0.0)
             row = {
                 "series": kind,
                 "bodies": k[1],

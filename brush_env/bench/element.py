@@ -29,11 +29,11 @@ import numpy as np
 from .contact import (
     CONTACT_GRID_FULL,
     CONTACT_GRID_QUICK,
-    _arc_seconds,
+    arc_seconds,
     simulate_contact,
     warm_kernels,
 )
-from .harness import _best_of, emit, machine_info, markdown_table, open_log
+from .harness import best_of, emit, machine_info, markdown_table, open_log
 
 REFERENCE_FILE = (
     Path(__file__).resolve().parents[2] / "tests" / "data" / "flat_plate_turn_reference.npz"
@@ -50,7 +50,7 @@ SAMPLE = 5e-3  # [s] comparison grid
 
 def _motion(quick: bool):
     g = dict(CONTACT_GRID_QUICK if quick else CONTACT_GRID_FULL)
-    return g["press"], g["hold"], _arc_seconds(g)
+    return g["press"], g["hold"], arc_seconds(g)
 
 
 def load_reference(path: Path = REFERENCE_FILE) -> dict:
@@ -135,7 +135,7 @@ def bench_element(args) -> int:
         for bodies in g["bodies"]:
             for dt in g["dts"]:
                 print(f"  {element}, {bodies} bodies, dt={dt:g} ...", file=sys.stderr, flush=True)
-                run = _best_of(
+                run = best_of(
                     args,
                     lambda e=element, b=bodies, h=dt: simulate_contact(
                         b, h, "bdf2", True, *motion, element=e, **COUPLED

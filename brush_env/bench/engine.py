@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion import R0
-from .harness import REF_RTOL, _best_of, _print_cold_start, cold_start, markdown_table, open_log
+from .harness import REF_RTOL, best_of, cold_start, markdown_table, open_log, print_cold_start
 
 P0 = np.array([0.0, 0.0, 10.0])  # [mm]
 
@@ -144,7 +144,7 @@ def bench_engine(args) -> int:
     for bodies in g["bodies"]:
         for dt in g["dts"]:
             for integ in ("euler", "bdf2"):
-                run = _best_of(
+                run = best_of(
                     args, lambda b=bodies, d=dt, i=integ: simulate(b, d, i, g["duration"])
                 )
                 ef, em = _rel_rms(run, ref, grid)
@@ -173,7 +173,7 @@ def bench_engine(args) -> int:
         f"{np.sqrt(np.mean(np.sum((yr - ref.F[0]) ** 2, axis=1))):.3e} N"
     )
     print(summary, file=log)
-    _print_cold_start(cold, log)
+    print_cold_start(cold, log)
     if not args.json:
         print(format_table(rows))
     return 0

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact import CONTACT_GRID_FULL, _arc_seconds, simulate_contact, warm_kernels
+from .contact import CONTACT_GRID_FULL, arc_seconds, simulate_contact, warm_kernels
 from .harness import emit, machine_info, markdown_table, open_log
 
 SAMPLE = 5e-3  # [s] comparison grid of (a)
@@ -50,7 +50,7 @@ def turn_run(level, quick: bool = False) -> dict:
     # the level's own SimSettings, stepped at its solver step (no split)
     settings = level_settings(fid, dt=fid.max_substep)
     g = dict(CONTACT_GRID_FULL)
-    press, hold, arc = (0.1, 0.0, 0.06) if quick else (g["press"], g["hold"], _arc_seconds(g))
+    press, hold, arc = (0.1, 0.0, 0.06) if quick else (g["press"], g["hold"], arc_seconds(g))
     ts, F, fn = [], [], []
 
     def observe(t, out):

@@ -89,7 +89,7 @@ print(t1 - t0, t2 - t1)
 """
 
 
-_COLD_CONTACT = """
+COLD_CONTACT = """
 import time, numpy as np
 t0 = time.perf_counter()
 from brush_env.engine import Simulator, SimSettings, load_scene
@@ -105,7 +105,7 @@ print(t1 - t0, t2 - t1)
 def cold_start(fresh_cache: bool, script: str = _COLD) -> dict:
     """Seconds to import the engine and to build + take the first step of the default brush in a
     new interpreter; ``fresh_cache``: with an empty numba cache (full compile).  ``script``:
-    ``_COLD`` (free brush) or ``_COLD_CONTACT`` (the ``flat_plate`` scene)."""
+    ``_COLD`` (free brush) or ``COLD_CONTACT`` (the ``flat_plate`` scene)."""
     env = dict(os.environ)
     with tempfile.TemporaryDirectory() as tmp:
         if fresh_cache:
@@ -122,7 +122,7 @@ def cold_start(fresh_cache: bool, script: str = _COLD) -> dict:
 REF_RTOL = 1e-7
 
 
-def _best_of(args, make_run):
+def best_of(args, make_run):
     """Run ``make_run()`` ``--repeats`` times and keep the fastest wall time: the runs are
     deterministic (same results bit for bit), so repeating only filters the machine's timing
     noise (other processes, frequency changes; ~30 % run to run on the shared VM measured)."""
@@ -141,7 +141,7 @@ def markdown_table(rows: list[dict], columns) -> str:
     return "\n".join(lines)
 
 
-def _print_cold_start(cold: dict, log, what: str = "") -> None:
+def print_cold_start(cold: dict, log, what: str = "") -> None:
     for name, c in cold.items():
         print(
             f"cold start{what}, {name}: import {c['import_s']:.2f} s, build + first step "

@@ -33,7 +33,7 @@ HOT = dict(cache=True, _nrt=False)
 
 # --------------------------------------------------------------------------- small linear algebra
 @njit(**HOT, inline="always")
-def _log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
+def log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
     """Rotation vector of the rotation matrix given by its 9 entries, into ``out`` (no alloc)."""
     c = 0.5 * (r00 + r11 + r22 - 1.0)
     if c > 1.0:
@@ -70,9 +70,9 @@ def _log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
 
 
 @njit(**HOT)
-def _local_rot_into(R, Rn, out):
+def local_rot_into(R, Rn, out):
     """out = log(R Rn^T): world-frame rotation vector taking Rn to R."""
-    _log3s(
+    log3s(
         R[0, 0] * Rn[0, 0] + R[0, 1] * Rn[0, 1] + R[0, 2] * Rn[0, 2],
         R[0, 0] * Rn[1, 0] + R[0, 1] * Rn[1, 1] + R[0, 2] * Rn[1, 2],
         R[0, 0] * Rn[2, 0] + R[0, 1] * Rn[2, 1] + R[0, 2] * Rn[2, 2],
@@ -87,7 +87,7 @@ def _local_rot_into(R, Rn, out):
 
 
 @njit(**HOT, inline="always")
-def _rotate_left(v0, v1, v2, R, out):
+def rotate_left(v0, v1, v2, R, out):
     """out = exp([v]) @ R (Rodrigues), no allocation."""
     th2 = v0 * v0 + v1 * v1 + v2 * v2
     th = np.sqrt(th2)
@@ -143,7 +143,7 @@ def reorthonormalize(R):
 
 
 @njit(**HOT)
-def _lu6(A, piv):
+def lu6(A, piv):
     """In-place LU with partial pivoting of a 6x6 block. Returns False if singular."""
     n = 6
     for k in range(n):
@@ -171,8 +171,8 @@ def _lu6(A, piv):
 
 
 @njit(**HOT)
-def _lus6(A, piv, b):
-    """Solve in place with the factors of _lu6 (b is a 6-vector)."""
+def lus6(A, piv, b):
+    """Solve in place with the factors of lu6 (b is a 6-vector)."""
     n = 6
     for k in range(n):
         p = piv[k]
@@ -243,7 +243,7 @@ def lus_dense(A, n, piv, b):
 
 # --------------------------------------------------------------------------- beam element (eq 1-5)
 @njit(**HOT)
-def _node(c, R, half, out):
+def body_node(c, R, half, out):
     """Distal node of a body: p = c + half * R e_x."""
     out[0] = c[0] + half * R[0, 0]
     out[1] = c[1] + half * R[1, 0]
@@ -277,7 +277,7 @@ def _element_chord(aIsBase, A, pAbase, B):
 @njit(**HOT, inline="always")
 def _relative_rotation(RA, RB, out):
     """out <- log(R_A^T R_B), the element's rotation strain."""
-    _log3s(
+    log3s(
         RA[0, 0] * RB[0, 0] + RA[1, 0] * RB[1, 0] + RA[2, 0] * RB[2, 0],
         RA[0, 0] * RB[0, 1] + RA[1, 0] * RB[1, 1] + RA[2, 0] * RB[2, 1],
         RA[0, 0] * RB[0, 2] + RA[1, 0] * RB[1, 2] + RA[2, 0] * RB[2, 2],
@@ -318,7 +318,7 @@ ELEMENTS = {"paper": ELEM_PAPER, "mid": ELEM_MID}
 
 
 @njit(**HOT, inline="always")
-def _element_gen(kind, aIsBase, A, pAbase, B, K, length, damp, out12, e):
+def element_gen(kind, aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """Generalised forces of one beam element on the centres of its bodies A and B, by
     formulation ``kind``: ``ELEM_PAPER`` (``_element_paper``, eq 5) or ``ELEM_MID``
     (``_element_mid``).  Arguments as ``_element_paper``."""
@@ -545,14 +545,14 @@ def block_factor(n, D, U, L, G, piv):
     """
     if not block_factor_head(n, D, U, L, G, piv):
         return False
-    return _lu6(D[n - 1], piv[n - 1])
+    return lu6(D[n - 1], piv[n - 1])
 
 
 @njit(**HOT)
 def block_factor_head(n, D, U, L, G, piv):
     """``block_factor`` of blocks 0..n-2; D[n-1] is left as its Schur complement
     D_{n-1} - L_{n-1} G_{n-2}, not yet factored.  Blocks 0..n-2 do not depend on D_{n-1}, so a
-    change of the last diagonal block only needs ``_lu6`` of (Schur complement + change)."""
+    change of the last diagonal block only needs ``lu6`` of (Schur complement + change)."""
     for i in range(n):
         if i > 0:
             for a in range(6):
@@ -563,12 +563,12 @@ def block_factor_head(n, D, U, L, G, piv):
                     D[i, a, b] -= s
         if i == n - 1:
             return True
-        if not _lu6(D[i], piv[i]):
+        if not lu6(D[i], piv[i]):
             return False
         for b in range(6):
             for a in range(6):
                 G[i, a, b] = U[i, a, b]
-            _lus6(D[i], piv[i], G[i, :, b])
+            lus6(D[i], piv[i], G[i, :, b])
     return True
 
 
@@ -582,7 +582,7 @@ def block_solve(n, D, L, G, piv, r, x):
                 for k in range(6):
                     s -= L[i, a, k] * x[i - 1, k]
             x[i, a] = s
-        _lus6(D[i], piv[i], x[i])
+        lus6(D[i], piv[i], x[i])
     for i in range(n - 2, -1, -1):
         for a in range(6):
             s = 0.0

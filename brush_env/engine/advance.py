@@ -2,7 +2,7 @@
 
 Scheme (eq 11 in time): ``y'(t_{n+1}) ~ (c0 y_{n+1} + c1 y_n + c2 y_{n-1}) / h``, backward Euler
 ``(1, -1, 0)`` or BDF2 ``(3/2, -2, 1/2)``; ``scheme_coefficients`` is the one place that chooses
-them.  ``_advance_bristle``: Newton (``newton.py``) on the whole step, halved recursively on
+them.  ``advance_bristle``: Newton (``newton.py``) on the whole step, halved recursively on
 failure (down to h / 2**max_levels) with the base pose interpolated (linear position, geodesic
 rotation), regrown when aligned; a bristle that still fails is restored to its state at the start
 of the step and flagged NEWTON_FAILED.
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, _local_rot_into, _rotate_left
-from .newton import _newton
+from ._kernels import HOT, local_rot_into, rotate_left
+from .newton import newton_solve
 from .predict import WARM
 from .records import METHOD_BDF2, Substep
 
@@ -28,8 +28,8 @@ def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
     """Base pose at fraction s of the step: linear in position, geodesic in rotation."""
     for a in range(3):
         pout[a] = (1.0 - s) * p0[a] + s * p1[a]
-    _local_rot_into(R1, R0, tmp)  # tmp = log(R1 R0^T)
-    _rotate_left(s * tmp[0], s * tmp[1], s * tmp[2], R0, Rout)
+    local_rot_into(R1, R0, tmp)  # tmp = log(R1 R0^T)
+    rotate_left(s * tmp[0], s * tmp[1], s * tmp[2], R0, Rout)
 
 
 @njit(**HOT)
@@ -111,7 +111,7 @@ def _backup(br, chain, con, bk, save):
 
 
 @njit(**HOT, inline="always")
-def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
+def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
     """One bristle over one step h = prm.h: Newton on the whole step, halved recursively on
     failure (down to h / 2**max_levels) and regrown when aligned; restored and flagged
     NEWTON_FAILED if the smallest sub-step fails.  warm: Newton on the whole step starts from
@@ -139,7 +139,7 @@ def _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
             extrap = WARM
         elif whole and not sub.static and hist_ok > 0:
             extrap = 3 if hist_ok >= 2 else 2
-        ok, it = _newton(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap)
+        ok, it = newton_solve(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap)
         tot += it
         if ok:
             s += ds

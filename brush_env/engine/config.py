@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from ..geometry.footprints import min_root_gap
 from .checks import (
     ConfigError,
     Limit,
@@ -31,14 +30,18 @@ from .checks import (
     check_real,
     check_unit,
     check_vec,
-    did_you_mean,
     type_error,
 )
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
+from .config_files import (
+    REQUIRED,
+    Table,
+    apply_overrides,
+    configs_dir,
+    in_file,
+    materials_path,
+    read_toml,
+    resolve_config,
+)
 
 __all__ = [
     "ConfigError",
@@ -85,7 +88,10 @@ LIMITS: dict[str, Limit] = {
 _PARALLEL_TOL = 1e-6
 
 
-def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tuple[float, ...]]:
+Vec3 = tuple[float, float, float]
+
+
+def _frame(path: str, axis: Any, width_dir: Any) -> tuple[Vec3, Vec3]:
     """Unit bristle axis and width direction (Gram-Schmidt against the axis)."""
     a = check_unit(f"{path}.axis", axis)
     w = check_unit(f"{path}.width_dir", width_dir)
@@ -95,7 +101,7 @@ def _frame(path: str, axis: Any, width_dir: Any) -> tuple[tuple[float, ...], tup
             f"{path}.width_dir = {list(width_dir)!r} is invalid: must not be parallel to "
             f"axis = {list(axis)!r} (need |sin(angle)| > {_PARALLEL_TOL:g})"
         )
-    return tuple(a.tolist()), tuple((w / np.linalg.norm(w)).tolist())
+    return cast(Vec3, tuple(a.tolist())), cast(Vec3, tuple((w / np.linalg.norm(w)).tolist()))
 
 
 def _set(obj: Any, **fields: Any) -> None:
@@ -103,9 +109,7 @@ def _set(obj: Any, **fields: Any) -> None:
         object.__setattr__(obj, k, v)
 
 
-# --------------------------------------------------------------------------------------------------
-# Dataclasses
-# --------------------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------------------- dataclasses
 @dataclass(frozen=True)
 class Material:
     """Isotropic linear-elastic bristle material.
@@ -255,14 +259,8 @@ class BristleConfig:
         return tuple(np.cross(self.axis, self.width_dir).tolist())
 
 
-def _perp_unit(e: np.ndarray, fallback: tuple[float, float]) -> np.ndarray:
-    """Unit 2D normal of edge direction ``e`` (``fallback`` if the edge projects to a point)."""
-    n = float(np.linalg.norm(e))
-    return np.array([e[1], -e[0]]) / n if n > 1e-12 else np.array(fallback)
-
-
 def _tip_limit(length: float) -> Limit:
-    return replace(LIMITS["tip_radius"], le=min(LIMITS["tip_radius"].le, length))
+    return replace(LIMITS["tip_radius"], le=min(cast(float, LIMITS["tip_radius"].le), length))
 
 
 def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -371,111 +369,11 @@ class BrushConfig:
         edge normals and the centre line: exact for rectangles sharing their edge directions,
         conservative otherwise; <= 0 means the sections overlap. (inf, -1, -1) for one bristle.
         """
-        n = self.n_bristles
-        centres = np.array([b.root[:2] for b in self.bristles])
-        corners, radii, normals = [], [], []
-        for b in self.bristles:
-            w, t = np.asarray(b.width_dir)[:2], np.asarray(b.thickness_dir)[:2]
-            if b.section.kind == "rect":
-                hw, ht = b.section.width / 2 * w, b.section.thickness / 2 * t
-                corners.append([-hw - ht, hw - ht, hw + ht, -hw + ht])
-                radii.append(0.0)
-                normals.append([_perp_unit(w, (0.0, 1.0)), _perp_unit(t, (1.0, 0.0))])
-            else:
-                corners.append(np.zeros((4, 2)))
-                radii.append(b.section.width / 2)
-                normals.append(np.eye(2))
-        poly = centres[:, None, :] + np.array(corners)  # (n, 4, 2)
-        radii, normals = np.array(radii), np.array(normals)  # (n,), (n, 2, 2)
-        best = (math.inf, -1, -1)
-        for i in range(n - 1):
-            j = np.arange(i + 1, n)
-            d = centres[j] - centres[i]
-            dn = np.linalg.norm(d, axis=1, keepdims=True)
-            line = np.where(dn > 1e-12, d / np.maximum(dn, 1e-12), [1.0, 0.0])
-            axes = np.concatenate(
-                [np.broadcast_to(normals[i], (len(j), 2, 2)), normals[j], line[:, None, :]], axis=1
-            )  # (m, 5, 2)
-            pi = np.einsum("vd,mad->mav", poly[i], axes)
-            pj = np.einsum("mvd,mad->mav", poly[j], axes)
-            lo_i, hi_i = pi.min(-1) - radii[i], pi.max(-1) + radii[i]
-            lo_j, hi_j = pj.min(-1) - radii[j, None], pj.max(-1) + radii[j, None]
-            gap = np.maximum(lo_j - hi_i, lo_i - hi_j).max(axis=1)
-            k = int(np.argmin(gap))
-            if gap[k] < best[0]:
-                best = (float(gap[k]), i, int(j[k]))
-        return best
+        return min_root_gap(self.bristles)
 
 
-# --------------------------------------------------------------------------------------------------
-# TOML reading
-# --------------------------------------------------------------------------------------------------
-_REQUIRED = object()
-
-
-class _Table:
-    """A TOML table being read: knows its key path and rejects keys not in ``allowed``."""
-
-    def __init__(self, data: Any, path: str, allowed: tuple[str, ...]):
-        if not isinstance(data, dict):
-            raise type_error(path, data, "a table")
-        for key in data:
-            if key not in allowed:
-                raise ConfigError(f"{path}: unknown key {key!r} (allowed: {', '.join(allowed)})")
-        self.data, self.path = data, path
-
-    def key(self, key: str) -> str:
-        return f"{self.path}.{key}"
-
-    def get(self, key: str, default: Any, expected: str) -> Any:
-        if key in self.data:
-            return self.data[key]
-        if default is _REQUIRED:
-            raise ConfigError(f"{self.path}: missing required key {key!r} ({expected})")
-        return default
-
-    def num(self, key: str, limit: Limit, default: Any = _REQUIRED) -> float:
-        v = self.get(key, default, f"a number that {limit.describe()}")
-        return v if v is None else check_real(self.key(key), v, limit)
-
-    def int(self, key: str, limit: Limit, default: Any = _REQUIRED) -> int:
-        v = self.get(key, default, f"an integer that {limit.describe()}")
-        return v if v is None else check_int(self.key(key), v, limit)
-
-    def vec(self, key: str, n: int, limit: Limit, default: Any = _REQUIRED) -> tuple[float, ...]:
-        v = self.get(key, default, f"a list of {n} numbers ({limit.unit})")
-        return v if v is None else check_vec(self.key(key), v, n, limit)
-
-    def str(self, key: str, default: Any = _REQUIRED, choices: Any = None, what: str = "") -> str:
-        v = self.get(key, default, "a string" + (f" ({what})" if what else ""))
-        if v is None:
-            return v
-        if not isinstance(v, str):
-            raise type_error(self.key(key), v, "a string")
-        if choices is not None and v not in choices:
-            raise ConfigError(
-                f"{self.key(key)} = {v!r} is not a known {what} (known: {', '.join(choices)})"
-            )
-        return v
-
-
-def configs_dir() -> Path:
-    """The ``configs/`` directory: $BRUSH_ENV_CONFIGS if set, else the repository's ``configs/``."""
-    env = os.environ.get("BRUSH_ENV_CONFIGS")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "configs"
-
-
-def _read_toml(path: Path) -> dict:
-    with open(path, "rb") as f:
-        try:
-            return tomllib.load(f)
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError(f"{path}: invalid TOML: {e}") from None
-
-
-def _in_file(path: Path, err: ConfigError) -> ConfigError:
-    return ConfigError(f"{path}: {err}")
-
+# ------------------------------------------ TOML -> configs (files and tables: config_files.py)
+_read_toml = read_toml  # fidelity.py's name for it (it cannot import config_files on this branch)
 
 MATERIAL_KEYS = ("E_MPa", "nu", "density_t_per_mm3", "damping_ratio", "description")
 
@@ -486,16 +384,16 @@ def load_materials(path: str | os.PathLike | None = None) -> dict[str, Material]
     Each table ``[<name>]`` has E_MPa [MPa], nu [-], density_t_per_mm3 [t/mm^3], damping_ratio [-]
     and an optional description.
     """
-    path = Path(path) if path is not None else configs_dir() / "materials.toml"
-    data = _read_toml(path)
+    path = materials_path(path)
+    data = read_toml(path)
     try:
         return {name: _material(name, table) for name, table in data.items()}
     except ConfigError as e:
-        raise _in_file(path, e) from None
+        raise in_file(path, e) from None
 
 
 def _material(name: str, data: Any) -> Material:
-    t = _Table(data, f"material {name!r}", MATERIAL_KEYS)
+    t = Table(data, f"material {name!r}", MATERIAL_KEYS)
     return Material(
         name=name,
         E=t.num("E_MPa", LIMITS["E"]),
@@ -545,20 +443,20 @@ def load_brush(
     as nested tables and/or dotted keys, e.g. ``{"bodies_per_bristle": 3,
     "sections.outer.thickness_mm": 1.0, "grid[1].length_mm": 11.0}``.
     """
-    path = _brush_path(path_or_name)
-    data = _read_toml(path)
+    path = resolve_config("brush", path_or_name)
+    data = read_toml(path)
     source = str(path)
     try:
         if overrides:
-            _apply_overrides(data, overrides)
+            apply_overrides(data, overrides)
             source += f" with overrides {dict(overrides)!r}"
-        t = _Table(data, "brush", BRUSH_KEYS)
+        t = Table(data, "brush", BRUSH_KEYS)
         mfile = t.str("materials_file", None, what="path relative to the brush file")
         if materials is None:
             materials = load_materials(path.parent / mfile if mfile else None)
         brush = _brush(t, dict(materials), source)
     except ConfigError as e:
-        raise _in_file(path, e) from None
+        raise in_file(path, e) from None
     gap, i, j = brush.min_root_gap()
     if gap <= 0:
         bi, bj = brush.bristles[i], brush.bristles[j]
@@ -570,33 +468,7 @@ def load_brush(
     return brush
 
 
-def _brush_path(path_or_name: str | os.PathLike | None) -> Path:
-    if path_or_name is None:
-        path_or_name = "default"
-    s = os.fspath(path_or_name)
-    if isinstance(path_or_name, str) and not s.endswith(".toml") and not re.search(r"[\\/]", s):
-        brushes = configs_dir() / "brushes"
-        path = brushes / f"{s}.toml"
-        if not path.is_file():
-            raise ConfigError(
-                f"brush {s!r} is not a known brush{did_you_mean(s, _known_brushes())}"
-                f" (known: {', '.join(_known_brushes())})"
-            )
-        return path
-    path = Path(s)
-    if not path.is_file():
-        raise ConfigError(
-            f"brush file {s!r} does not exist (give a TOML path or a name from "
-            f"{configs_dir() / 'brushes'}{did_you_mean(path.stem, _known_brushes())})"
-        )
-    return path
-
-
-def _known_brushes() -> list[str]:
-    return sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
-
-
-def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfig:
+def _brush(t: Table, materials: dict[str, Material], source: str) -> BrushConfig:
     name = t.str("name")
     default_material = t.str("material", choices=materials, what="material")
     bodies = t.int("bodies_per_bristle", LIMITS["bodies"])
@@ -605,7 +477,7 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
     head_rpy = t.vec("head_rpy_deg", 3, LIMITS["angle_deg"], (0.0, 0.0, 0.0))
     lean = t.num("lean_deg", LIMITS["lean_deg"], 0.0)
     imperfection = t.num("imperfection_deg", LIMITS["imperfection_deg"], IMPERFECTION_DEG)
-    secs = t.get("sections", _REQUIRED, "[sections.<name>] tables")
+    secs = t.get("sections", REQUIRED, "[sections.<name>] tables")
     if not isinstance(secs, dict):
         raise type_error(t.key("sections"), secs, "a table of [sections.<name>] tables")
     sections = {k: _section(t.key(f"sections.{k}"), v) for k, v in secs.items()}
@@ -619,14 +491,14 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
         if not isinstance(entries, list):
             raise type_error(t.key(kind), entries, f"an array of [[{kind}]] tables")
         for idx, entry in enumerate(entries):
-            g = _Table(entry, t.key(f"{kind}[{idx}]"), GROUP_KEYS[kind])
+            g = Table(entry, t.key(f"{kind}[{idx}]"), GROUP_KEYS[kind])
             bristles += _group(kind, idx, g, sections, materials, defaults)
     if not bristles:
         raise ConfigError("brush: no bristles: add at least one [[grid]], [[row]] or [[bristle]]")
     return BrushConfig(
         name,
         head_offset,
-        tuple(math.radians(a) for a in head_rpy),
+        cast(Vec3, tuple(math.radians(a) for a in head_rpy)),
         tuple(bristles),
         source,
         math.radians(lean),
@@ -635,10 +507,10 @@ def _brush(t: _Table, materials: dict[str, Material], source: str) -> BrushConfi
 
 
 def _section(path: str, data: Any) -> Section:
-    kind = _Table(data, path, ("kind", "width_mm", "thickness_mm", "diameter_mm")).str(
+    kind = Table(data, path, ("kind", "width_mm", "thickness_mm", "diameter_mm")).str(
         "kind", choices=SECTION_KINDS, what="section kind"
     )
-    t = _Table(data, path, SECTION_KEYS[kind])
+    t = Table(data, path, SECTION_KEYS[kind])
     if kind == "circle":
         return Section.circle(t.num("diameter_mm", LIMITS["section"]))
     return Section.rect(
@@ -649,7 +521,7 @@ def _section(path: str, data: Any) -> Section:
 def _group(
     kind: str,
     idx: int,
-    g: _Table,
+    g: Table,
     sections: dict[str, Section],
     materials: dict[str, Material],
     defaults: dict,
@@ -673,8 +545,8 @@ def _group(
     pos = LIMITS["position"]
     if kind == "grid":
         nx, ny = g.int("nx", LIMITS["count"]), g.int("ny", LIMITS["count"])
-        px = g.num("pitch_x_mm", LIMITS["pitch"], None if nx == 1 else _REQUIRED) or 0.0
-        py = g.num("pitch_y_mm", LIMITS["pitch"], None if ny == 1 else _REQUIRED) or 0.0
+        px = g.num("pitch_x_mm", LIMITS["pitch"], None if nx == 1 else REQUIRED) or 0.0
+        py = g.num("pitch_y_mm", LIMITS["pitch"], None if ny == 1 else REQUIRED) or 0.0
         cx, cy = g.vec("center_mm", 2, pos)
         roots = [
             (cx + (ix - (nx - 1) / 2) * px, cy + (iy - (ny - 1) / 2) * py, 0.0)
@@ -684,7 +556,7 @@ def _group(
     elif kind == "row":
         n = g.int("n", LIMITS["count"])
         sx, sy = g.vec("start_mm", 2, pos)
-        dx, dy = g.vec("step_mm", 2, pos, None if n == 1 else _REQUIRED) or (0.0, 0.0)
+        dx, dy = g.vec("step_mm", 2, pos, None if n == 1 else REQUIRED) or (0.0, 0.0)
         roots = [(sx + k * dx, sy + k * dy, 0.0) for k in range(n)]
     else:
         roots = [g.vec("root_mm", 3, pos)]
@@ -696,39 +568,3 @@ def _group(
         BristleConfig(r, axis, width_dir, length, section, materials[material], bodies, tip, group)
         for r in roots
     ]
-
-
-def _apply_overrides(data: dict, overrides: Mapping[str, Any], prefix: str = "") -> None:
-    """Merge ``overrides`` (nested tables and/or dotted keys with [i] indices) into ``data``."""
-    for dotted, value in overrides.items():
-        parts: list[Any] = [
-            int(p[1:-1]) if p.startswith("[") else p
-            for p in re.findall(r"\[\d+\]|[^.\[\]]+", str(dotted))
-        ]
-        where = f"overrides[{prefix + str(dotted)!r}]"
-        if not parts:
-            raise ConfigError(f"{where}: empty key")
-        node: Any = data
-        for part, nxt in zip(parts[:-1], parts[1:]):
-            node = _child(node, part, where, create={} if isinstance(nxt, str) else None)
-        last = parts[-1]
-        _child(node, last, where, create=None if isinstance(last, int) else {})
-        if isinstance(value, Mapping) and isinstance(node[last], dict):
-            _apply_overrides(node[last], value, prefix + str(dotted) + ".")
-        else:
-            node[last] = value
-
-
-def _child(node: Any, part: Any, where: str, create: Any) -> Any:
-    if isinstance(part, int):
-        if not isinstance(node, list) or not -len(node) <= part < len(node):
-            size = f"{len(node)} entries" if isinstance(node, list) else "not an array"
-            raise ConfigError(f"{where}: index [{part}] does not exist ({size})")
-        return node[part]
-    if not isinstance(node, dict):
-        raise ConfigError(f"{where}: {part!r} is inside a value that is not a table")
-    if part not in node:
-        if create is None:
-            raise ConfigError(f"{where}: {part!r} does not exist")
-        node[part] = create
-    return node[part]

@@ -36,7 +36,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, _lu6, _lus6, lu_dense, lus_dense
+from ._kernels import HOT, lu6, lu_dense, lus6, lus_dense
 from .contact import pair_law
 from .records import MAX_GROUP  # a larger group keeps plain Gauss-Seidel
 from .tipblock import add_tip_block
@@ -118,7 +118,7 @@ def _tip_stiffness(b, model, chain, jc, ws, load):
         for c in range(6):
             A6[a, c] = jc.S[b, a, c]
     add_tip_block(A6, model.bp, chain.rot, il, load, ws.blk)
-    if not _lu6(A6, sw.piv6):
+    if not lu6(A6, sw.piv6):
         return False
     hl = model.bp[il].half
     r0 = hl * chain.rot[il, 0, 0]
@@ -133,7 +133,7 @@ def _tip_stiffness(b, model, chain, jc, ws, load):
         e6[3] = r1 * e6[2] - r2 * e6[1]
         e6[4] = r2 * e6[0] - r0 * e6[2]
         e6[5] = r0 * e6[1] - r1 * e6[0]
-        _lus6(A6, sw.piv6, e6)
+        lus6(A6, sw.piv6, e6)
         W[0, c] = e6[0] + e6[4] * r2 - e6[5] * r1  # tip node displacement dc + dtheta x r
         W[1, c] = e6[1] + e6[5] * r0 - e6[3] * r2
         W[2, c] = e6[2] + e6[3] * r1 - e6[4] * r0

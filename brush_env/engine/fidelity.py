@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from .checks import ConfigError, Limit, check_choice, check_int, check_real, did_you_mean
-from .config import _read_toml, configs_dir
+from .config_files import read_toml, resolve_config
 
 #: the levels shipped in configs/fidelity, most to least accurate
 LEVELS = ("reference", "paper", "balanced", "fast")
@@ -103,21 +103,12 @@ class Fidelity:
 
 
 def fidelity_path(name_or_path: str | os.PathLike) -> Path:
-    """``configs/fidelity/<name>.toml`` for a bare name, else the path itself."""
-    s = os.fspath(name_or_path)
-    if not s.endswith(".toml") and "/" not in s and os.sep not in s:
-        p = configs_dir() / "fidelity" / f"{s}.toml"
-        if not p.is_file():
-            known = sorted(q.stem for q in (configs_dir() / "fidelity").glob("*.toml"))
-            raise ConfigError(
-                f"fidelity = {s!r} is not a known level{did_you_mean(s, known)} "
-                f"(allowed: {', '.join(known)}, or a path to a .toml file)"
-            )
-        return p
-    p = Path(s)
-    if not p.is_file():
-        raise ConfigError(f"fidelity = {s!r}: no such file")
-    return p
+    """``configs/fidelity/<name>.toml`` for a bare name, else the path itself
+    (``config_files.resolve_config``; the error names the ``fidelity`` key)."""
+    try:
+        return resolve_config("fidelity", name_or_path)
+    except ConfigError as e:
+        raise ConfigError(f"fidelity = {os.fspath(name_or_path)!r}: {e}") from None
 
 
 def load_fidelity(name_or_path: str | os.PathLike | Fidelity) -> Fidelity:
@@ -129,7 +120,7 @@ def load_fidelity(name_or_path: str | os.PathLike | Fidelity) -> Fidelity:
             f"fidelity = {name_or_path!r}: must be a level name ({', '.join(LEVELS)}) or a path"
         )
     path = fidelity_path(name_or_path)
-    data = _read_toml(path)
+    data = read_toml(path)
     unknown = set(data) - {"name", "description", "settings", "measured"}
     if unknown:
         raise ConfigError(

@@ -1,6 +1,6 @@
 """Newton's method on one bristle's (sub)step: direction, step cap, line search, commit.
 
-``_newton`` solves the residual of eq 11 (``residual.py``) for the bristle's end-of-step
+``newton_solve`` solves the residual of eq 11 (``residual.py``) for the bristle's end-of-step
 configuration: start -> predict (``predict.py``) -> [factors -> direction -> cap -> line search]*
 -> commit (or restore).  The step cap keeps rotation increments small, holds the tip in a trust
 region while in contact and respects the penetration limit (eq 6) and the slip turning point
@@ -13,11 +13,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, _local_rot_into, _rotate_left, block_solve, reorthonormalize
+from ._kernels import HOT, block_solve, local_rot_into, reorthonormalize, rotate_left
 from .contact import in_contact, penetration_step_limit, slip_step_limit
-from .predict import _load_chain, _predict, _save_chain, _start, _start_state
+from .predict import load_chain, predict_start, save_chain, start_state, start_step
 from .records import Trial
-from .residual import _rebuild_factors, _residual, _tip_refactor
+from .residual import bristle_residual, rebuild_factors, tip_refactor
 
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
@@ -56,7 +56,7 @@ def _chain_update(br, model, chain, it, alpha, base, mot):
     for k in range(br.n):
         i = br.b0 + k
         hB = bp[i].half
-        _rotate_left(alpha * dq[k, 3], alpha * dq[k, 4], alpha * dq[k, 5], t_rot[k], rot[i])
+        rotate_left(alpha * dq[k, 3], alpha * dq[k, 4], alpha * dq[k, 5], t_rot[k], rot[i])
         # old nodes and node increments: dp = dc + dtheta x (R r)
         for a in range(3):
             pBo[a] = t_pos[k, a] + hB * t_rot[k, a, 0]
@@ -198,7 +198,7 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     new = np.inf
     for _ls in range(8):
         _chain_update(br, model, chain, it, alpha, base, ws.mot)
-        new = _residual(br, model, chain, sub, base, con, ws, rootw)
+        new = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
         if not np.isfinite(new):
             alpha *= 0.25
             continue
@@ -262,7 +262,7 @@ def _commit(br, chain, sub, con, ws):
                 chain.vel[i, a] = 0.0
                 chain.omg[i, a] = 0.0
         else:
-            _local_rot_into(rot[i], hist.Rn[k], th)
+            local_rot_into(rot[i], hist.Rn[k], th)
             for a in range(3):
                 chain.vel[i, a] = (sub.c0 * pos[i, a] + hist.cm[k, a]) * sub.inv_h
                 chain.omg[i, a] = (sub.c0 * th[a] + hist.thp[k, a]) * sub.inv_h
@@ -277,7 +277,7 @@ def _commit(br, chain, sub, con, ws):
 
 
 @njit(**HOT)
-def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
+def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in chain.pos/rot/vel/omg (t_n) and chain.ppos/... (t_{n-1}); the
@@ -290,8 +290,8 @@ def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
     -> commit (or restore).
     """
     b = br.b
-    _start(br, model, chain, sub, base, con, ws)
-    nrm = _predict(br, model, chain, sub, base, con, ws, rootw, extrap)
+    start_step(br, model, chain, sub, base, con, ws)
+    nrm = predict_start(br, model, chain, sub, base, con, ws, rootw, extrap)
     rtol = sub.rtol
     it = 0
     ok = nrm <= rtol
@@ -302,30 +302,30 @@ def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
         it += 1
         fresh = need
         if need:
-            if not _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
+            if not rebuild_factors(br, model, chain, sub, base, jc, ws, key):
                 break
             need = False
         elif in_contact(con.tip_state[b]):
             # contact: the tip block at the current load, on the reused chain factors
             D = jc.D[br.b0 : br.b0 + br.n]
-            if not _tip_refactor(
+            if not tip_refactor(
                 br, D, jc.piv[br.b0 : br.b0 + br.n], jc.S[b], model.bp, chain.rot, ws
             ):
                 need = True
                 it -= 1
                 continue
         g0 = _direction(br, jc, ws)
-        _save_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
+        save_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
         alpha = _step_cap(br, model, chain, sub, con, ws)
         trial = Trial(alpha, g0, nrm)
         accepted, new, alpha = _line_search(br, model, chain, sub, base, con, ws, rootw, trial)
         if not accepted:
             # restore the iterate; retry with fresh factors unless they were fresh already
-            _load_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
+            load_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
             if fresh:
                 break
             need = True
-            nrm = _residual(br, model, chain, sub, base, con, ws, rootw)
+            nrm = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
             continue
         if fresh and new > 0.5 * nrm and new <= STAGNATION * rtol:
             # stagnation: a fresh Newton step no longer reduces a residual already within
@@ -343,7 +343,7 @@ def _newton(br, model, chain, sub, base, con, jc, ws, rootw, extrap):
             break
         ok = nrm <= rtol
     if not ok:
-        _start_state(br, chain, ws.it, False)  # restore
+        start_state(br, chain, ws.it, False)  # restore
         return False, it
     _commit(br, chain, sub, con, ws)
     return True, it

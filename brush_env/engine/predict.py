@@ -1,8 +1,8 @@
 """Start of a (sub)step and Newton's starting point (the predictors).
 
 ``_prepare``: the constants of the two-step formula of eq 11 (momentum and strain histories,
-the damping factors of eq 4-5); ``_start``: those and the tip node's rate history for contact
-(eq 6-10).  ``_predict``: the start configuration carried rigidly by the base
+the damping factors of eq 4-5); ``start_step``: those and the tip node's rate history for contact
+(eq 6-10).  ``predict_start``: the start configuration carried rigidly by the base
 (``_rigid_predict``), or the recent motion extrapolated in the base frame (``_extrapolate``,
 second or third order), whichever has the smaller residual of eq 11.
 """
@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, _local_rot_into, _rotate_left, reorthonormalize
+from ._kernels import HOT, local_rot_into, reorthonormalize, rotate_left
 from .contact import in_contact
 from .records import Damp
-from .residual import _element_at, _residual
+from .residual import bristle_residual, element_at
 
-#: ``extrap`` of ``_predict`` for a re-solve in a later Gauss-Seidel sweep (warm start)
+#: ``extrap`` of ``predict_start`` for a re-solve in a later Gauss-Seidel sweep (warm start)
 WARM = -1
 
 
@@ -59,7 +59,7 @@ def _prepare(br, model, chain, sub, base, hist, el):
             for a in range(3):
                 hist.Lm[k, a] += coef * (RR[a, 0] * ob0 + RR[a, 1] * ob1 + RR[a, 2] * ob2)
         if c2 != 0.0:
-            _local_rot_into(chain.prot[i], chain.rot[i], tmp)
+            local_rot_into(chain.prot[i], chain.rot[i], tmp)
             for a in range(3):
                 hist.thp[k, a] = c2 * tmp[a]
         for a in range(6):
@@ -69,19 +69,19 @@ def _prepare(br, model, chain, sub, base, hist, el):
             if coef == 0.0:
                 continue
             if which == 0:
-                _element_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, still, el)
+                element_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, still, el)
             else:
-                _element_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, still, el)
+                element_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, still, el)
             for a in range(6):
                 hist.ehist[k, a] += coef * e[a]
 
 
 @njit(**HOT, inline="always")
-def _start(br, model, chain, sub, base, con, ws):
+def start_step(br, model, chain, sub, base, con, ws):
     """Set up one (sub)step of one bristle: the step constants (``_prepare``), the start state
     kept in ws.it (s_pos, s_rot, s_vel, s_omg) and the tip node's rate history for contact."""
     _prepare(br, model, chain, sub, base, ws.hist, ws.el)
-    _start_state(br, chain, ws.it, True)
+    start_state(br, chain, ws.it, True)
     # tip node history for the contact rate and the stiction deformation
     il = br.il
     tip_state = con.tip_state[br.b]
@@ -94,7 +94,7 @@ def _start(br, model, chain, sub, base, con, ws):
 
 
 @njit(**HOT, inline="always")
-def _start_state(br, chain, it, save):
+def start_state(br, chain, it, save):
     """save: it.s_pos/s_rot/s_vel/s_omg <- the bristle's state at the (sub)step's start; else the
     bristle back at that state (Newton failed)."""
     for k in range(br.n):
@@ -116,7 +116,7 @@ def _start_state(br, chain, it, save):
 
 
 @njit(**HOT, inline="always")
-def _save_chain(br, pos, rot, t_pos, t_rot):
+def save_chain(br, pos, rot, t_pos, t_rot):
     """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
     for k in range(br.n):
         for a in range(3):
@@ -126,8 +126,8 @@ def _save_chain(br, pos, rot, t_pos, t_rot):
 
 
 @njit(**HOT, inline="always")
-def _load_chain(br, pos, rot, t_pos, t_rot):
-    """pos/rot of one bristle <- t_pos/t_rot (see ``_save_chain``)."""
+def load_chain(br, pos, rot, t_pos, t_rot):
+    """pos/rot of one bristle <- t_pos/t_rot (see ``save_chain``)."""
     for k in range(br.n):
         for a in range(3):
             pos[br.b0 + k, a] = t_pos[k, a]
@@ -198,9 +198,9 @@ def _extrapolate(br, chain, order, base, it, mot):
                         + RAq[2, a] * pprot[i, 2, bb]
                     )
         if order >= 3:
-            _local_rot_into(Qp, Qn, phi1)  # log(Q_{n-1} Q_n^T)
-            _local_rot_into(Qq, Qn, phi2)  # log(Q_{n-2} Q_n^T)
-            _rotate_left(
+            local_rot_into(Qp, Qn, phi1)  # log(Q_{n-1} Q_n^T)
+            local_rot_into(Qq, Qn, phi2)  # log(Q_{n-2} Q_n^T)
+            rotate_left(
                 phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1], phi2[2] - 3.0 * phi1[2], Qn, Qr
             )
         else:
@@ -249,7 +249,7 @@ def _rigid_predict(br, chain, base, it, mot):
 
 
 @njit(**HOT, inline="always")
-def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
+def predict_start(br, model, chain, sub, base, con, ws, rootw, extrap):
     """Start Newton from the better of two predictors; returns the residual norm there.
 
     (1) The start configuration carried rigidly by the base's motion over the step.  (2) With
@@ -271,7 +271,7 @@ def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
         if stage == 0:
             if extrap == WARM:
                 # a later sweep: this bristle's own solution of the previous sweep
-                _load_chain(
+                load_chain(
                     br, chain.pos, chain.rot, ws.sw.warm_pos[br.b0 :], ws.sw.warm_rot[br.b0 :]
                 )
             else:
@@ -281,14 +281,14 @@ def _predict(br, model, chain, sub, base, con, ws, rootw, extrap):
                 break
             if extrap < 2 or nrm <= sub.rtol:
                 break
-            _save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+            save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
             _extrapolate(br, chain, extrap, base, it, ws.mot)
         else:
             if nx < nrm:
                 nrm = nx
                 break
-            _load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
-        r = _residual(br, model, chain, sub, base, con, ws, rootw)
+            load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+        r = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
         if stage == 1:
             nx = r
         else:

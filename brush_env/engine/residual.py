@@ -1,12 +1,12 @@
 """The residual of the discrete momentum balance (eq 11) and its Newton matrix, per bristle.
 
-Residual (``_residual``): for every body, the rate of momentum by the two-step formula minus
+Residual (``bristle_residual``): for every body, the rate of momentum by the two-step formula minus
 gravity (eq 11, ``_inertia_residual``), minus the element loads of its two elements (eq 1-5,
-``_kernels._element_gen``), and on the tip body minus the tip load (eq 6-10 and Table 3,
-``contact.tip_load``).  Newton matrix (``_jacobian``): inertia blocks m c0^2/h^2 and
+``_kernels.element_gen``), and on the tip body minus the tip load (eq 6-10 and Table 3,
+``contact.tip_load``).  Newton matrix (``jacobian``): inertia blocks m c0^2/h^2 and
 R J R^T c0^2/h^2, element blocks by forward differences of eq 5, the tip block from the tip
 stiffness (``tipblock.add_tip_block``); block tridiagonal (6x6 blocks), factored by block
-Thomas (``_rebuild_factors``, ``_tip_refactor``).
+Thomas (``rebuild_factors``, ``tip_refactor``).
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ from numba import njit
 
 from ._kernels import (
     HOT,
-    _element_gen,
-    _local_rot_into,
-    _lu6,
-    _node,
-    _rotate_left,
     block_factor_head,
+    body_node,
+    element_gen,
+    local_rot_into,
+    lu6,
+    rotate_left,
 )
 from .contact import tip_load
 from .records import Damp, Node
@@ -29,7 +29,7 @@ from .tipblock import add_tip_block as _add_tip_block
 
 
 @njit(**HOT, inline="always")
-def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
+def element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     """Element k of bristle ``br`` (eq 5) for body poses P/Q (positions/rotations of all bodies)
     and the base node (pAb, RAb): generalised forces into el.out12, strain into el.e."""
     bp = model.bp
@@ -40,7 +40,7 @@ def _element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     isroot = k == 0
     j = i - 1 if k > 0 else i
     A = Node(pAb, RAb, 0.0) if isroot else Node(P[j], Q[j], bp[j].half)
-    _element_gen(kind, isroot, A, pAb, B, model.K[i], bp[i].length, damp, el.out12, el.e)
+    element_gen(kind, isroot, A, pAb, B, model.K[i], bp[i].length, damp, el.out12, el.e)
 
 
 @njit(**HOT, inline="always")
@@ -63,7 +63,7 @@ def _inertia_residual(br, model, chain, sub, hist, res, th):
         for a in range(3):
             vk = (c0 * pos[i, a] + hist.cm[k, a]) * inv_h
             res[k, a] = m * (c0 * vk + hist.vm[k, a]) * inv_h - m * gvec[a]
-        _local_rot_into(rot[i], hist.Rn[k], th)
+        local_rot_into(rot[i], hist.Rn[k], th)
         om0 = (c0 * th[0] + hist.thp[k, 0]) * inv_h
         om1 = (c0 * th[1] + hist.thp[k, 1]) * inv_h
         om2 = (c0 * th[2] + hist.thp[k, 2]) * inv_h
@@ -98,7 +98,7 @@ def _residual_norm(br, bp, res):
 
 
 @njit(**HOT, inline="always")
-def _residual(br, model, chain, sub, base, con, ws, rootw):
+def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     """Residual of eq 11 for one bristle (rate of momentum minus forces, N and N*mm) into
     ``ws.it.res``: inertia and gravity, the elements (eq 1-5), the tip load (eq 6-10, Table 3).
 
@@ -114,7 +114,7 @@ def _residual(br, model, chain, sub, base, con, ws, rootw):
     _inertia_residual(br, model, chain, sub, hist, res, el.th)
     for k in range(br.n):
         damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
-        _element_at(k, br, model, chain.pos, chain.rot, base.pAe, base.RAe, damp, el)
+        element_at(k, br, model, chain.pos, chain.rot, base.pAe, base.RAe, damp, el)
         if k == 0:
             for a in range(6):
                 rootw[a] = out12[a]
@@ -127,7 +127,7 @@ def _residual(br, model, chain, sub, base, con, ws, rootw):
     pos = chain.pos
     pt = el.pt
     tipF = it.tipF
-    _node(pos[il], chain.rot[il], model.bp[il].half, pt)
+    body_node(pos[il], chain.rot[il], model.bp[il].half, pt)
     tip_load(br.b, pt, sub, con, tipF, it.tipK, ws.tipw)
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
@@ -143,7 +143,7 @@ def _residual(br, model, chain, sub, base, con, ws, rootw):
 
 
 @njit(**HOT)
-def _jacobian(br, model, chain, sub, base, hist, D, U, L, ws):
+def jacobian(br, model, chain, sub, base, hist, D, U, L, ws):
     """Newton matrix d(res)/d(q), q_k = (dc_k, dtheta_k) in world axes (block tridiagonal).
 
     Inertia blocks m c0^2/h^2 and R J R^T c0^2/h^2 (terms of order omega*h dropped); element
@@ -186,7 +186,7 @@ def _perturbed(src, col, eps_x, eps_r, pos, rot, cP, RP):
             for b in range(3):
                 RP[a, b] = rot[src, a, b]
         return eps_x
-    _rotate_left(
+    rotate_left(
         eps_r if col == 3 else 0.0,
         eps_r if col == 4 else 0.0,
         eps_r if col == 5 else 0.0,
@@ -198,7 +198,7 @@ def _perturbed(src, col, eps_x, eps_r, pos, rot, cP, RP):
 
 @njit(**HOT)
 def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
-    """The inertia and element blocks of ``_jacobian`` (everything but the tip load)."""
+    """The inertia and element blocks of ``jacobian`` (everything but the tip load)."""
     bp = model.bp
     pos = chain.pos
     rot = chain.rot
@@ -226,7 +226,7 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
         B = Node(pos[i], rot[i], hB)
         damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
         kind = model.elem[i]
-        _element_gen(kind, isroot, A, pAb, B, model.K[i], ln, damp, basef, e)
+        element_gen(kind, isroot, A, pAb, B, model.K[i], ln, damp, basef, e)
         nside = 1 if isroot else 2
         for side in range(nside):  # side 0: perturb body B (= k), side 1: body A (= k-1)
             src = i if side == 0 else j
@@ -234,11 +234,11 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
                 eps = _perturbed(src, col, epsx, epsr, pos, rot, el.cP, el.RP)
                 if side == 0:
                     BP = Node(el.cP, el.RP, hB)
-                    _element_gen(kind, isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
+                    element_gen(kind, isroot, A, pAb, BP, model.K[i], ln, damp, pert, e)
                 else:
                     AP = Node(el.cP, el.RP, A.half)
                     # (isroot is False on this side)
-                    _element_gen(kind, isroot, AP, pAb, B, model.K[i], ln, damp, pert, e)
+                    element_gen(kind, isroot, AP, pAb, B, model.K[i], ln, damp, pert, e)
                 for a in range(6):
                     dA = (pert[a] - basef[a]) / eps  # d(force on A)
                     dB = (pert[6 + a] - basef[6 + a]) / eps  # d(force on B)
@@ -252,7 +252,7 @@ def _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, el):
 
 
 @njit(**HOT, inline="always")
-def _tip_refactor(br, D, piv, S, bp, rot, ws):
+def tip_refactor(br, D, piv, S, bp, rot, ws):
     """Last block of the factored Newton matrix <- LU(S + tip block at the current tip load).
 
     S is the tip body's Schur complement without the tip load (``block_factor_head``), so this
@@ -263,11 +263,11 @@ def _tip_refactor(br, D, piv, S, bp, rot, ws):
         for c in range(6):
             Dl[a, c] = S[a, c]
     _add_tip_block(Dl, bp, rot, br.il, ws.it, ws.blk)
-    return _lu6(Dl, piv[br.n - 1])
+    return lu6(Dl, piv[br.n - 1])
 
 
 @njit(**HOT, inline="always")
-def _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
+def rebuild_factors(br, model, chain, sub, base, jc, ws, key):
     """Fresh Newton matrix of one bristle (``_jacobian_chain``), factored by block Thomas up to
     the tip body, its Schur complement kept in jc.S, the tip block added at the current tip load.
     Returns False (and marks the factors stale) if a pivot block is singular."""
@@ -285,6 +285,6 @@ def _rebuild_factors(br, model, chain, sub, base, jc, ws, key):
         for a in range(6):
             for c in range(6):
                 S[a, c] = D[n - 1, a, c]
-        good = _tip_refactor(br, D, piv, S, model.bp, chain.rot, ws)
+        good = tip_refactor(br, D, piv, S, model.bp, chain.rot, ws)
     jc.key[br.b] = key if good else 0.0
     return good

@@ -2,7 +2,7 @@
 
 Rotation matrices map body (local) coordinates to world coordinates; rotation vectors are
 axis * angle [rad].  The hot kernels use their own allocation-free scalar forms in ``_kernels``
-(``_log3s``, ``_rotate_left``); ``logmap`` calls ``_log3s`` so the log formula exists once.
+(``log3s``, ``rotate_left``); ``logmap`` calls ``log3s`` so the log formula exists once.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, _log3s
+from ._kernels import HOT, log3s
 
 __all__ = ["skew", "expmap", "logmap", "rot_axis", "rotation_vectors", "pose_ok"]
 
@@ -47,7 +47,7 @@ def logmap(R) -> np.ndarray:
     flat = R.reshape(-1, 9)
     out = np.empty((flat.shape[0], 3))
     for k in range(flat.shape[0]):
-        _log3s(*flat[k], out[k])
+        log3s(*flat[k], out[k])
     return out.reshape(R.shape[:-2] + (3,))
 
 

@@ -34,8 +34,10 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
+from ..geometry.sdf_bake import bake_mesh_cached
 from .checks import Limit, check_keys, check_real
-from .config import BrushConfig, ConfigError, configs_dir, load_brush
+from .config import BrushConfig, ConfigError, load_brush
+from .config_files import resolve_config
 from .records import (
     CONTACT_LAW,
     SURF_CAPSULE,
@@ -46,7 +48,6 @@ from .records import (
     SURF_SPHERE,
     surface_row,
 )
-from .sdf import bake_mesh_cached
 
 
 @dataclass(frozen=True)
@@ -252,13 +253,7 @@ class Scene:
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
     """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the
     file's."""
-    p = (
-        Path(path_or_name)
-        if path_or_name and ("/" in str(path_or_name) or str(path_or_name).endswith(".toml"))
-        else configs_dir() / "scenes" / f"{path_or_name or 'flat_plate'}.toml"
-    )
-    if not p.exists():
-        raise ConfigError(f"scene {str(path_or_name)!r}: no such file {p}")
+    p = resolve_config("scene", path_or_name)
     data = tomllib.loads(p.read_text())
     check_keys(str(p), data, ("name", "brush", "tip_tip", "surface", "contact"))
     table = data.get("contact", {})
@@ -390,7 +385,7 @@ def surfaces_from_table(t: dict, base: Path, where: str = "surface") -> list:
 def mesh_surface(path, units="mm", cell=0.15, band=1.0, place="auto", label="mesh"):
     """A user's closed mesh file as a baked SDF surface; ``place="auto"`` centres its bounding box
     in x, y and puts its highest point at z = 0 (where the brush starts over a plate)."""
-    from .meshes import load_mesh_file
+    from ..geometry.meshes import load_mesh_file
 
     if place not in ("auto", "as_is"):
         raise ConfigError(f"mesh place = {place!r}: must be 'auto' or 'as_is'")
@@ -406,10 +401,13 @@ def tooth_row_surfaces(
 ) -> list:
     """The procedural tooth row of ``teeth.py``: one baked crown per tooth (label
     ``tooth:<name>``) and the gum capsule (label ``gum``)."""
-    from . import teeth as tt
+    from ..geometry import teeth as tt
 
     specs = tt.row_specs(teeth, gap_mm)
-    out = [MeshSurface(*tt.tooth_mesh(s), cell, band, f"tooth:{s.name}") for s in specs]
+    out: list = []
+    for s in specs:
+        V, T = tt.tooth_mesh(s)
+        out.append(MeshSurface(V, T, cell, band, f"tooth:{s.name}"))
     if gum:
         a, b, r = tt.gum_capsule(specs, gum_radius)
         out.append(Capsule(a, b, r, "gum"))
@@ -419,6 +417,11 @@ def tooth_row_surfaces(
 def surface_labels(scene) -> list[str]:
     """Label of each surface of ``scene`` (its kind where it has none)."""
     return [getattr(s, "label", type(s).__name__.lower()) for s in scene.surfaces]
+
+
+def tooth_surfaces(scene) -> list:
+    """The crowns of a scene: its SDF mesh surfaces labelled ``tooth:...``."""
+    return [s for s in scene.surfaces if isinstance(s, MeshSurface) and s.label.startswith("tooth")]
 
 
 def with_mesh(scene, path, units="mm", cell=0.15, band=1.0) -> Scene:

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .sweeps import SWEEP_FIRST, _settle_tip_tip, _start_sweeps, _sweep, _tip_node_state
+from .sweeps import SWEEP_FIRST, settle_tip_tip, start_sweeps, sweep_bristles, tip_node_state
 
 
 @njit(**HOT)
@@ -53,16 +53,18 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     [sweeps run, re-solves, 0 settled / 1 out of sweeps with partners still moving by less than
     FALLBACK_MOVE / 2 fell back to the plain sweep].
     """
-    _start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
-    _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle, in order
-    _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
+    start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
+    sweep_bristles(
+        model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST
+    )  # every bristle, in order
+    settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
 
 
 @njit(**HOT)
 def tip_states(bstart, bp, pos, rot, vel, omg, out):
-    """Tip node position and velocity of every bristle into out (nb, >= 6), see _tip_node_state."""
+    """Tip node position and velocity of every bristle into out (nb, >= 6), see tip_node_state."""
     for b in range(bstart.shape[0] - 1):
-        _tip_node_state(b, bstart[b + 1] - 1, bp, pos, rot, vel, omg, out)
+        tip_node_state(b, bstart[b + 1] - 1, bp, pos, rot, vel, omg, out)
 
 
 @njit(**HOT)

@@ -1,6 +1,6 @@
 """The Gauss-Seidel sweeps over the bristles and their tip-tip partners (Table 3).
 
-Bristles are coupled only through tip-tip contact (Table 3, no friction).  ``_sweep`` solves
+Bristles are coupled only through tip-tip contact (Table 3, no friction).  ``sweep_bristles`` solves
 each bristle (``advance.py``) with its partners' tips held at their latest positions; a later
 sweep re-solves, warm-started, the bristles whose touching partners moved by more than the
 tolerance (``_partners_moved``), after ``coupling.place_partners`` placed them.  ``_save_all``
@@ -13,12 +13,12 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .advance import _advance_bristle, scheme_coefficients
+from .advance import advance_bristle, scheme_coefficients
 from .coupling import place_partners, store_tip_load
-from .predict import _save_chain
+from .predict import save_chain
 from .records import Bristle
 
-#: modes of ``_sweep``
+#: modes of ``sweep_bristles``
 SWEEP_FIRST = 0  # every bristle, from the step's start
 SWEEP_AGAIN = 1  # the bristles whose partners moved (or were placed), warm-started
 SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at their start
@@ -28,7 +28,7 @@ FALLBACK_MOVE = 1e-4
 
 
 @njit(**HOT)
-def _sweep(model, chain, drive, prm, con, jc, ws, out, mode):
+def sweep_bristles(model, chain, drive, prm, con, jc, ws, out, mode):
     """One pass over the bristles in order (``step_bristles``); ``mode``: SWEEP_*."""
     bstart = model.bstart
     nb = bstart.shape[0] - 1
@@ -50,7 +50,7 @@ def _sweep(model, chain, drive, prm, con, jc, ws, out, mode):
                         con.tips[b, a] = sw.xs[b, a]
                 continue
             sw.count[1] += 1
-            _save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
+            save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
         if mode != SWEEP_FIRST:
             _restore_bristle(br, chain, con, drive, sw)
         for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
@@ -58,9 +58,9 @@ def _sweep(model, chain, drive, prm, con, jc, ws, out, mode):
             for a in range(3):
                 sw.used[q, a] = con.tips[j, a]
         prev = out.iters[b]
-        _advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
+        advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
         out.iters[b] += prev
-        _tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
+        tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
         if coupled:
             store_tip_load(b, ws.it, sw)
 
@@ -143,7 +143,7 @@ def _restore_bristle(br, chain, con, drive, sw):
 
 
 @njit(**HOT, inline="always")
-def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
+def tip_node_state(b, il, bp, pos, rot, vel, omg, out):
     """out[b, 0:3] <- tip node (sphere centre) [mm], out[b, 3:6] <- its velocity [mm/s] (world):
     p = c + r, v = v_c + omega x r with r = half R e_x of the last body ``il``."""
     hl = bp[il].half
@@ -159,7 +159,7 @@ def _tip_node_state(b, il, bp, pos, rot, vel, omg, out):
 
 
 @njit(**HOT, inline="always")
-def _start_sweeps(model, chain, drive, prm, con, ws, out):
+def start_sweeps(model, chain, drive, prm, con, ws, out):
     """Before the first sweep: no Newton iterations yet, every tip's start (sw.tips0) and, if
     more than one sweep may run, every bristle's start-of-step state (``_save_all``)."""
     nb = model.bstart.shape[0] - 1
@@ -177,7 +177,7 @@ def _start_sweeps(model, chain, drive, prm, con, ws, out):
 
 
 @njit(**HOT, inline="always")
-def _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
+def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     """After the first sweep: while touching partners moved by more than prm.tttol since a
     bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN);
     out of sweeps far from settled: the plain sweep (SWEEP_PLAIN).  Sets sw.count."""
@@ -197,8 +197,8 @@ def _settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
             if sweeps > 1 and moved > FALLBACK_MOVE:
                 # far from settled (the coupled step went astray): the plain sweep instead
                 sw.count[2] = 2
-                _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+                sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
             break
         sw.count[0] = sweep + 1
         place_partners(model, chain, con, jc, ws, c0_inv_h)
-        _sweep(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)
+        sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)

@@ -23,8 +23,8 @@ from typing import Any
 
 import tomllib
 
-from brush_env.engine import configs_dir
 from brush_env.engine.checks import ConfigError, Limit, did_you_mean, type_error
+from brush_env.engine.config_files import resolve_config
 
 __all__ = ["EnvConfig", "FIELDS", "SECTIONS", "load_env_config", "arguments_table"]
 
@@ -505,17 +505,7 @@ def _check_names(names, what: str, section: str | None = None) -> None:
 
 def env_config_path(path_or_name: str | os.PathLike | None) -> Path:
     """``configs/envs/<name>.toml`` for a bare name, else the path itself."""
-    s = os.fspath(path_or_name or "flat_plate")
-    if not s.endswith(".toml") and "/" not in s and os.sep not in s:
-        p = configs_dir() / "envs" / f"{s}.toml"
-        if not p.is_file():
-            known = sorted(q.stem for q in (configs_dir() / "envs").glob("*.toml"))
-            raise ConfigError(f"env config {s!r} is not known: no {p} (known: {known})")
-        return p
-    p = Path(s)
-    if not p.is_file():
-        raise ConfigError(f"env config {s!r}: no such file")
-    return p
+    return resolve_config("env", path_or_name)
 
 
 def load_env_config(

@@ -153,10 +153,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from brush_env.coverage import CoverageMap, EffectiveSweep, gum_force
 from brush_env.engine import (
     ConfigError,
     Plane,
@@ -171,7 +173,6 @@ from brush_env.motion import R0
 
 from .action import make_action_type
 from .config import EnvConfig, load_env_config
-from .coverage import CoverageMap
 from .observation import ObservationLayout, make_observation_type
 from .rendering import Renderer, RenderInput
 
@@ -238,6 +239,7 @@ class BrushEnv(gym.Env):
         self.observation_type = make_observation_type(cfg, self.layout)
         self.observation_space = self.observation_type.space()
         self.coverage = self._make_coverage()
+        self._sweep = EffectiveSweep(self.n_bristles, cfg.tip_force_window)
         # render_fps depends on the configured dt, hence per instance (Gymnasium MuJoCo style)
         self.metadata = {**BrushEnv.metadata, "render_fps": 1.0 / self.dt}
         # chains for the side view: body indices per bristle, padded with the bristle's last body
@@ -246,7 +248,7 @@ class BrushEnv(gym.Env):
         self._chain_idx = np.minimum(
             model.bstart[:-1, None] + np.arange(k)[None, :], model.bstart[1:, None] - 1
         )
-        self._renderer = None
+        self._renderer: Any = None  # a Renderer (or ToothRow-v0's FrameWindow), made on first use
         self._horizon = cfg.max_episode_steps
         self._started = False
         self._done = False
@@ -323,8 +325,7 @@ class BrushEnv(gym.Env):
         self._last = self.sim.reset(self._p, self._R)
         self._rest_tips = (self._last.tip_pos - self._p) @ self._R
         self.coverage.reset()
-        self._prev_eff = np.zeros(self.n_bristles, bool)
-        self._prev_cp = np.zeros((self.n_bristles, 3))
+        self._sweep.reset()
         self._steps = 0
         self._total_force = 0.0
         self._started, self._done = True, False
@@ -375,7 +376,6 @@ class BrushEnv(gym.Env):
         cfg = self.config
         dte = cfg.engine_dt
         dR = expmap(self._w * dte)
-        lo, hi = cfg.tip_force_window
         starts, ends = [], []
         total_int = tip_int = above_t = gum_int = 0.0
         peak_total = peak_tip = peak_gum = 0.0
@@ -397,18 +397,13 @@ class BrushEnv(gym.Env):
             peak_total = max(peak_total, fn)
             peak_tip = max(peak_tip, float(f.max()))
             if self._gum.any():
-                surf = out.extra["tip_surface"]
-                fg = float(f[(surf >= 0) & self._gum[np.maximum(surf, 0)]].sum())
+                fg = gum_force(out, self._gum)
                 gum_int += dte * max(0.0, fg - cfg.gum_force_limit)
                 peak_gum = max(peak_gum, fg)
-            eff = out.tip_in_contact & (f >= lo) & (f <= hi)
-            if eff.any():
-                cp = out.tip_contact_point[eff]
-                both = self._prev_eff[eff]
-                starts.append(np.where(both[:, None], self._prev_cp[eff], cp))
-                ends.append(cp)
-                self._prev_cp[eff] = cp
-            self._prev_eff = eff
+            seg = self._sweep.segments(out)
+            if seg is not None:
+                starts.append(seg[0])
+                ends.append(seg[1])
             if fn > cfg.hard_force_limit:
                 termination = "force_limit"
                 break
@@ -533,6 +528,7 @@ class BrushEnv(gym.Env):
         if not self._started:
             raise RuntimeError("call reset() before render()")
         out, st, m = self._last, self.sim.state, self.sim.model
+        assert st is not None  # reset() ran
         roots = self._p + m.root_p @ self._R.T
         chains = np.concatenate(
             [roots[:, None], st.pos[self._chain_idx], out.tip_pos[:, None]], axis=1

@@ -65,6 +65,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from brush_env.coverage import LineCoverage
 from brush_env.engine import ConfigError, load_brush
 from brush_env.planar import PlanarBrush, PlanarSettings, Profile
 
@@ -150,10 +151,10 @@ class PlanarStrokeEnv(gym.Env):
         )
         self.horizon = int(max_episode_steps)
         self.half = float(patch_half_width)
-        self.cell = 0.25  # [mm] coverage cell along x
-        self.n_cells = int(round(2 * self.half / self.cell))
         self.clean_radius = float(clean_radius)
         self.blocks = int(coverage_blocks)
+        # 0.25 mm coverage cells along x
+        self.coverage = LineCoverage(self.half, 0.25, self.clean_radius, self.blocks)
         self.blocks_sizes = {
             "tip_deflection": (self.nb, 2),
             "tip_contact": (self.nb,),
@@ -200,7 +201,7 @@ class PlanarStrokeEnv(gym.Env):
         h = float(self.np_random.uniform(1.0, 2.0))
         self.model.place(x0, self.z_touch + h)
         self.pose = np.array([x0, self.z_touch + h, 0.0])
-        self.cleaned = np.zeros(self.n_cells, bool)
+        self.coverage.reset()
         self.prev_cp = np.full(self.nb, np.nan)
         self.steps = 0
         self.forces = np.zeros((self.nb, 2))
@@ -248,7 +249,7 @@ class PlanarStrokeEnv(gym.Env):
         if termination is None and not self._in_workspace():
             termination = "workspace"
         terms = {
-            "coverage": self.w["coverage"] * new / self.n_cells,
+            "coverage": self.w["coverage"] * new / self.coverage.n,
             "total_force": -self.w["total"] * total_int,
             "tip_force": -self.w["tip"] * tip_int,
             "termination": -self.w["term"] if termination else 0.0,
@@ -256,7 +257,7 @@ class PlanarStrokeEnv(gym.Env):
         self._done = termination is not None
         info = {
             "reward_terms": terms,
-            "coverage": float(self.cleaned.mean()),
+            "coverage": self.coverage.fraction,
             "total_force": float(np.linalg.norm(self.forces, axis=1).sum()),
             "termination": termination,
             "divergence": divergence,
@@ -270,16 +271,9 @@ class PlanarStrokeEnv(gym.Env):
         swept from their last effective x."""
         x = self.model.tip_positions()[:, 0]
         eff = (fm >= 0.01) & (fm <= TIP_FORCE_LIMIT)
-        new = 0
-        for i in np.flatnonzero(eff):
-            a = self.prev_cp[i] if np.isfinite(self.prev_cp[i]) else x[i]
-            lo = min(a, x[i]) - self.clean_radius + self.half
-            hi = max(a, x[i]) + self.clean_radius + self.half
-            i0 = max(int(math.floor(lo / self.cell)), 0)
-            i1 = min(int(math.ceil(hi / self.cell)), self.n_cells)
-            if i1 > i0:
-                new += int((~self.cleaned[i0:i1]).sum())
-                self.cleaned[i0:i1] = True
+        idx = np.flatnonzero(eff)
+        prev = self.prev_cp[idx]
+        new = self.coverage.stamp(np.where(np.isfinite(prev), prev, x[idx]), x[idx])
         self.prev_cp = np.where(eff, x, np.nan)
         return new
 
@@ -296,11 +290,6 @@ class PlanarStrokeEnv(gym.Env):
         rest = m.rest_tip_offset
         fm = np.linalg.norm(self.forces, axis=1)
         tcp = self.model.root_force()
-        cov = (
-            self.cleaned.reshape(self.blocks, -1).mean(axis=1)
-            if (self.n_cells % self.blocks == 0)
-            else np.array([b.mean() for b in np.array_split(self.cleaned, self.blocks)])
-        )
         vals = {
             "tip_deflection": (local - rest) / self.L,
             "tip_contact": (fm > 0).astype(float),
@@ -313,7 +302,7 @@ class PlanarStrokeEnv(gym.Env):
                     self.pose[2] / math.radians(30.0),
                 ]
             ),
-            "coverage": np.r_[self.cleaned.mean(), cov],
+            "coverage": np.r_[self.coverage.cleaned.mean(), self.coverage.coarse()],
             "time_remaining": np.array([max(0.0, 1.0 - self.steps / self.horizon)]),
         }
         low, high = self._bounds
@@ -352,9 +341,9 @@ class PlanarStrokeEnv(gym.Env):
             ax.plot(pts[:, 0], pts[:, 1], color="tab:red" if f > 0 else "tab:blue", lw=1.2)
             ax.add_patch(plt.Circle(pts[-1], tip.radius, color="tab:red" if f > 0 else "0.4"))
         ax.plot(*head, "ks", ms=5)
-        xs = -self.half + (np.flatnonzero(self.cleaned) + 0.5) * self.cell
+        xs = -self.half + (np.flatnonzero(self.coverage.cleaned) + 0.5) * self.coverage.cell
         ax.plot(xs, np.full(len(xs), -1.0), "g|", ms=4)
-        ax.set_title(f"coverage {100 * self.cleaned.mean():.1f} %", fontsize=8)
+        ax.set_title(f"coverage {100 * self.coverage.fraction:.1f} %", fontsize=8)
         fig.canvas.draw()
         img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
         plt.close(fig)

@@ -5,7 +5,7 @@ Description
 FlatPlate-v0's task on teeth: the same brush, engine, actions, observation layout and reward
 terms, on the tooth-row scene (``configs/scenes/tooth_row.toml``: four maxillary posterior crowns
 of Wheeler's dimensions with 0.7 mm interdental gaps, buccal surfaces facing the brush, the gum
-below the cemento-enamel junction; ``brush_env.engine.teeth``).  Contact with the crowns and the
+below the cemento-enamel junction; ``brush_env.geometry.teeth``).  Contact with the crowns and the
 gum uses signed distance fields (``brush_env.engine.sdf``).  The crowns' buccal height of contour
 is the plane z = 0 of FlatPlate-v0's plate, so the frames, the touch height ``z_t`` and the
 workspace read the same.  The reference policy is a horizontal scrub
@@ -13,7 +13,7 @@ workspace read the same.  The reference policy is a horizontal scrub
 
 Differences from FlatPlate-v0
 -----------------------------
-* **Coverage** is measured on the crowns (``brush_env.engine.scrub.SurfaceCoverage``):
+* **Coverage** is measured on the crowns (``brush_env.coverage.SurfaceCoverage``):
   area-weighted samples above the CEJ, cleaned when an effective tip's contact point passes
   within ``clean_radius``.  The coverage term and ``info["coverage"]`` count the area a brush
   on the buccal side can reach (buccal, occlusal and interproximal regions);
@@ -41,8 +41,9 @@ import os
 
 import numpy as np
 
+from brush_env.coverage import crown_samples, gum_force
 from brush_env.engine import ConfigError
-from brush_env.engine.scrub import crown_samples, tooth_surfaces
+from brush_env.engine.scene import tooth_surfaces
 
 from .config import EnvConfig
 from .flat_plate import BrushEnv
@@ -97,12 +98,10 @@ class ToothRowEnv(BrushEnv):
         info = super()._get_info(sim, terms)
         info.pop("cells_cleaned", None)
         out = self._last
-        surf = out.extra["tip_surface"]
-        gum = (surf >= 0) & self._gum[np.maximum(surf, 0)]
         info["area_cleaned"] = self.coverage.count
         info["coverage_regions"] = self.coverage.by_region()
         info["coverage_teeth"] = self.coverage.by_tooth()
-        info["gum_force"] = float(out.tip_normal_force[gum].sum())
+        info["gum_force"] = gum_force(out, self._gum)
         info["peak_gum_force"] = sim["peak_gum"]
         return info
 
@@ -116,6 +115,7 @@ class ToothRowEnv(BrushEnv):
         if not self._started:
             raise RuntimeError("call reset() before render()")
         out, st = self._last, self.sim.state
+        assert st is not None  # reset() ran
         m = self.sim.model
         roots = self._p + m.root_p @ self._R.T
         chains = np.concatenate(

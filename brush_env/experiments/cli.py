@@ -125,7 +125,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _is_tooth_scene(args) -> bool:
     from ..engine import load_scene
-    from ..engine.scrub import tooth_surfaces
+    from ..engine.scene import tooth_surfaces
 
     if args.mesh is not None:
         return True

@@ -41,7 +41,7 @@ DEFAULTS = dict(
 )
 
 
-def _plate_height(scene) -> float:
+def plate_height(scene) -> float:
     planes = [s for s in scene.surfaces if isinstance(s, Plane)]
     if not scene.surfaces:
         return 0.0
@@ -248,7 +248,7 @@ def make_plan(scene_obj, settings, args: Mapping) -> Plan:
     by name (``MOTION_ARGS``, turns, pitch_error_deg, pitch_window, tips_dt, shapes_dt)."""
     sim = Simulator(scene_obj, settings)
     dt = settings.dt
-    plate_z = _plate_height(scene_obj)
+    plate_z = plate_height(scene_obj)
     touch_z = sim.touch_height(np.array(R0), plate_z)
     start_xy = (0.0, 0.0)
     turns = float(args["turns"])

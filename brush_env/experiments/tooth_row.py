@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..coverage import EffectiveSweep, crown_samples, gum_force
 from ..engine import SimulationDivergence, Simulator
 from ..engine.fidelity import level_settings
-from ..engine.scene import surface_labels, with_mesh
-from ..engine.scrub import crown_samples, tooth_surfaces
+from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled
 from ..motion import R0, Approach, Hold, Press, Sequence
 from .plan import resolve_scene
@@ -98,6 +98,35 @@ def stroke_motion(z_touch, press_depth, press_time, hold_time, speed, strokes, x
     return seq, tuple(float(t) for t in seq.start_times[:3])
 
 
+def _analysis(rows: np.ndarray, cov) -> dict:
+    """Forces over the strokes, the press peak, the deepest penetration and the coverage."""
+    strokes = rows[rows[:, 1] == 2] if len(rows) else rows
+    F = np.linalg.norm(strokes[:, 2:5], axis=1) if len(strokes) else np.zeros(0)
+
+    def stat(x):
+        return {"mean": float(np.mean(x)), "peak": float(np.max(x))} if len(x) else None
+
+    analysis = {
+        "strokes": {
+            "tcp_force_N": stat(F),
+            "normal_force_N": stat(strokes[:, 8]),
+            "gum_force_N": stat(strokes[:, 9]),
+            "tips_in_contact": stat(strokes[:, 10]),
+        },
+        "press_peak_normal_force_N": float(np.max(rows[:, 8])) if len(rows) else None,
+        "max_penetration_mm": float(np.nanmax(rows[:, 11])) if len(rows) else None,
+    }
+    if cov is not None:
+        analysis["coverage"] = {
+            "reachable": cov.fraction,
+            "regions": cov.by_region(),
+            "teeth": cov.by_tooth(),
+            "tip_force_window_N": list(TIP_WINDOW),
+            "clean_radius_mm": CLEAN_RADIUS,
+        }
+    return analysis
+
+
 def run_tooth_row(
     brush=None,
     scene="tooth_row",
@@ -149,13 +178,10 @@ def run_tooth_row(
     tips_t, tips_p, tips_f = [], [], []
     status, message = "ok", None
     sim.reset(P[0], Rs[0])
-    prev_eff = np.zeros(sim.model.n_bristles, bool)
-    prev_cp = np.zeros((sim.model.n_bristles, 3))
-    bar = None
-    if progress:
-        from tqdm import tqdm
+    sweep = EffectiveSweep(sim.model.n_bristles, TIP_WINDOW)
+    from tqdm import tqdm
 
-        bar = tqdm(total=n, unit="step", desc="tooth row", mininterval=1.0)
+    bar = tqdm(total=n, unit="step", desc="tooth row", mininterval=1.0, disable=not progress)
     t_sim = time.perf_counter()
     done = 0
     iterations = 0
@@ -167,8 +193,7 @@ def run_tooth_row(
             break
         iterations += out.iterations
         f = out.tip_normal_force
-        surf = out.extra["tip_surface"]
-        fg = float(f[(surf >= 0) & gum[np.maximum(surf, 0)]].sum()) if gum.any() else 0.0
+        fg = gum_force(out, gum)
         ph = int(np.searchsorted(phases, times[k], side="right") - 1)
         rows[k] = (
             times[k],
@@ -181,21 +206,16 @@ def run_tooth_row(
             out.tip_penetration.max(),
         )
         if cov is not None:
-            eff = out.tip_in_contact & (f >= TIP_WINDOW[0]) & (f <= TIP_WINDOW[1])
-            if eff.any():
-                cp = out.tip_contact_point[eff]
-                cov.stamp(np.where(prev_eff[eff][:, None], prev_cp[eff], cp), cp)
-                prev_cp[eff] = cp
-            prev_eff = eff
+            seg = sweep.segments(out)
+            if seg is not None:
+                cov.stamp(*seg)
         if k % stride == 0:
             tips_t.append(times[k])
             tips_p.append(out.tip_pos.copy())
             tips_f.append(f.copy())
         done = k
-        if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
+        bar.update(1)
+    bar.close()
     t_sim = time.perf_counter() - t_sim
     rows = rows[1 : done + 1]
     out_dir = Path(out_dir)
@@ -214,49 +234,13 @@ def run_tooth_row(
         tip_pos=np.array(tips_p),
         tip_normal_force=np.array(tips_f),
     )
-    strokes = rows[rows[:, 1] == 2] if len(rows) else rows
-    F = np.linalg.norm(strokes[:, 2:5], axis=1) if len(strokes) else np.zeros(0)
-
-    def stat(x):
-        return {"mean": float(np.mean(x)), "peak": float(np.max(x))} if len(x) else None
-
-    analysis = {
-        "strokes": {
-            "tcp_force_N": stat(F),
-            "normal_force_N": stat(strokes[:, 8]),
-            "gum_force_N": stat(strokes[:, 9]),
-            "tips_in_contact": stat(strokes[:, 10]),
-        },
-        "press_peak_normal_force_N": float(np.max(rows[:, 8])) if len(rows) else None,
-        "max_penetration_mm": float(np.nanmax(rows[:, 11])) if len(rows) else None,
-    }
-    if cov is not None:
-        analysis["coverage"] = {
-            "reachable": cov.fraction,
-            "regions": cov.by_region(),
-            "teeth": cov.by_tooth(),
-            "tip_force_window_N": list(TIP_WINDOW),
-            "clean_radius_mm": CLEAN_RADIUS,
-        }
+    analysis = _analysis(rows, cov)
     files = ["timeseries.csv", "tips.npz", "summary.json"]
     if plots and len(rows):
         _plot_forces(out_dir / "forces_vs_time.png", rows, phases)
         files.append("forces_vs_time.png")
         if cov is not None:
-            from ..viz.tooth_row import render_tooth_row
-
-            m = sim.model
-            pos = sim.state.pos
-            chains = np.stack(
-                [pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)]
-            )
-            chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
-            img = render_tooth_row(
-                teeth, cov, chains, out.tip_normal_force, 480, title=f"coverage {cov.fraction:.1%}"
-            )
-            import matplotlib.pyplot as plt
-
-            plt.imsave(out_dir / "coverage.png", img)
+            _plot_coverage(out_dir / "coverage.png", sim, out, teeth, cov)
             files.append("coverage.png")
     sim_time = float(rows[-1, 0]) if len(rows) else 0.0
     summary = {
@@ -291,6 +275,22 @@ def run_tooth_row(
     }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _plot_coverage(path, sim, out, teeth, cov) -> None:
+    """coverage.png: the crowns coloured by what the tips scrubbed, with the bristles."""
+    from ..viz.tooth_row import render_tooth_row
+
+    m = sim.model
+    pos = sim.state.pos
+    chains = np.stack([pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)])
+    chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
+    img = render_tooth_row(
+        teeth, cov, chains, out.tip_normal_force, 480, title=f"coverage {cov.fraction:.1%}"
+    )
+    import matplotlib.pyplot as plt
+
+    plt.imsave(path, img)
 
 
 def _plot_forces(path, rows, phases):

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .safety import move_aside, write_text
-from .spec import CIRCLE_METRICS, METRICS, SweepSpec, _bases, resolve
+from .spec import CIRCLE_METRICS, METRICS, SweepSpec, base_tables, resolve
 
 
 def _toml_value(v) -> str:
@@ -77,7 +77,7 @@ def prepare(spec: SweepSpec, run: dict, out: Path) -> dict:
     (everything ``execute`` needs, plain data)."""
     from ..engine import load_brush, load_scene
 
-    bases = _bases(spec.path, {"brush": spec.brush, "scene": spec.scene})
+    bases = base_tables(spec.path, {"brush": spec.brush, "scene": spec.scene})
     brush, mat, scene = (copy.deepcopy(bases[k]) for k in ("brush", "material", "scene"))
     motion = dict(spec.motion)
     for key, value in run["params"].items():

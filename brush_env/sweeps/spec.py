@@ -45,7 +45,7 @@ import numpy as np
 import tomllib
 
 from ..engine.checks import ConfigError, did_you_mean
-from ..engine.config import configs_dir
+from ..engine.config_files import materials_path, resolve_config
 
 MOTIONS = ("circle", "press", "pitch")
 #: run_reference keywords a spec may vary or set, with their units
@@ -155,17 +155,36 @@ def _fail(path, where, msg):
 
 def load_spec(path) -> SweepSpec:
     """Parse and check a spec (module docstring); nothing is run."""
-    path = Path(path)
-    if not path.is_file():
-        alt = configs_dir() / "sweeps" / f"{path}.toml"
-        if alt.is_file():
-            path = alt
-        else:
-            raise ConfigError(f"sweep spec {str(path)!r}: no such file")
+    path = resolve_config("sweep", path)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    motions, metrics, motion, sample, method, seed = _top_level(path, data)
+    bases = base_tables(path, data)
+    vary = data.get("vary", [])
+    if not vary:
+        _fail(path, "[[vary]]", "empty: name at least one parameter to vary")
+    params = [_vary(path, f"[[vary]] #{j + 1}", t, bases) for j, t in enumerate(vary)]
+    points = _sample(path, method, sample, params, seed)
+    return SweepSpec(
+        path=path,
+        name=str(data.get("name", path.stem)),
+        brush=str(data.get("brush", "default")),
+        scene=str(data.get("scene", "flat_plate")),
+        fidelity=str(data.get("fidelity", "balanced")),
+        seed=seed,
+        motions=motions,
+        metrics=metrics,
+        method=method,
+        params=tuple(params),
+        motion=motion,
+        points=points,
+    )
+
+
+def _top_level(path, data) -> tuple:
+    """The checked top-level keys: (motions, metrics, [motion], [sample], method, seed)."""
     for k in data:
         if k not in _SPEC_KEYS:
             _fail(path, f"key {k!r}", f"unknown{did_you_mean(k, _SPEC_KEYS)}")
@@ -194,56 +213,36 @@ def load_spec(path) -> SweepSpec:
     seed = data.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         _fail(path, "seed", f"{seed!r} must be an integer")
-    bases = _bases(path, data)
-    params = []
-    vary = data.get("vary", [])
-    if not vary:
-        _fail(path, "[[vary]]", "empty: name at least one parameter to vary")
-    for j, t in enumerate(vary):
-        where = f"[[vary]] #{j + 1}"
-        for k in t:
-            if k not in ("key", "values", "range", "unit"):
-                _fail(path, f"{where} {k!r}", "unknown (allowed: key, values, range, unit)")
-        key = t.get("key")
-        if not isinstance(key, str):
-            _fail(path, where, "needs key = 'brush.…' | 'material.…' | 'scene.…' | 'motion.…'")
-        _check_key(path, where, key, bases)
-        unit = key_unit(key)
-        if "unit" in t and t["unit"] != unit:
-            _fail(path, f"{where} {key}", f"unit = {t['unit']!r}, but the key is in {unit!r}")
-        if ("values" in t) == ("range" in t):
-            _fail(path, f"{where} {key}", "give either values = [...] or range = [lo, hi]")
-        if "values" in t:
-            vals = t["values"]
-            if not isinstance(vals, list) or not vals:
-                _fail(path, f"{where} {key}", "values is empty: list at least one value")
-            if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
-                _fail(path, f"{where} {key}", f"values = {vals!r} must be finite numbers ({unit})")
-            params.append(Param(key, tuple(float(v) for v in vals)))
-        else:
-            r = t["range"]
-            if not (
-                isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) for v in r)
-            ):
-                _fail(path, f"{where} {key}", f"range = {r!r} must be [lo, hi] ({unit})")
-            if not (math.isfinite(r[0]) and math.isfinite(r[1]) and r[0] < r[1]):
-                _fail(path, f"{where} {key}", f"range = {r!r} is empty: need lo < hi ({unit})")
-            params.append(Param(key, (), float(r[0]), float(r[1])))
-    points = _sample(path, method, sample, params, seed)
-    return SweepSpec(
-        path=path,
-        name=str(data.get("name", path.stem)),
-        brush=str(data.get("brush", "default")),
-        scene=str(data.get("scene", "flat_plate")),
-        fidelity=str(data.get("fidelity", "balanced")),
-        seed=seed,
-        motions=motions,
-        metrics=metrics,
-        method=method,
-        params=tuple(params),
-        motion=motion,
-        points=points,
-    )
+    return motions, metrics, motion, sample, method, seed
+
+
+def _vary(path, where: str, t: dict, bases: dict) -> Param:
+    """One checked [[vary]] table."""
+    for k in t:
+        if k not in ("key", "values", "range", "unit"):
+            _fail(path, f"{where} {k!r}", "unknown (allowed: key, values, range, unit)")
+    key = t.get("key")
+    if not isinstance(key, str):
+        _fail(path, where, "needs key = 'brush.…' | 'material.…' | 'scene.…' | 'motion.…'")
+    _check_key(path, where, key, bases)
+    unit = key_unit(key)
+    if "unit" in t and t["unit"] != unit:
+        _fail(path, f"{where} {key}", f"unit = {t['unit']!r}, but the key is in {unit!r}")
+    if ("values" in t) == ("range" in t):
+        _fail(path, f"{where} {key}", "give either values = [...] or range = [lo, hi]")
+    if "values" in t:
+        vals = t["values"]
+        if not isinstance(vals, list) or not vals:
+            _fail(path, f"{where} {key}", "values is empty: list at least one value")
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
+            _fail(path, f"{where} {key}", f"values = {vals!r} must be finite numbers ({unit})")
+        return Param(key, tuple(float(v) for v in vals))
+    r = t["range"]
+    if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) for v in r)):
+        _fail(path, f"{where} {key}", f"range = {r!r} must be [lo, hi] ({unit})")
+    if not (math.isfinite(r[0]) and math.isfinite(r[1]) and r[0] < r[1]):
+        _fail(path, f"{where} {key}", f"range = {r!r} is empty: need lo < hi ({unit})")
+    return Param(key, (), float(r[0]), float(r[1]))
 
 
 def _sample(path, method, sample, params, seed) -> np.ndarray:
@@ -275,22 +274,18 @@ def _sample(path, method, sample, params, seed) -> np.ndarray:
     return lo + u * (hi - lo)
 
 
-def _bases(path, data) -> dict:
+def base_tables(path, data) -> dict:
     """The dicts the keys point into: brush file, its material entry, scene file."""
-    from ..engine.config import _brush_path
-
-    brush_path = _brush_path(data.get("brush", "default"))
-    brush = tomllib.loads(Path(brush_path).read_text())
+    brush_path = resolve_config("brush", data.get("brush", "default"))
+    brush = tomllib.loads(brush_path.read_text())
     mfile = brush.get("materials_file")
-    mpath = (Path(brush_path).parent / mfile) if mfile else configs_dir() / "materials.toml"
+    mpath = materials_path(brush_path.parent / mfile if mfile else None)
     materials = tomllib.loads(mpath.read_text())
     mat = materials.get(brush.get("material", ""), {})
-    scene = data.get("scene", "flat_plate")
-    spath = (
-        Path(scene) if str(scene).endswith(".toml") else configs_dir() / "scenes" / f"{scene}.toml"
-    )
-    if not spath.is_file():
-        _fail(path, "scene", f"{scene!r}: no such scene file {spath}")
+    try:
+        spath = resolve_config("scene", data.get("scene", "flat_plate"))
+    except ConfigError as e:
+        _fail(path, "scene", str(e))
     return {
         "brush": brush,
         "material": mat,

@@ -18,9 +18,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..engine import BristleConfig, BrushConfig, Material, Section, SimSettings, Simulator
-from ..engine.modal import bristle_stiffness_mass, natural_frequencies
 from . import references as ref
 from .buckling import COMPRESSIONS, BucklingCase, buckling
+from .modal import bristle_stiffness_mass, natural_frequencies
 
 LINEAR_ALPHA_MAX = 0.1  # alpha <= this: linear Timoshenko reference
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from brush_env.engine.teeth import surface_samples
+from brush_env.geometry.teeth import surface_samples
 
 CLEAN = (0.25, 0.70, 0.35)
 DIRTY = (0.82, 0.82, 0.80)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from brush_env import cli
 
@@ -38,6 +39,7 @@ def test_bench_teeth_quick_rows(capsys):
     assert all(r["band_max_err_mm"] <= r["bound_mm"] for r in sdf)
 
 
+@pytest.mark.slow  # ~36 s: bakes and steps both ellipsoid scenes
 def test_bench_teeth_ellipsoid_rows_are_one_surface_twice():
     """``--ellipsoids`` compares analytic ellipsoids with the same ellipsoids baked into grids:
     outside each surface, within the band, the grid's distance must match the closed-form one

@@ -201,7 +201,7 @@ def _energy(sim):
     for i in range(m.n_bodies):
         om_b = st.rot[i].T @ st.omg[i]
         ke += 0.5 * np.sum(m.bp[i]["J"] * om_b**2)
-    from brush_env.engine.modal import element_strains
+    from brush_env.validation.modal import element_strains
 
     e = element_strains(sim)
     pe = 0.5 * np.einsum("ni,nij,nj->", e, m.K, e)

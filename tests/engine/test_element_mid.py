@@ -16,7 +16,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from brush_env.engine import records as rec
-from brush_env.engine._kernels import ELEM_MID, _element_gen
+from brush_env.engine._kernels import ELEM_MID, element_gen
 from brush_env.engine.beam import mid_frame_stiffness, timoshenko_stiffness
 
 
@@ -43,7 +43,7 @@ def kernel_loads(cA, RA, hA, cB, RB, hB, K, length, root):
     A = rec.Node(np.asarray(cA, float), np.asarray(RA, float), float(hA))
     B = rec.Node(np.asarray(cB, float), np.asarray(RB, float), float(hB))
     damp = rec.Damp(np.zeros(6), 1.0, 0.0)
-    _element_gen(ELEM_MID, root, A, np.asarray(cA, float), B, K, length, damp, out12, e)
+    element_gen(ELEM_MID, root, A, np.asarray(cA, float), B, K, length, damp, out12, e)
     return out12[:6], out12[6:], e
 
 

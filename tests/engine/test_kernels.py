@@ -12,7 +12,7 @@ import pytest
 
 from brush_env.engine import SimSettings, SimulationDivergence, Simulator, load_brush
 from brush_env.engine import records as rec
-from brush_env.engine._kernels import _lu6, block_factor, block_factor_head, block_solve
+from brush_env.engine._kernels import block_factor, block_factor_head, block_solve, lu6
 from brush_env.engine.predict import _extrapolate
 from brush_env.engine.rotation import pose_ok
 from brush_env.engine.step import tcp_wrench
@@ -58,7 +58,7 @@ def test_changing_the_last_block_needs_only_its_schur_complement(n):
     piv = np.zeros((n, 6), np.int64)
     assert block_factor_head(n, D, U, L, G, piv)
     D[n - 1] += dD
-    assert _lu6(D[n - 1], piv[n - 1])
+    assert lu6(D[n - 1], piv[n - 1])
     x = np.zeros((n, 6))
     block_solve(n, D, L, G, piv, r, x)
     np.testing.assert_allclose(x.ravel(), np.linalg.solve(A2, r.ravel()), rtol=1e-12, atol=1e-13)

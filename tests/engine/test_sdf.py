@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from brush_env.engine import ConfigError, Scene, SimSettings, Simulator, load_scene, sdf, teeth
+from brush_env.engine import ConfigError, Scene, SimSettings, Simulator, load_scene, sdf
 from brush_env.engine import contact as ct
 from brush_env.engine import records as rec
 from brush_env.engine.scene import Capsule, Cylinder, Ellipsoid, MeshSurface, Sphere
+from brush_env.geometry import sdf_bake, teeth
 
 from .test_contact import R0, one_bristle
 
@@ -134,7 +135,7 @@ def test_baked_icosphere_matches_the_analytic_sphere_within_grid_and_facet_bound
     m = trimesh.creation.icosphere(subdivisions=5, radius=r)
     edge = float(m.edges_unique_length.max())
     facet = r * (1.0 - math.cos(edge / (2 * r)))
-    g = sdf.bake_mesh(m.vertices, m.faces, cell=h, band=1.0)
+    g = sdf_bake.bake_mesh(m.vertices, m.faces, cell=h, band=1.0)
     P = rng.normal(size=(3000, 3))
     P = P / np.linalg.norm(P, axis=1)[:, None] * rng.uniform(r - 0.8, r + 0.8, (3000, 1))
     d, N = g.query(P)

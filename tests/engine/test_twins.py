@@ -28,10 +28,10 @@ from scipy.spatial.transform import Rotation
 from brush_env.engine import SimSettings, Simulator, load_scene
 from brush_env.engine import contact as ct
 from brush_env.engine import records as rec
-from brush_env.engine._kernels import ELEM_PAPER, _element_gen
+from brush_env.engine._kernels import ELEM_PAPER, element_gen
 from brush_env.engine.mesh_contact import empty_mesh
 from brush_env.engine.predict import _prepare
-from brush_env.engine.residual import _residual
+from brush_env.engine.residual import bristle_residual
 from brush_env.engine.scene import ContactParams
 from brush_env.engine.sdf import empty_sdf
 
@@ -63,7 +63,7 @@ def kernel_element(
     e_p=None,
     kind=ELEM_PAPER,
 ):
-    """``_kernels._element_gen``: loads of one element on bodies A and B -> (wA, wB, e).
+    """``_kernels.element_gen``: loads of one element on bodies A and B -> (wA, wB, e).
 
     Bodies: centre c, rotation R (body -> world), half length (node p = c + half R e_x).
     ``base``: the root node (A is then the head: cA and halfA are not used, wA is at the node).
@@ -80,7 +80,7 @@ def kernel_element(
     A = rec.Node(np.asarray(cA, float), np.asarray(RA, float), float(halfA))
     B = rec.Node(np.asarray(cB, float), np.asarray(RB, float), float(halfB))
     damp = rec.Damp(c[1] * e_n + c[2] * e_p, 1.0 + beta * c[0] / h, beta / h)
-    _element_gen(kind, root, A, pAb, B, np.asarray(K, float), length, damp, out12, e)
+    element_gen(kind, root, A, pAb, B, np.asarray(K, float), length, damp, out12, e)
     return out12[:6].copy(), out12[6:].copy(), e
 
 
@@ -176,7 +176,8 @@ def kernel_residual(
     slide_beta,
     ctx,
 ):
-    """``residual._residual`` of bristle b (after ``_prepare``, as ``_newton`` calls them).
+    """``residual.bristle_residual`` of bristle b (after ``_prepare``, as ``newton_solve`` calls
+    them).
 
     bp (n,) ``records.BODY``, K (n, 6, 6): the bristle's rows of the model arrays; (pos, rot):
     the trial chain at t_{n+1}; *_n / *_p: the chain at t_n / t_{n-1}; base*: (root node, head
@@ -227,7 +228,7 @@ def kernel_residual(
     con = ctx._replace(tip_args=tip_args, tip_state=tip_state)
     trial = at_n._replace(pos=np.array(pos, float), rot=np.array(rot, float))
     rootw = np.zeros(6)
-    nrm = _residual(br, model, trial, sub, base_rec, con, ws, rootw)
+    nrm = bristle_residual(br, model, trial, sub, base_rec, con, ws, rootw)
     res = ws.it.res[:n].copy()
     tipF = ws.it.tipF.copy()
     tipK = ws.it.tipK.copy()

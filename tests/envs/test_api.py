@@ -48,6 +48,7 @@ def test_sb3_check_env(env_id, variant):
     env.close()
 
 
+@pytest.mark.slow  # ~85 s: a fresh interpreter imports and steps the env
 def test_make_with_module_prefix_in_fresh_subprocess():
     code = (
         "import sys, gymnasium as gym\n"

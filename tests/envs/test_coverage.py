@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from brush_env.envs.coverage import CoverageMap
+from brush_env.coverage import CoverageMap
 
 
 def _band(cov):

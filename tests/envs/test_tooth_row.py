@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from agents.reference import ReferencePolicy
-from brush_env.engine.scrub import SurfaceCoverage
-from brush_env.engine.teeth import BUCCAL, INTERPROXIMAL, LINGUAL, OCCLUSAL
+from brush_env.coverage import SurfaceCoverage
+from brush_env.geometry.teeth import BUCCAL, INTERPROXIMAL, LINGUAL, OCCLUSAL
 
 ID = "brush_env/ToothRow-v0"
 TINY = {"brush": "tiny_env"}

@@ -11,8 +11,8 @@ import pytest
 
 from brush_env.cli import main
 from brush_env.engine import ConfigError
-from brush_env.engine.meshes import load_mesh_file
 from brush_env.experiments.tooth_row import run_tooth_row
+from brush_env.geometry.meshes import load_mesh_file
 
 QUICK = dict(strokes=1, x_range=(-2.0, 2.0), press_time=0.2, hold_time=0.05, dt=2e-3)
 

@@ -13,9 +13,9 @@ import pytest
 
 from brush_env import cli
 from brush_env.engine import Scene, SimSettings, Simulator, load_brush
-from brush_env.engine.modal import bristle_stiffness_mass
 from brush_env.validation import PAPER_INNER, SLENDER, Geometry, classified_modes
 from brush_env.validation import references as ref
+from brush_env.validation.modal import bristle_stiffness_mass
 
 R0 = np.diag([1.0, -1.0, -1.0])  # default TCP orientation: bristles hang toward -z
 

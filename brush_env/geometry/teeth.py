@@ -65,7 +65,8 @@ class ToothSpec:
 def row_specs(teeth=("PM1", "PM2", "M1", "M2"), gap_mm: float = 0.7) -> list[ToothSpec]:
     """The teeth named (keys of WHEELER_MAXILLARY) side by side along +x, ``gap_mm`` apart at
     their widest, the row centred on x = 0."""
-    specs, x = [], 0.0
+    specs: list[ToothSpec] = []
+    x = 0.0
     for k, name in enumerate(teeth):
         if name not in WHEELER_MAXILLARY:
             raise ValueError(
@@ -135,10 +136,10 @@ def tooth_mesh(s: ToothSpec, n_around: int = 64, n_along: int = 48):
         jn = (j + 1) % n_around
         T.append((bottom, j, jn))
         T.append((top, last + jn, last + j))
-    T = np.asarray(T, np.int64)
-    if signed_volume(V, T) < 0:
-        T = T[:, ::-1].copy()
-    return V, T
+    tri = np.asarray(T, np.int64)
+    if signed_volume(V, tri) < 0:
+        tri = tri[:, ::-1].copy()
+    return V, tri
 
 
 def signed_volume(V: np.ndarray, T: np.ndarray) -> float:

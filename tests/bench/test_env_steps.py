@@ -6,8 +6,8 @@ import time
 
 import pytest
 
+from brush_env.bench.env_steps import add_arguments, bench_env, run
 from brush_env.engine import Simulator
-from brush_env.envs.bench_env import add_arguments, bench_env, run
 
 KEYS = {
     "mode",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from brush_env.envs.bench_random import format_table, random_run
+from brush_env.bench.random_actions import format_table, random_run
 
 
 def test_same_seed_same_actions_and_the_table():

@@ -59,8 +59,8 @@ class _Reference:
     """Reference controllers for a batch of envs, planned per env at k = 0."""
 
     def __init__(self, env):
-        from .action import make_action_type
-        from .reference import CircleReference
+        from brush_env.envs.action import make_action_type
+        from brush_env.envs.reference import CircleReference
 
         u = env.unwrapped
         self.layout, self.horizon = u.layout, u.horizon
@@ -245,9 +245,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv=None) -> int:  # standalone: python -m brush_env.envs.bench_env
+def main(argv=None) -> int:  # standalone: python -m brush_env.bench.env_steps
     p = argparse.ArgumentParser(
-        prog="python -m brush_env.envs.bench_env", description=__doc__.split("\n")[0]
+        prog="python -m brush_env.bench.env_steps", description=__doc__.split("\n")[0]
     )
     add_arguments(p)
     return run(p.parse_args(argv))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .checks import ConfigError
+from brush_env.engine.checks import ConfigError
 
 #: length of one unit in mm
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "um": 1e-3, "in": 25.4}

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import records as rec
-from ._kernels import ELEM_MID
-from .residual import _jacobian
-from .rotation import expmap, logmap
+from ..engine import records as rec
+from ..engine.residual import jacobian
+from ..engine.rotation import expmap, logmap
+from ..engine.settings import ELEMENTS
+
+ELEM_MID = ELEMENTS["mid"]  # the kernels' code of the mid-frame element
 
 
 def bristle_stiffness_mass(sim, bristle: int = 0):
@@ -32,7 +34,7 @@ def bristle_stiffness_mass(sim, bristle: int = 0):
     )
     sub = rec.Substep(1.0, 0.0, 0.0, 1.0, 1.0, True, np.zeros(3), 0.0, 0, 0.0)
     br = rec.Bristle(bristle, b0, n, b1 - 1)
-    _jacobian(br, m.arrays(), chain, sub, base, ws.hist, D, U, L, ws)
+    jacobian(br, m.arrays(), chain, sub, base, ws.hist, D, U, L, ws)
     K = np.zeros((6 * n, 6 * n))
     M = np.zeros((6 * n, 6 * n))
     for k in range(n):

@@ -1,0 +1,338 @@
+"""Coverage: what the brush's effective tips cleaned, written once for every env and experiment
+(issue 27).  Units: mm, mm^2.
+
+An *effective* tip touches a surface with a normal force inside the tip-force window
+``[f_min, f_max]`` [N].  Between two consecutive engine steps at which a tip is effective, its
+contact point is swept along the segment joining them (``EffectiveSweep``), so a cell or sample
+counts as cleaned at any speed.  Three maps, one per surface kind:
+
+* ``CoverageMap`` (FlatPlate-v0): a square patch of the plate in square cells;
+* ``SurfaceCoverage`` (ToothRow-v0, the tooth-row experiment): area-weighted samples on curved
+  crowns, each with a region and a tooth (``crown_samples``);
+* ``LineCoverage`` (PlanarStroke-v0): cells along the planar profile's x.
+
+``gum_force`` is the normal force of the tips whose deepest contact is a surface labelled
+``gum`` (ToothRow-v0's gum-force term, the tooth-row experiment's ``F_gum`` column).
+
+The engine does not use this module; it reads only the engine's step results.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from brush_env.geometry.teeth import REACHABLE, REGIONS, surface_samples
+
+__all__ = [
+    "CoverageMap",
+    "EffectiveSweep",
+    "LineCoverage",
+    "SurfaceCoverage",
+    "crown_samples",
+    "gum_force",
+]
+
+
+# ------------------------------------------------------------------ effective tips
+class EffectiveSweep:
+    """The swept segments of effective tips, step by step: ``segments(out)`` returns the
+    (start, end) contact points [mm] ((m, 3) each) of the tips effective at this step (start =
+    the tip's contact point at its previous effective step if it was effective at the previous
+    step, else the point itself), or None when no tip is effective."""
+
+    def __init__(self, n_tips: int, window: tuple[float, float]):
+        self.lo, self.hi = window
+        self.prev_eff = np.zeros(n_tips, bool)
+        self.prev_cp = np.zeros((n_tips, 3))
+
+    def reset(self) -> None:
+        self.prev_eff = np.zeros(len(self.prev_eff), bool)
+        self.prev_cp = np.zeros((len(self.prev_eff), 3))
+
+    def segments(self, out) -> tuple[np.ndarray, np.ndarray] | None:
+        f = out.tip_normal_force
+        eff = out.tip_in_contact & (f >= self.lo) & (f <= self.hi)
+        seg = None
+        if eff.any():
+            cp = out.tip_contact_point[eff]
+            both = self.prev_eff[eff]
+            seg = (np.where(both[:, None], self.prev_cp[eff], cp), cp)
+            self.prev_cp[eff] = cp
+        self.prev_eff = eff
+        return seg
+
+
+def gum_force(out, gum: np.ndarray) -> float:
+    """Normal force [N] of the tips whose deepest contact is a gum surface (``gum``: one bool a
+    surface of the scene, ``engine.scene.surface_labels(scene) == "gum"``); 0 without a gum."""
+    if not gum.any():
+        return 0.0
+    surf = out.extra["tip_surface"]
+    return float(out.tip_normal_force[(surf >= 0) & gum[np.maximum(surf, 0)]].sum())
+
+
+# ------------------------------------------------------------------ the plate's patch
+class CoverageMap:
+    """Boolean cleaned-cell grid with segment stamping (FlatPlate-v0).
+
+    The patch is a square of side ``patch_size`` [mm] centred on the (actual) plate origin,
+    split into square cells of side ``cell_size``.  A cell counts as cleaned once an effective
+    contact passes over it: the swept segment is sampled every half cell, and every cell whose
+    centre lies within ``clean_radius`` of a sample (or the cell holding the sample when
+    ``clean_radius`` is 0) is cleaned.
+
+    Grid indices: ``cleaned[i, j]`` is the cell with centre ``x = -S/2 + (j + 1/2) c``,
+    ``y = -S/2 + (i + 1/2) c`` (rows along +y, columns along +x).
+    """
+
+    def __init__(self, patch_size: float, cell_size: float, clean_radius: float, coarse_size: int):
+        self.patch_size = float(patch_size)
+        self.n = max(1, int(round(patch_size / cell_size)))
+        self.cell = self.patch_size / self.n  # the patch is split exactly
+        self.clean_radius = float(clean_radius)
+        self.coarse_size = int(coarse_size)
+        self.cleaned = np.zeros((self.n, self.n), bool)
+        self.count = 0
+        # coarse blocks: edges in cell indices (blocks differ by at most one cell in size)
+        self._edges = np.linspace(0, self.n, self.coarse_size + 1).round().astype(int)
+        self._block_area = np.diff(self._edges)[:, None] * np.diff(self._edges)[None, :]
+
+    @property
+    def total(self) -> int:
+        return self.n * self.n
+
+    @property
+    def fraction(self) -> float:
+        return self.count / self.total
+
+    def reset(self) -> None:
+        self.cleaned[:] = False
+        self.count = 0
+
+    def stamp(self, start: np.ndarray, end: np.ndarray) -> int:
+        """Clean along segments ``start[k] -> end[k]`` ((m, 2) or (m, 3) contact points in mm,
+        patch-centred; only x, y are used); returns the number of newly cleaned cells."""
+        if len(end) == 0:
+            return 0
+        new = _stamp_segments(
+            self.cleaned,
+            np.ascontiguousarray(np.asarray(start)[:, :2], dtype=np.float64),
+            np.ascontiguousarray(np.asarray(end)[:, :2], dtype=np.float64),
+            self.patch_size,
+            self.cell,
+            self.clean_radius,
+        )
+        self.count += new
+        return new
+
+    def coarse(self) -> np.ndarray:
+        """(coarse_size, coarse_size) fraction cleaned per block (rows along +y)."""
+        c = np.add.reduceat(
+            np.add.reduceat(self.cleaned, self._edges[:-1], axis=0), self._edges[:-1], axis=1
+        )
+        return c / self._block_area
+
+
+@njit(cache=True)
+def _stamp_segments(cleaned, start, end, patch_size, cell, radius):
+    """Mark cells within ``radius`` of samples (every half cell) along each segment; returns the
+    number of cells newly set.  ``cleaned`` (n, n) bool is modified in place."""
+    n = cleaned.shape[0]
+    half = 0.5 * patch_size
+    rho = radius / cell
+    rho2 = rho * rho
+    k = int(np.floor(rho + 0.5))  # offsets that can hold a centre within rho of the sample
+    new = 0
+    for s in range(start.shape[0]):
+        dx = end[s, 0] - start[s, 0]
+        dy = end[s, 1] - start[s, 1]
+        m = int(np.ceil(max(abs(dx), abs(dy)) / (0.5 * cell))) + 1
+        for q in range(m):
+            f = q / (m - 1) if m > 1 else 1.0
+            ux = (start[s, 0] + f * dx + half) / cell
+            uy = (start[s, 1] + f * dy + half) / cell
+            bi = int(np.floor(uy))
+            bj = int(np.floor(ux))
+            if radius == 0.0:
+                if 0 <= bi < n and 0 <= bj < n and not cleaned[bi, bj]:
+                    cleaned[bi, bj] = True
+                    new += 1
+                continue
+            for i in range(bi - k, bi + k + 1):
+                if i < 0 or i >= n:
+                    continue
+                for j in range(bj - k, bj + k + 1):
+                    if j < 0 or j >= n or cleaned[i, j]:
+                        continue
+                    ex = j + 0.5 - ux
+                    ey = i + 0.5 - uy
+                    if ex * ex + ey * ey <= rho2:
+                        cleaned[i, j] = True
+                        new += 1
+    return new
+
+
+# ------------------------------------------------------------------ curved surfaces
+class SurfaceCoverage:
+    """Coverage of curved surfaces (ToothRow-v0): area-weighted samples (triangle centroids of
+    the crowns above the CEJ, ``brush_env.geometry.teeth.surface_samples``), each with a region
+    (buccal, occlusal, interproximal, lingual) and a tooth.  A sample is cleaned once an effective
+    tip's contact point passes within ``clean_radius`` [mm] of it (3-D distance to the swept
+    segment between consecutive effective steps).  ``fraction`` is the cleaned area over the
+    area a brush on the buccal side can reach (``teeth.REACHABLE`` regions); ``count`` the
+    cleaned area [mm^2], so the env's coverage reward ``weight * new / total`` is an area share.
+    ``coarse()`` is the buccal view (x along the row, y up the crowns) in m x m blocks."""
+
+    def __init__(self, points, areas, region, tooth, tooth_names, clean_radius, coarse_size):
+        from scipy.spatial import cKDTree
+
+        self.points = np.ascontiguousarray(points, float)
+        self.areas = np.asarray(areas, float)
+        self.region = np.asarray(region, np.int64)
+        self.tooth = np.asarray(tooth, np.int64)
+        self.tooth_names = tuple(tooth_names)
+        self.region_names = REGIONS
+        self.reach = np.isin(self.region, REACHABLE)
+        self.clean_radius = float(clean_radius)
+        self.coarse_size = int(coarse_size)
+        self._tree = cKDTree(self.points)
+        self.cleaned = np.zeros(len(self.points), bool)
+        self.count = 0.0
+        self._total = float(self.areas[self.reach].sum())
+        lo, hi = self.points[:, :2].min(axis=0), self.points[:, :2].max(axis=0)
+        m = self.coarse_size
+        ij = np.clip(((self.points[:, :2] - lo) / (hi - lo + 1e-9) * m).astype(int), 0, m - 1)
+        self._block = ij[:, 1] * m + ij[:, 0]  # rows along +y, columns along +x
+        w = np.where(self.reach, self.areas, 0.0)
+        self._block_area = np.bincount(self._block, w, m * m)
+        self.extent = (lo, hi)
+
+    @property
+    def total(self) -> float:
+        return self._total
+
+    @property
+    def fraction(self) -> float:
+        return self.count / self._total
+
+    def reset(self) -> None:
+        self.cleaned[:] = False
+        self.count = 0.0
+
+    def stamp(self, start: np.ndarray, end: np.ndarray) -> float:
+        """Clean along segments start[k] -> end[k] ((m, 3) contact points [mm]); returns the newly
+        cleaned reachable area [mm^2]."""
+        if len(end) == 0:
+            return 0.0
+        a = np.asarray(start, float)
+        b = np.asarray(end, float)
+        mid = 0.5 * (a + b)
+        half = 0.5 * np.linalg.norm(b - a, axis=1)
+        lists = self._tree.query_ball_point(mid, self.clean_radius + half)
+        new = 0.0
+        for k, idx in enumerate(lists):
+            if not idx:
+                continue
+            idx = np.asarray(idx)
+            idx = idx[~self.cleaned[idx]]
+            if idx.size == 0:
+                continue
+            ab = b[k] - a[k]
+            L2 = float(ab @ ab)
+            q = self.points[idx] - a[k]
+            t = np.clip(q @ ab / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(idx))
+            d2 = np.sum((q - t[:, None] * ab) ** 2, axis=1)
+            hit = idx[d2 <= self.clean_radius**2]
+            self.cleaned[hit] = True
+            new += float(self.areas[hit][self.reach[hit]].sum())
+        self.count += new
+        return new
+
+    def coarse(self) -> np.ndarray:
+        """(m, m) reachable fraction cleaned per block of the buccal view (empty blocks: 0)."""
+        w = np.where(self.cleaned & self.reach, self.areas, 0.0)
+        c = np.bincount(self._block, w, self.coarse_size**2)
+        out = np.divide(c, self._block_area, out=np.zeros_like(c), where=self._block_area > 0)
+        return out.reshape(self.coarse_size, self.coarse_size)
+
+    def by_region(self) -> dict[str, float]:
+        """Cleaned fraction of each region's area (all teeth)."""
+        out = {}
+        for k, name in enumerate(self.region_names):
+            sel = self.region == k
+            tot = float(self.areas[sel].sum())
+            out[name] = float(self.areas[sel & self.cleaned].sum()) / tot if tot else 0.0
+        return out
+
+    def by_tooth(self) -> dict[str, float]:
+        """Cleaned fraction of each tooth's reachable area."""
+        out = {}
+        for k, name in enumerate(self.tooth_names):
+            sel = (self.tooth == k) & self.reach
+            tot = float(self.areas[sel].sum())
+            out[name] = float(self.areas[sel & self.cleaned].sum()) / tot if tot else 0.0
+        return out
+
+
+def crown_samples(teeth, clean_radius: float, coarse_size: int = 8) -> SurfaceCoverage:
+    """A fresh SurfaceCoverage of the crowns (MeshSurfaces labelled ``tooth:<name>``)."""
+    pts, areas, region, tooth, names = [], [], [], [], []
+    for k, s in enumerate(teeth):
+        c, a, r = surface_samples(s.vertices, s.triangles)
+        pts.append(c)
+        areas.append(a)
+        region.append(r)
+        tooth.append(np.full(len(c), k))
+        names.append(s.label.split(":", 1)[-1])
+    return SurfaceCoverage(
+        np.concatenate(pts),
+        np.concatenate(areas),
+        np.concatenate(region),
+        np.concatenate(tooth),
+        names,
+        clean_radius,
+        coarse_size,
+    )
+
+
+# ------------------------------------------------------------------ the planar profile
+class LineCoverage:
+    """Cells of ``cell`` [mm] along x over [-half, half] (PlanarStroke-v0): a cell is cleaned when
+    an effective tip's swept x-interval, widened by ``clean_radius`` [mm], covers it."""
+
+    def __init__(self, half_width: float, cell: float, clean_radius: float, blocks: int):
+        self.half = float(half_width)
+        self.cell = float(cell)
+        self.n = int(round(2 * self.half / self.cell))
+        self.clean_radius = float(clean_radius)
+        self.blocks = int(blocks)
+        self.cleaned = np.zeros(self.n, bool)
+
+    @property
+    def fraction(self) -> float:
+        return float(self.cleaned.mean())
+
+    def reset(self) -> None:
+        self.cleaned = np.zeros(self.n, bool)
+
+    def stamp(self, start: np.ndarray, end: np.ndarray) -> int:
+        """Clean along x-intervals ``start[k] -> end[k]`` [mm]; returns the newly cleaned cells."""
+        new = 0
+        for a, x in zip(start, end):
+            lo = min(a, x) - self.clean_radius + self.half
+            hi = max(a, x) + self.clean_radius + self.half
+            i0 = max(int(math.floor(lo / self.cell)), 0)
+            i1 = min(int(math.ceil(hi / self.cell)), self.n)
+            if i1 > i0:
+                new += int((~self.cleaned[i0:i1]).sum())
+                self.cleaned[i0:i1] = True
+        return new
+
+    def coarse(self) -> np.ndarray:
+        """(blocks,) fraction cleaned per block along x."""
+        if self.n % self.blocks == 0:
+            return self.cleaned.reshape(self.blocks, -1).mean(axis=1)
+        return np.array([b.mean() for b in np.array_split(self.cleaned, self.blocks)])
