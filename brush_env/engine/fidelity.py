@@ -78,7 +78,7 @@ class Fidelity:
         """``SimSettings`` of this level; ``overrides`` (e.g. ``dt``) win over the level."""
         from .settings import SimSettings
 
-        kw = dict(
+        kw: dict[str, Any] = dict(
             model=self.model,
             bodies_per_bristle=self.bodies_per_bristle,
             max_substep=self.max_substep,

@@ -21,6 +21,7 @@ import dataclasses
 import sys
 import warnings
 from dataclasses import dataclass, field
+from types import FrameType
 
 import numpy as np
 
@@ -55,7 +56,8 @@ class PenetrationWarning(RuntimeWarning):
 
 def _caller_level() -> int:
     """warnings.warn's stacklevel of the first frame outside this module (the user's call)."""
-    level, f = 2, sys._getframe(2)
+    level = 2
+    f: FrameType | None = sys._getframe(2)
     while f is not None and f.f_code.co_filename == __file__:
         level += 1
         f = f.f_back
@@ -84,12 +86,12 @@ class StepResult:
     tip_vel: np.ndarray
     iterations: int
     substeps: int
-    tip_normal_force: np.ndarray = None
-    tip_tangential_force: np.ndarray = None
-    tip_in_contact: np.ndarray = None
-    tip_sliding: np.ndarray = None
-    tip_penetration: np.ndarray = None
-    tip_contact_point: np.ndarray = None
+    tip_normal_force: np.ndarray
+    tip_tangential_force: np.ndarray
+    tip_in_contact: np.ndarray
+    tip_sliding: np.ndarray
+    tip_penetration: np.ndarray
+    tip_contact_point: np.ndarray
     extra: dict = field(default_factory=dict)
 
 
