@@ -96,6 +96,11 @@ class BristleModel(ABC):
     def contact(self) -> TipContact:
         """Per-tip contact of the last step."""
 
+    def tip_penetration(self) -> np.ndarray:
+        """(nb,) [mm] each tip's penetration after the last solver step (the simulator checks it
+        after every solver step; a model may answer it more cheaply than ``contact()``)."""
+        return self.contact().penetration
+
     def tip_states(self) -> np.ndarray:
         """(nb, 6) tip position [mm] and velocity [mm/s] of the current state (a model whose
         state can be edited between steps computes them afresh)."""

@@ -386,6 +386,10 @@ class DFMChain(BristleModel):
             np.where(touching, ts["surf"], -1).astype(np.int64),
         )
 
+    def tip_penetration(self) -> np.ndarray:
+        ts = self.state.tip_state
+        return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
+
     def solver_info(self) -> dict:
         count = self._ws.sw.count
         return {

@@ -240,7 +240,7 @@ class Simulator:
         """One solver step of the bristle model, then the penetration check."""
         counts = self.bristles.advance(tcp_p, tcp_R, t_new, rollback)
         if not self._pen_warned:
-            self._warn_penetration(self.bristles.contact().penetration)
+            self._warn_penetration(self.bristles.tip_penetration())
         return counts
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
