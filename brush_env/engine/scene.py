@@ -434,11 +434,14 @@ def mesh_surface(path, units="mm", cell=0.15, band=1.0, place="auto", label="mes
 
     if place not in ("auto", "as_is"):
         raise ConfigError(f"mesh place = {place!r}: must be 'auto' or 'as_is'")
-    V, T = load_mesh_file(path, units)
+    V, T = load_mesh_file(path, units, tooth=label.startswith("tooth"))
     if place == "auto":
         lo, hi = V.min(axis=0), V.max(axis=0)
         V = V - np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), hi[2]])
-    return MeshSurface(V, T, cell, band, label)
+    try:
+        return MeshSurface(V, T, cell, band, label)
+    except ConfigError as e:  # the grid's size: name the file
+        raise ConfigError(f"mesh = {str(path)!r}: {e}") from None
 
 
 def tooth_row_surfaces(
