@@ -76,7 +76,7 @@ class Fidelity:
 
     def settings(self, **overrides: Any):
         """``SimSettings`` of this level; ``overrides`` (e.g. ``dt``) win over the level."""
-        from .simulator import SimSettings
+        from .settings import SimSettings
 
         kw = dict(
             model=self.model,
