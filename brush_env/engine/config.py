@@ -371,6 +371,22 @@ class BrushConfig:
         """
         return min_root_gap(self.bristles)
 
+    def min_tip_gap(self) -> tuple[float, int, int]:
+        """Smallest clearance [mm] between two tip spheres of the straight brush at rest (centre
+        distance minus both radii, head frame), and that pair; < 0 means they overlap.
+        (inf, -1, -1) when no two tips are within reach of each other (or one bristle)."""
+        from scipy.spatial import cKDTree
+
+        tips = np.array([np.add(b.root, np.multiply(b.length, b.axis)) for b in self.bristles])
+        r = np.array([b.tip_radius for b in self.bristles])
+        pairs = cKDTree(tips).query_pairs(2.0 * float(r.max()), output_type="ndarray")
+        if len(pairs) == 0:
+            return math.inf, -1, -1
+        i, j = pairs[:, 0], pairs[:, 1]
+        gap = np.linalg.norm(tips[i] - tips[j], axis=1) - r[i] - r[j]
+        k = int(np.argmin(gap))
+        return float(gap[k]), int(min(i[k], j[k])), int(max(i[k], j[k]))
+
 
 # ------------------------------------------ TOML -> configs (files and tables: config_files.py)
 _read_toml = read_toml  # fidelity.py's name for it (it cannot import config_files on this branch)
@@ -464,6 +480,17 @@ def load_brush(
             f"{path}: brush layout: bristle {i} (group {bi.group!r}) at {bi.root} and bristle {j} "
             f"(group {bj.group!r}) at {bj.root} overlap at the root: clearance = {gap:.4g}, "
             f"must be > 0 (mm); check pitch/step/root positions against the section sizes"
+        )
+    gap, i, j = brush.min_tip_gap()
+    if gap < 0:
+        bi, bj = brush.bristles[i], brush.bristles[j]
+        dist = gap + bi.tip_radius + bj.tip_radius
+        raise ConfigError(
+            f"{path}: brush layout: the tip spheres of bristle {i} (group {bi.group!r}, "
+            f"tip_radius_mm = {bi.tip_radius:g}) and bristle {j} (group {bj.group!r}, "
+            f"tip_radius_mm = {bj.tip_radius:g}) overlap by {-gap:.4g} mm at rest (tips "
+            f"{dist:.4g} mm apart): the two radii must sum to <= {dist:.4g} mm (equal tips: "
+            f"tip_radius_mm <= {dist / 2:.4g} mm); tip spheres must not overlap at rest"
         )
     return brush
 

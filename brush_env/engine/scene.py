@@ -12,8 +12,9 @@ Scene files live in ``configs/scenes/*.toml``::
 
 Surface kinds and their keys (mm):
 
-* ``plane`` point_mm, normal; ``cylinder`` point_mm, axis, radius_mm; ``mesh_plate`` point_mm,
-  size_mm, divisions (an exact closest-triangle query);
+* ``plane`` point_mm, normal; ``cylinder`` point_mm, axis, radius_mm (a normal or an axis is a
+  direction: any non-zero length is normalised, zero or non-finite is refused); ``mesh_plate``
+  point_mm, size_mm, divisions (an exact closest-triangle query);
 * signed distance fields (``sdf.py``): ``sphere`` center_mm, radius_mm; ``capsule`` a_mm, b_mm,
   radius_mm; ``ellipsoid`` center_mm, semi_axes_mm; ``mesh`` file (relative to the scene file),
   units ("mm"), cell_mm (0.15), band_mm (1.0), place ("auto": bounding box centred in x, y and
@@ -32,12 +33,11 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
-from ..geometry.sdf_bake import bake_mesh_cached
-from .checks import Limit, check_keys, check_real
+from ..geometry.sdf_bake import bake_mesh_cached, check_grid_size
+from .checks import Limit, check_keys, check_real, type_error
 from .config import BrushConfig, ConfigError, load_brush
-from .config_files import resolve_config
+from .config_files import read_toml, resolve_config
 from .records import (
     CONTACT_LAW,
     SURF_CAPSULE,
@@ -57,6 +57,9 @@ class Plane:
     point: tuple = (0.0, 0.0, 0.0)
     normal: tuple = (0.0, 0.0, 1.0)
 
+    def __post_init__(self):
+        check_direction("plane.normal", self.normal)
+
     def kernel_row(self):
         n = np.asarray(self.normal, float)
         return surface_row(SURF_PLANE, self.point, n / np.linalg.norm(n))
@@ -70,6 +73,9 @@ class Cylinder:
     point: tuple = (0.0, 0.0, -5.0)
     axis: tuple = (1.0, 0.0, 0.0)
     radius: float = 5.0
+
+    def __post_init__(self):
+        check_direction("cylinder.axis", self.axis)
 
     def kernel_row(self):
         a = np.asarray(self.axis, float)
@@ -166,6 +172,7 @@ class MeshSurface:
             raise ConfigError(
                 f"{self.label}: band_mm = {self.band!r}: must be in [2 cell_mm, 10] (mm)"
             )
+        check_grid_size(self.vertices, self.cell, self.band, self.label)
 
     def sdf_grid(self):
         return bake_mesh_cached(self.vertices, self.triangles, self.cell, self.band)
@@ -208,6 +215,11 @@ class ContactParams:
     def __post_init__(self):
         for f in fields(self):
             check_real(f"contact.{f.name}", getattr(self, f.name), CONTACT_LIMITS[f.name])
+        if self.mu_s < self.mu_d:  # stiction holds at least what sliding does (eqs 7-10)
+            raise ConfigError(
+                f"contact.mu_s = {self.mu_s!r} is out of range: must be >= contact.mu_d = "
+                f"{self.mu_d!r} (static friction is at least the dynamic one; dimensionless)"
+            )
 
     def as_array(self) -> np.ndarray:
         """The kernels' contact laws: one ``records.CONTACT_LAW`` record (shape (1,)), whose fields
@@ -250,12 +262,29 @@ class Scene:
     contact: ContactParams = field(default_factory=ContactParams)
 
 
+def _check_scene_keys(p: Path, data: dict) -> None:
+    """The scene file's brush, tip_tip and name keys, checked whether or not the caller
+    overrides the brush (the CLI and ``gym.make`` refuse the same files)."""
+    if "brush" in data:
+        if not isinstance(data["brush"], str):
+            raise ConfigError(f"{p}: {type_error('brush', data['brush'], 'a brush name or path')}")
+        try:
+            resolve_config("brush", data["brush"])
+        except ConfigError as e:
+            raise ConfigError(f"{p}: brush = {data['brush']!r}: {e}") from None
+    if not isinstance(data.get("tip_tip", True), bool):
+        raise ConfigError(f"{p}: {type_error('tip_tip', data['tip_tip'], 'true or false')}")
+    if not isinstance(data.get("name", ""), str):
+        raise ConfigError(f"{p}: {type_error('name', data['name'], 'a string')}")
+
+
 def load_scene(path_or_name=None, *, brush=None) -> Scene:
     """Load ``configs/scenes/<name>.toml`` (default ``flat_plate``); ``brush`` overrides the
     file's."""
     p = resolve_config("scene", path_or_name)
-    data = tomllib.loads(p.read_text())
+    data = read_toml(p)  # a syntax error (a duplicated key, ...) names the file
     check_keys(str(p), data, ("name", "brush", "tip_tip", "surface", "contact"))
+    _check_scene_keys(p, data)
     table = data.get("contact", {})
     check_keys(f"{p} [contact]", table, [f.name for f in fields(ContactParams)])
     try:
@@ -294,6 +323,19 @@ SURFACE_KEYS = {
 _POS = Limit("mm", gt=0, le=1e4)
 
 
+def check_direction(where: str, value) -> None:
+    """A surface's direction (plane normal, cylinder axis): 3 finite numbers, not all zero.  Any
+    other length is accepted and normalised (only the direction counts)."""
+    v = np.asarray(value, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ConfigError(f"{where} = {value!r} is invalid: must be 3 finite numbers")
+    if float(np.linalg.norm(v)) < 1e-12:
+        raise ConfigError(
+            f"{where} = {value!r} is invalid: must be a non-zero 3-vector (its direction is "
+            "used; any non-zero length is normalised)"
+        )
+
+
 def _vec3(where: str, value) -> tuple:
     v = np.asarray(value, dtype=float)
     if v.shape != (3,) or not np.all(np.isfinite(v)):
@@ -308,6 +350,9 @@ def surfaces_from_table(t: dict, base: Path, where: str = "surface") -> list:
         raise ConfigError(f"{where}.kind = {kind!r}: must be one of {sorted(SURFACE_KEYS)}")
     check_keys(where, t, ("kind", "label", *SURFACE_KEYS[kind]))
     label = str(t.get("label", kind))
+    for key in ("normal", "axis"):  # a plane's normal, a cylinder's axis: refused if zero
+        if key in t:
+            check_direction(f"{where}.{key}", t[key])
     if kind == "plane":
         return [
             Plane(
@@ -389,11 +434,14 @@ def mesh_surface(path, units="mm", cell=0.15, band=1.0, place="auto", label="mes
 
     if place not in ("auto", "as_is"):
         raise ConfigError(f"mesh place = {place!r}: must be 'auto' or 'as_is'")
-    V, T = load_mesh_file(path, units)
+    V, T = load_mesh_file(path, units, tooth=label.startswith("tooth"))
     if place == "auto":
         lo, hi = V.min(axis=0), V.max(axis=0)
         V = V - np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), hi[2]])
-    return MeshSurface(V, T, cell, band, label)
+    try:
+        return MeshSurface(V, T, cell, band, label)
+    except ConfigError as e:  # the grid's size: name the file
+        raise ConfigError(f"mesh = {str(path)!r}: {e}") from None
 
 
 def tooth_row_surfaces(

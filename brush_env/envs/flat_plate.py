@@ -167,6 +167,7 @@ from brush_env.engine import (
     load_brush,
     load_scene,
 )
+from brush_env.engine.clearance import deepest_tip
 from brush_env.engine.rotation import expmap, rot_axis
 from brush_env.engine.scene import surface_labels
 from brush_env.motion import R0
@@ -320,6 +321,8 @@ class BrushEnv(gym.Env):
         self.plate_offset = off
         self._p = self._to_engine(p_obs)
         self._R = rot_axis(_Z, yaw) @ R_START
+        if "tcp_position" in opts or "plate_offset" in opts:
+            self._check_start(p_obs, opts)
         self._v = np.zeros(3)
         self._w = np.zeros(3)
         self._last = self.sim.reset(self._p, self._R)
@@ -339,6 +342,26 @@ class BrushEnv(gym.Env):
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ValueError(f"reset option {name} = {value!r}: must be 3 finite numbers (mm)")
         return v
+
+    def _check_start(self, p_obs: np.ndarray, opts: dict) -> None:
+        """Refuse a start pose given in ``options`` whose tip spheres would begin inside a
+        surface (the first step would start from a deep, unphysical penetration)."""
+        m = self.sim.model
+        tips = self._p + (m.root_p + m.length[:, None] * m.root_R[:, :, 0]) @ self._R.T
+        depth, tip, srf = deepest_tip(self.scene, tips, m.tip_radius)
+        if depth > 1e-6:
+            given = ", ".join(
+                f"{k} = {np.asarray(opts[k], float).tolist()!r}"
+                for k in ("tcp_position", "plate_offset")
+                if k in opts
+            )
+            label = surface_labels(self.scene)[srf]
+            raise ConfigError(
+                f"reset option {given} starts the tip of bristle {tip} {depth:.3g} mm inside "
+                f"surface {srf} ({label!r}): the tip spheres must start outside every surface "
+                f"(lift the TCP by >= {depth:.3g} mm; at z = z_t = {self.touch_height:.4g} mm "
+                "the tips touch the nominal surface)"
+            )
 
     def _to_engine(self, p_obs: np.ndarray) -> np.ndarray:
         """Base-frame position (about the nominal patch centre / nominal plate) -> engine frame

@@ -163,6 +163,33 @@ def check_run_args(args: Mapping) -> None:
     check_choice("element", args["element"], ("mid", "paper"), "beam element")
 
 
+def press_range(brush: BrushConfig) -> tuple[float, float]:
+    """(free length, head clearance) [mm] of ``brush`` pressed onto a plate at the start
+    orientation R0: the longest bristle's length (root to tip centre), and the height of the head
+    (its lowest bristle root) above the plate when the lowest tip sphere touches it."""
+    R = np.asarray(R0, dtype=float)
+    roots = brush.roots_tcp() @ R.T
+    lengths = np.array([b.length for b in brush.bristles])
+    radii = np.array([b.tip_radius for b in brush.bristles])
+    tips = roots + lengths[:, None] * (brush.axes_tcp() @ R.T)
+    touch = float(np.min(tips[:, 2] - radii))
+    return float(lengths.max()), float(np.min(roots[:, 2]) - touch)
+
+
+def check_press_depth(depth: float, brush: BrushConfig) -> float:
+    """A press depth [mm] past the touch that stays below the bristles' free length and keeps
+    the head clear of the surface (``press_range``); ConfigError naming both otherwise."""
+    free, clear = press_range(brush)
+    top = min(free, clear)
+    if not (math.isfinite(depth) and 0.0 <= depth < top):
+        raise ConfigError(
+            f"press_depth = {depth!r} is out of range: must be >= 0 and < {top:.4g} (mm), below "
+            f"the bristles' free length {free:.4g} mm of brush {brush.name!r} (the head is "
+            f"{clear:.4g} mm above the surface when the tips touch; a deeper press drives it in)"
+        )
+    return depth
+
+
 @dataclass
 class Plan:
     """Everything decided before the first step: scene, simulator, motion and the time grid.

@@ -23,7 +23,7 @@ from .outputs import (
     write_run_files,
     write_summary,
 )
-from .plan import DEFAULTS, check_run_args, make_plan, resolve_scene
+from .plan import DEFAULTS, check_press_depth, check_run_args, make_plan, resolve_scene
 from .plots import plot_deformed_shapes, plot_forces_vs_angle
 from .record import simulate_runs
 
@@ -99,7 +99,8 @@ def run_reference(
         bodies = settings.bodies_per_bristle
         args["bodies"] = bodies
         args["fidelity"] = fid.name
-    scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)  # inputs valid past here
+    scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)
+    check_press_depth(press_depth, scene_obj.brush)  # inputs valid past here
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     plan = make_plan(scene_obj, settings, args)

@@ -28,7 +28,7 @@ from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled
 from ..motion import R0, Approach, Hold, Press, Sequence
-from .plan import resolve_scene
+from .plan import check_press_depth, resolve_scene
 
 #: effective tip force window [N] and cleaning radius [mm] of the coverage (configs/envs/
 #: tooth_row.toml's tip_force_window and clean_radius)
@@ -160,6 +160,7 @@ def run_tooth_row(
     scene_obj = resolve_scene(brush, scene, bodies)
     if mesh is not None:
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)
+    check_press_depth(a["press_depth"], scene_obj.brush)
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     sim = Simulator(scene_obj, settings)

@@ -8,7 +8,8 @@ are clamped to +band; inside nodes beyond the band get -(band + their distance t
 its gradient as normal.  The grid's query kernels (trilinear ``grid_gap``) stay in the engine
 (``brush_env.engine.sdf``), which reads the ``SdfGrid`` this module produces.  Baked grids are
 cached on disk (``cache_dir()``) under the SHA-256 of the mesh, cell, band and ``BAKE_VERSION``.
-Units: mm.
+A grid whose bake would need more than ``BAKE_MAX_BYTES`` is refused before anything is allocated
+(``check_grid_size``, ConfigError naming the coarsest cell that fits).  Units: mm.
 """
 
 from __future__ import annotations
@@ -20,9 +21,21 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from brush_env.engine.checks import ConfigError
 from brush_env.engine.sdf import SdfGrid
 
-__all__ = ["BAKE_VERSION", "SdfGrid", "bake_mesh", "bake_mesh_cached", "cache_dir", "mesh_key"]
+__all__ = [
+    "BAKE_VERSION",
+    "BAKE_BYTES_PER_NODE",
+    "BAKE_MAX_BYTES",
+    "SdfGrid",
+    "bake_mesh",
+    "bake_mesh_cached",
+    "cache_dir",
+    "check_grid_size",
+    "grid_dims",
+    "mesh_key",
+]
 
 BAKE_VERSION = 2  # bump when the baking changes: cached grids of older versions are not used
 
@@ -141,6 +154,45 @@ def pseudonormals(V: np.ndarray, T: np.ndarray):
     return fn, en, vn
 
 
+#: [bytes] memory a bake needs per grid node at its peak: distance (8) and normal (24) in float64,
+#: the band flags and component labels (~7), and for nodes deep inside the distance transform
+#: and its gradient (~60)
+BAKE_BYTES_PER_NODE = 100
+#: [bytes] the largest bake allowed (2 GiB): a bigger grid is refused before anything is allocated
+BAKE_MAX_BYTES = 2 * 1024**3
+
+
+def grid_dims(vertices, cell: float, band: float) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (3,) [mm], dims (3,)): the origin and node counts of the grid ``bake_mesh`` bakes."""
+    V = np.asarray(vertices, float)
+    lo = V.min(axis=0) - band - cell
+    dims = np.ceil((V.max(axis=0) + band + cell - lo) / cell).astype(np.int64) + 1
+    return lo, dims
+
+
+def check_grid_size(vertices, cell: float, band: float, what: str = "mesh") -> None:
+    """Refuse (ConfigError) a bake whose grid would need more than ``BAKE_MAX_BYTES``: the
+    message gives the grid, its estimated memory and the coarsest ``cell_mm`` that would fit."""
+    _, dims = grid_dims(vertices, cell, band)
+    need = float(np.prod(dims.astype(float))) * BAKE_BYTES_PER_NODE
+    if need <= BAKE_MAX_BYTES:
+        return
+    fit = float(cell)
+    while True:  # the finest cell (1 % steps) whose grid fits
+        fit *= 1.01
+        _, d = grid_dims(vertices, fit, max(band, 2 * fit))
+        if float(np.prod(d.astype(float))) * BAKE_BYTES_PER_NODE <= BAKE_MAX_BYTES:
+            break
+    ext = np.ptp(np.asarray(vertices, float), axis=0)
+    raise ConfigError(
+        f"{what}: cell_mm = {cell:g} is too fine for a mesh of {ext[0]:.4g} x {ext[1]:.4g} x "
+        f"{ext[2]:.4g} mm: its SDF grid of {dims[0]} x {dims[1]} x {dims[2]} nodes would need "
+        f"~{need / 1024**3:.3g} GiB to bake, more than the {BAKE_MAX_BYTES / 1024**3:g} GiB "
+        f"allowed: refused (use cell_mm >= {np.ceil(fit * 1000) / 1000:g}, band_mm >= 2 cell_mm, "
+        "or a smaller mesh)"
+    )
+
+
 def bake_mesh(vertices, triangles, cell: float = 0.2, band: float = 1.0) -> SdfGrid:
     """Bake a closed, outward-oriented triangle mesh (vertices [mm]) into a narrow-band grid of
     cell ``cell`` [mm] reaching ``band`` [mm] beyond the mesh's bounding box."""
@@ -152,8 +204,8 @@ def bake_mesh(vertices, triangles, cell: float = 0.2, band: float = 1.0) -> SdfG
         raise ValueError(
             f"sdf cell = {cell!r} mm, band = {band!r} mm: need cell > 0, band >= 2 cell"
         )
-    lo = V.min(axis=0) - band - cell
-    dims = np.ceil((V.max(axis=0) + band + cell - lo) / cell).astype(np.int64) + 1
+    check_grid_size(V, cell, band)
+    lo, dims = grid_dims(V, cell, band)
     fn, en, vn = pseudonormals(V, T)
     dist = np.full(tuple(dims), np.inf)
     nrm = np.zeros((*dims, 3))

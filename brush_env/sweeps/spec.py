@@ -45,7 +45,7 @@ import numpy as np
 import tomllib
 
 from ..engine.checks import ConfigError, did_you_mean
-from ..engine.config_files import materials_path, resolve_config
+from ..engine.config_files import materials_path, read_toml, resolve_config
 
 MOTIONS = ("circle", "press", "pitch")
 #: run_reference keywords a spec may vary or set, with their units
@@ -277,10 +277,10 @@ def _sample(path, method, sample, params, seed) -> np.ndarray:
 def base_tables(path, data) -> dict:
     """The dicts the keys point into: brush file, its material entry, scene file."""
     brush_path = resolve_config("brush", data.get("brush", "default"))
-    brush = tomllib.loads(brush_path.read_text())
+    brush = read_toml(brush_path)
     mfile = brush.get("materials_file")
     mpath = materials_path(brush_path.parent / mfile if mfile else None)
-    materials = tomllib.loads(mpath.read_text())
+    materials = read_toml(mpath)
     mat = materials.get(brush.get("material", ""), {})
     try:
         spath = resolve_config("scene", data.get("scene", "flat_plate"))
@@ -289,7 +289,7 @@ def base_tables(path, data) -> dict:
     return {
         "brush": brush,
         "material": mat,
-        "scene": tomllib.loads(spath.read_text()),
+        "scene": read_toml(spath),
         "motion": dict.fromkeys(MOTION_UNITS, 0.0),
         "_paths": {"brush": Path(brush_path), "materials": mpath, "scene": spath},
     }
