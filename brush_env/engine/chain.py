@@ -355,6 +355,10 @@ class DFMChain(BristleModel):
         else:
             for name in _STATE_ARRAYS:
                 np.copyto(getattr(snap, name), getattr(st, name))
+            # the tip states (structured, records.TIP_STATE) as their bytes: numpy copies a
+            # structured array field by field through its casting machinery, ~7 us a step on
+            # flat_plate (~1.5 % of the step loop's instructions), a byte copy ~1 us
+            np.copyto(snap.tip_state.view(np.uint8), st.tip_state.view(np.uint8))
             snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
         return snap
 
@@ -410,7 +414,7 @@ class DFMChain(BristleModel):
 register_bristle_model("dfm", DFMChain)
 
 
-#: the array fields of State (copied by Simulator._snapshot)
+#: the unstructured array fields of State (copied by DFMChain.snapshot; tip_state as bytes)
 _STATE_ARRAYS = (
     "pos",
     "rot",
@@ -425,7 +429,6 @@ _STATE_ARRAYS = (
     "hist_ok",
     "tcp_p",
     "tcp_R",
-    "tip_state",
 )
 
 
