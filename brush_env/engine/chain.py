@@ -195,7 +195,7 @@ class DFMChain(BristleModel):
             len(self.surfaces)
         )
         self._shaft0 = _shaft_capsules(scene.brush, self.model) if self.shaft_contact_on else None
-        self._g23 = np.zeros((2, 3))
+        self._g23 = np.zeros((3, 3))
         self._head = (
             head_outline(scene.brush, self.model)
             if getattr(scene, "head_contact", False) and len(self.surfaces)

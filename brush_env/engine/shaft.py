@@ -32,6 +32,7 @@ from numba import njit
 from ._kernels import HOT
 from .contact import PEN_STEP_MIN, friction_load, normal_law
 from .records import SURF_PLANE
+from .sdf import FAR
 from .surfaces import normal_rate, surface_gap
 from .tipblock import add_point_block
 
@@ -182,13 +183,13 @@ def _body_load(br, k, chain, sub, con, ws, res):
     r1 = 0.0
     r2 = 0.0
     touched = 0
-    ubest = 0.0
-    kbest = 0.0
-    dbest = 0.0
+    uf = 0.0  # friction's point: the normal forces' mean position on the axis (continuous)
+    kk1 = 0.0
     for s in range(con.surf.shape[0]):
-        # the gap is 1-Lipschitz: from the centre's, no point of the axis reaches the band
+        # the gap is 1-Lipschitz: from the centre's, no point of the axis reaches the band (FAR:
+        # the centre is outside a baked grid's box, where its ends may still be inside)
         gc = surface_gap(con.surf, s, c, tw.pnrm, tw.pcpt, con.mesh, con.sdf)
-        if gc - span >= r + BAND:
+        if gc < 0.5 * FAR and gc - span >= r + BAND:
             _candidate(rec, s, r + span - gc, 0.0, tw.pnrm, tw.pcpt)  # a bound (step cap)
             continue
         band, u, gmin, umin = _contact_offset(con, s, c, R, rec, sh)
@@ -203,17 +204,16 @@ def _body_load(br, k, chain, sub, con, ws, res):
         r2 += sh.F[2]
         total += Fn
         touched += 1
-        if delta > dbest:
-            dbest = delta
-            ubest = u
-            kbest = kk
+        uf += Fn * u
+        kk1 = kk
         _apply(k, i, chain, res, u, sh.F, sh, ws.blk)
     rec.fn = total
     fres = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if fres <= 0.0 or (cp.mu_s <= 0.0 and cp.mu_d <= 0.0):
         return
-    # friction (eq 7-10) at the deepest contact's material point, in the plane normal to the
-    # resultant normal force; the stiction deformation follows that material point
+    # friction (eq 7-10) at the material point where the normal forces act on average, in the
+    # plane normal to their resultant; the stiction deformation follows that material point
+    ubest = uf / total
     tw.nrm[0] = r0 / fres
     tw.nrm[1] = r1 / fres
     tw.nrm[2] = r2 / fres
@@ -225,7 +225,7 @@ def _body_load(br, k, chain, sub, con, ws, res):
         for b in range(3):
             sh.K[a, b] = 0.0
     # the friction's coupling to the normal force: exact for one surface, left out for several
-    friction_load(sh.pt, fres, kbest if touched == 1 else 0.0, sub, cp, rec, sh.F, sh.K, tw)
+    friction_load(sh.pt, fres, kk1 if touched == 1 else 0.0, sub, cp, rec, sh.F, sh.K, tw)
     _apply(k, i, chain, res, ubest, sh.F, sh, ws.blk)
 
 
@@ -327,7 +327,7 @@ def broad_phase(bstart, chain, drive, con, h, g):
     A body's centre moves at most by the TCP's motion carried to it (rigid: translation plus
     rotation about the TCP over the step, drive rows 1 -> 2) plus 2 h (|v| + |omega| span) of its
     own, plus MARGIN; its capsule reaches no further than span + radius from the centre, and the
-    surfaces' gaps are 1-Lipschitz.  g: (2, 3) scratch."""
+    surfaces' gaps are 1-Lipschitz.  g: (3, 3) scratch."""
     shaft = con.shaft
     if shaft.shape[0] == 0:
         return
@@ -361,11 +361,17 @@ def broad_phase(bstart, chain, drive, con, h, g):
                 vv += chain.vel[i, a] ** 2
                 ww += chain.omg[i, a] ** 2
             travel = np.sqrt(mv) + 2.0 * h * (np.sqrt(vv) + np.sqrt(ww) * span) + MARGIN
-            reach = span + rec.radius + BAND + travel
-            for s in range(surf.shape[0]):
-                gap = surface_gap(surf, s, pos[i], g[0], g[1], con.mesh, con.sdf)
-                if gap < reach:
-                    near = 1
+            # SAMPLES points on the axis, each within half their spacing of every axis point
+            # (a baked grid is FAR outside its box: a point there tells nothing)
+            reach = 0.5 * (rec.hi - rec.lo) / (SAMPLES - 1) + rec.radius + BAND + travel
+            for j in range(SAMPLES):
+                u = rec.lo + (rec.hi - rec.lo) * j / (SAMPLES - 1)
+                _axis_point(pos[i], chain.rot[i], u, g[2])
+                for s in range(surf.shape[0]):
+                    if surface_gap(surf, s, g[2], g[0], g[1], con.mesh, con.sdf) < reach:
+                        near = 1
+                        break
+                if near:
                     break
             if near:
                 break

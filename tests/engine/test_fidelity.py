@@ -69,7 +69,10 @@ def test_bad_level_file_names_the_key_and_the_value(tmp_path, text, needle):
 
 
 def test_unknown_level_lists_the_known_ones():
-    with pytest.raises(ConfigError, match="balansed.*did you mean balanced.*known: balanced, fast, paper, reference"):
+    with pytest.raises(
+        ConfigError,
+        match="balansed.*did you mean balanced.*known: balanced, fast, paper, reference",
+    ):
         load_fidelity("balansed")
 
 
