@@ -161,7 +161,12 @@ def test_reference_press_keeps_its_forces_with_shaft_contact(monkeypatch):
             return np.genfromtxt(Path(d) / "timeseries.csv", delimiter=",", names=True)
 
     on = run()
-    monkeypatch.setattr(plan, "load_scene", plan.load_scene)  # restored after the test
+    import brush_env.engine as eng
+    import brush_env.engine.scene as scn
+    import brush_env.envs.flat_plate as fp
+
+    for mod in (eng, scn, fp, plan):  # tips_only patches them: restored after the test
+        monkeypatch.setattr(mod, "load_scene", mod.load_scene)
     tips_only()
     off = run()
     for key in ("Fx_N", "Fy_N", "Fz_N"):
