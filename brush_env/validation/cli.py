@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict
 
-from ..engine.simulator import ELEMENTS
+from ..engine.settings import ELEMENTS
 from ..user_errors import add_flag
 from .buckling import COMPRESSIONS, TIPS, BucklingCase, buckling
 from .suite import PAPER_INNER, Geometry, cantilever, format_table, frequency, suite
