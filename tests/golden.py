@@ -1,13 +1,15 @@
 """Hashes of the engine's outputs on fixed runs, for refactors that must not change a bit
 (issue 27).
 
-Run ``python -m tests.golden [--quick] [--out FILE]``: it prints one line per case, ``case sha256
-steps``, hashing every array a step reports (TCP wrench, tips, contact forces and flags, Newton
-iterations).  Compare the file against one written before the change (``diff``).  Cases: the
-plate press-and-drag at ``fast`` with both beam elements and at ``balanced`` (coupled tip-tip),
-the tooth row's press-and-scrub (``bench steps``'s motion), a FlatPlate-v0 episode under fixed
-random actions, and a part of a turn of the reference experiment (its ``timeseries.csv`` and
-``tips.npz``).
+Run ``python -m tests.golden [--quick] [--tips-only] [--out FILE]``: it prints one line per
+case, ``case sha256 steps``, hashing every array a step reports (TCP wrench, tips, contact
+forces and flags, Newton iterations).  Compare the file against one written before the change
+(``diff``).  Cases: the plate press-and-drag at ``fast`` with both beam elements and at
+``balanced`` (coupled tip-tip), the tooth row's press-and-scrub (``bench steps``'s motion), a
+FlatPlate-v0 episode under fixed random actions, and a part of a turn of the reference
+experiment (its ``timeseries.csv`` and ``tips.npz``).  ``--tips-only`` loads every scene file
+with ``shaft_contact`` and ``head_contact`` off (the tip-only contact model before issue 28),
+whose hashes must equal the ones written before shaft contact existed.
 """
 
 from __future__ import annotations
@@ -123,11 +125,35 @@ def reference_run(level: str, turns: float) -> tuple[str, int]:
     return h.hexdigest(), data.count(b"\n")
 
 
+def tips_only() -> None:
+    """Every scene file loads with shaft and head contact off (patches ``load_scene`` where the
+    golden cases' callers look it up)."""
+    import dataclasses
+
+    import brush_env.engine as eng
+    import brush_env.engine.scene as scn
+    import brush_env.envs.flat_plate as fp
+    import brush_env.experiments.plan as plan
+
+    orig = scn.load_scene
+
+    def load(*a, **k):
+        return dataclasses.replace(orig(*a, **k), shaft_contact=False, head_contact=False)
+
+    for mod in (eng, scn, fp, plan):
+        mod.load_scene = load  # type: ignore[attr-defined]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer steps per case")
     ap.add_argument("--out", help="also write the lines to this file")
+    ap.add_argument(
+        "--tips-only", action="store_true", help="scenes with shaft and head contact off"
+    )
     a = ap.parse_args(argv)
+    if a.tips_only:
+        tips_only()
     q = a.quick
     cases = {
         "plate_fast_mid": lambda: plate_press_drag("fast", "mid", 150 if q else 400),

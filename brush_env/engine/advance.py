@@ -108,6 +108,12 @@ def _backup(br, chain, con, bk, save):
         bk.tip_state[0] = con.tip_state[br.b]
     else:
         con.tip_state[br.b] = bk.tip_state[0]
+    if con.shaft.shape[0] > 0:  # the bodies' stiction states (shaft.py)
+        for k in range(br.n):
+            if save:
+                bk.shaft[k] = con.shaft[b0 + k]
+            else:
+                con.shaft[b0 + k] = bk.shaft[k]
 
 
 @njit(**HOT, inline="always")

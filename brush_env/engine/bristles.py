@@ -28,7 +28,8 @@ Returns
     [N] and moment [N mm] about the root node with which each bristle pushes on the head, world
     (the TCP wrench is minus their sum, moments carried to the TCP: ``step.tcp_wrench``);
     ``contact()`` a :class:`TipContact`; ``solver_info()``
-    a dict of the model's own counters (may be empty).
+    a dict of the model's own counters (may be empty); optionally ``shaft_contact()`` a
+    :class:`ShaftContact` (per body) and ``head_clearance()`` [mm] (None by default).
 """
 
 from __future__ import annotations
@@ -52,6 +53,17 @@ class TipContact(NamedTuple):
     contact_point: np.ndarray  # (nb, 3) [mm]
     tip_tip_force: np.ndarray  # (nb,) [N] Table 3, summed over partners
     surface: np.ndarray  # (nb,) int64: index into Scene.surfaces of the deepest surface, -1 none
+
+
+class ShaftContact(NamedTuple):
+    """Per-body shaft contact after a solver step, world frame (zeros where a body does not
+    touch): each body's capsule against the surfaces (shaft.py)."""
+
+    normal_force: np.ndarray  # (N,) [N] eq 6, summed over surfaces
+    tangential_force: np.ndarray  # (N, 3) [N] friction, eq 7-10
+    penetration: np.ndarray  # (N,) [mm] of the deepest contact sphere
+    contact_point: np.ndarray  # (N, 3) [mm] on the deepest surface
+    surface: np.ndarray  # (N,) int64: index into Scene.surfaces of the deepest surface, -1 none
 
 
 class BristleModel(ABC):
@@ -109,6 +121,24 @@ class BristleModel(ABC):
     def solver_info(self) -> dict:
         """The model's own counters of the last step (e.g. sweeps); empty by default."""
         return {}
+
+    def shaft_contact(self) -> ShaftContact | None:
+        """Per-body contact of the bristles' shafts with the surfaces after the last solver step
+        (``Scene.shaft_contact``); None for a model without shafts or with it off."""
+        return None
+
+    def shaft_penetration_max(self) -> float:
+        """The deepest shaft penetration [mm] after the last solver step (0: none or no shafts);
+        the simulator reads it after every solver step."""
+        sc = self.shaft_contact()
+        if sc is None or sc.penetration.size == 0:
+            return 0.0
+        return float(sc.penetration.max())
+
+    def head_clearance(self) -> float | None:
+        """Smallest distance [mm] of the head's outline to the surfaces at the current TCP pose
+        (< 0: inside; ``Scene.head_contact``); None when the model does not report it."""
+        return None
 
 
 #: name -> factory(scene, settings) of the bristle models ``SimSettings.model`` may name

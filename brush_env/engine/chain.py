@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import records as rec
+from . import shaft as shf  # shaft contact of the bodies' capsules and the head's clearance
 from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from ._kernels import ELEMENTS
 from .beam import (
@@ -22,7 +23,7 @@ from .beam import (
     segment_inertia,
     timoshenko_stiffness,
 )
-from .bristles import BristleModel, TipContact, register_bristle_model
+from .bristles import BristleModel, ShaftContact, TipContact, register_bristle_model
 from .checks import ConfigError
 from .config import BrushConfig
 from .mesh_contact import build_mesh, empty_mesh
@@ -120,7 +121,8 @@ class State:
     whole steps lie behind the history, 0-2 (0: the next step starts with backward Euler; 2: the
     predictor extrapolates at third order); tcp_p (4,3) [mm] / tcp_R (4,3,3): TCP pose at t_{n-1},
     t_n, t_{n-2} (rows 0, 1, 3; row 2 is scratch); tip_state (nb, ns): per-contact state;
-    time [s]; steps; pppos (N,3) [mm] / pprot (N,3,3): body poses at t_{n-2}.
+    time [s]; steps; pppos (N,3) [mm] / pprot (N,3,3): body poses at t_{n-2}; shaft (N,) the
+    bodies' shaft contacts (``records.SHAFT``; empty when the scene's shaft contact is off).
     """
 
     pos: np.ndarray
@@ -140,6 +142,7 @@ class State:
     jac: rec.NewtonCache = None
     pppos: np.ndarray = None
     pprot: np.ndarray = None
+    shaft: np.ndarray = None
 
     def copy(self, with_jacobian: bool = True) -> State:
         """Deep copy.  ``jac`` (the factored Newton matrices reused across steps) is part of the
@@ -188,6 +191,16 @@ class DFMChain(BristleModel):
             np.zeros(nb, np.int64),
         )
         self.root_wrench = self._out.rootw
+        self.shaft_contact_on = bool(getattr(scene, "shaft_contact", False)) and bool(
+            len(self.surfaces)
+        )
+        self._shaft0 = _shaft_capsules(scene.brush, self.model) if self.shaft_contact_on else None
+        self._g23 = np.zeros((3, 3))
+        self._head = (
+            head_outline(scene.brush, self.model)
+            if getattr(scene, "head_contact", False) and len(self.surfaces)
+            else None
+        )
         self.state: State | None = None
         self._snap: State | None = None  # rollback buffers (see snapshot)
         self._prm = self._make_prm(static=False)
@@ -253,6 +266,7 @@ class DFMChain(BristleModel):
             rec.make_newton_cache(N, nb),
             pos.copy(),
             rot.copy(),
+            self._shaft0.copy() if self._shaft0 is not None else np.zeros(0, rec.SHAFT),
         )
         self.root_wrench[:] = 0.0
         itg.tip_states(m.bstart, m.bp, pos, rot, z, z, self._tips)
@@ -310,9 +324,10 @@ class DFMChain(BristleModel):
             st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
         )
         drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
-        itg.step_bristles(
-            self._kmodel, chain, drive, prm, self._contact(), st.jac, self._ws, self._out
-        )
+        con = self._contact()
+        if self.shaft_contact_on:  # which bristles' capsules can reach a surface this step
+            shf.broad_phase(self.model.bstart, chain, drive, con, prm.h, self._g23)
+        itg.step_bristles(self._kmodel, chain, drive, prm, con, st.jac, self._ws, self._out)
 
     def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
         """Stage 3: a bristle that failed on the smallest halving of its step, or a non-finite
@@ -359,6 +374,7 @@ class DFMChain(BristleModel):
             # structured array field by field through its casting machinery, ~7 us a step on
             # flat_plate (~1.5 % of the step loop's instructions), a byte copy ~1 us
             np.copyto(snap.tip_state.view(np.uint8), st.tip_state.view(np.uint8))
+            np.copyto(snap.shaft.view(np.uint8), st.shaft.view(np.uint8))  # records.SHAFT
             snap.time, snap.steps, snap.jac = st.time, st.steps, st.jac
         return snap
 
@@ -374,6 +390,7 @@ class DFMChain(BristleModel):
             self.tip_args,
             self.state.tip_state,
             self.sdf,
+            self.state.shaft,
         )
 
     def contact(self) -> TipContact:
@@ -393,6 +410,40 @@ class DFMChain(BristleModel):
     def tip_penetration(self) -> np.ndarray:
         ts = self.state.tip_state
         return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
+
+    def shaft_contact(self) -> ShaftContact | None:
+        """Per-body shaft contact of the last solver step (None when the scene's is off)."""
+        sh = self.state.shaft
+        if not self.shaft_contact_on or sh is None or sh.size == 0:
+            return None
+        fn = sh["fn"].copy()
+        touching = fn > 0.0
+        return ShaftContact(
+            fn,
+            sh["ft"].copy(),
+            np.maximum(sh["pen"], 0.0) * touching,
+            sh["cpt"].copy(),
+            np.where(touching, sh["surf"], -1).astype(np.int64),
+        )
+
+    def shaft_penetration_max(self) -> float:
+        """The deepest shaft penetration [mm] of the last solver step (0 when off): the
+        per-solver-step peak, without building a ``ShaftContact``."""
+        sh = self.state.shaft
+        if not self.shaft_contact_on or sh is None or sh.size == 0:
+            return 0.0
+        return float(np.max(np.maximum(sh["pen"], 0.0) * (sh["fn"] > 0.0)))
+
+    def head_clearance(self) -> float | None:
+        """Smallest signed distance [mm] of the head's outline (``head_outline``) to the
+        surfaces at the current TCP pose (< 0: inside); None when the scene's head contact is
+        off."""
+        if self._head is None:
+            return None
+        st = self.state
+        pts = st.tcp_p[1] + self._head @ st.tcp_R[1].T
+        g = self._g23
+        return float(shf.clearance(self.surfaces, self.mesh, self.sdf, pts, g[0], g[1]))
 
     def solver_info(self) -> dict:
         count = self._ws.sw.count
@@ -430,6 +481,51 @@ _STATE_ARRAYS = (
     "tcp_p",
     "tcp_R",
 )
+
+
+#: the head's outline reaches this far beyond its outermost roots [mm] (a rigid head plate around
+#: the tufts; docs/model.md)
+HEAD_MARGIN = 1.0
+#: points per side of the grid that samples the head's outline rectangle (its corners and edges
+#: hold the smallest clearance to a plane; the grid covers curved surfaces)
+HEAD_GRID = 5
+
+
+def head_outline(brush: BrushConfig, model: Model) -> np.ndarray:
+    """(HEAD_GRID**2, 3) points [mm, TCP frame] of the head: the rectangle bounding the roots
+    in the head plane (normal: the head's z), HEAD_MARGIN wider on every side, in the plane of
+    the roots, sampled on a HEAD_GRID x HEAD_GRID grid."""
+    n = brush.head_rotation() @ np.array([0.0, 0.0, 1.0])
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    roots = model.root_p
+    o = roots.mean(axis=0)
+    a = (roots - o) @ e1
+    b = (roots - o) @ e2
+    h = float(np.mean((roots - o) @ n))
+    ga = np.linspace(a.min() - HEAD_MARGIN, a.max() + HEAD_MARGIN, HEAD_GRID)
+    gb = np.linspace(b.min() - HEAD_MARGIN, b.max() + HEAD_MARGIN, HEAD_GRID)
+    A, B = np.meshgrid(ga, gb, indexing="ij")
+    return o + h * n + A.reshape(-1, 1) * e1 + B.reshape(-1, 1) * e2
+
+
+def _shaft_capsules(brush: BrushConfig, model: Model) -> np.ndarray:
+    """Every body's capsule (``records.SHAFT``: radius = half the section's smaller side, axis
+    from lo to hi about the centre [mm]; the tip body's stops a tip radius short of the tip node)
+    and a fresh contact state."""
+    sh = np.zeros(model.n_bodies, rec.SHAFT)
+    sh["surf"] = -1
+    sh["pen"] = shf.NOT_EVALUATED
+    for j, br in enumerate(brush.bristles):
+        i0, i1 = model.bstart[j], model.bstart[j + 1]
+        seg = model.seg_len[i0:i1]
+        # distance along the chain from each body's centre to the tip node
+        after = np.concatenate([np.cumsum(seg[::-1])[::-1][1:], [0.0]])
+        sh["radius"][i0:i1] = 0.5 * min(br.section.width, br.section.thickness)
+        sh["lo"][i0:i1] = -0.5 * seg
+        sh["hi"][i0:i1] = np.minimum(0.5 * seg, 0.5 * seg + after - model.tip_radius[j])
+    return sh
 
 
 def _fresh_tip_state(nb: int) -> np.ndarray:

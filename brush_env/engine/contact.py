@@ -366,6 +366,10 @@ def _friction_load(pt, Fn, kk, sub, cp, state, F, Kt, tw):
             Kt[a, bb] -= kk * ft[a] / Fn * nrm[bb]
 
 
+#: the friction law of eq 7-10 for the shaft contacts (shaft.py)
+friction_load = _friction_load
+
+
 @njit(**HOT, inline="always")
 def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
     """Tip-tip contact, no friction (Table 3): the normal law of eq 6 with the tip-tip parameters

@@ -18,6 +18,7 @@ from .contact import in_contact, penetration_step_limit, slip_step_limit
 from .predict import load_chain, predict_start, save_chain, start_state, start_step
 from .records import Trial
 from .residual import bristle_residual, rebuild_factors, tip_refactor
+from .shaft import commit_shaft, shaft_step_limit
 
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
 MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
@@ -179,7 +180,7 @@ def _step_cap(br, model, chain, sub, con, ws):
         aslip = slip_step_limit(pt, dp, tip_state, sub.c0, sub.inv_h, con.cp[0].v_d)
         if aslip < alpha:
             alpha = max(aslip, 1e-4)
-    return alpha
+    return shaft_step_limit(br, chain, con, dq, alpha)
 
 
 @njit(**HOT, inline="always")
@@ -253,6 +254,7 @@ def _commit(br, chain, sub, con, ws):
     for a in range(3):
         tip_state.delta[a] = tip_state.dnew[a]
     tip_state.beta = tip_state.bnew
+    commit_shaft(br, con)
     pos, rot = chain.pos, chain.rot
     for k in range(br.n):
         i = br.b0 + k

@@ -111,6 +111,38 @@ TIP_STATE = np.dtype(
     ]
 )
 
+#: one body's shaft contact, ``ContactScene.shaft`` (N,) (shaft.py writes it; empty when the
+#: scene's ``shaft_contact`` is off): the body's capsule (static): radius [mm] (half the section's
+#: smaller side), lo, hi: its axis from lo to hi along the body's x from the centre [mm] (the tip
+#: body's stops a tip radius short of the tip node; hi <= lo: no capsule); near: the broad phase
+#: lets it reach a surface this step (1) or not (0); committed stiction state delta [mm, world]
+#: and beta (eq 7-10, as ``TIP_STATE``); of the last evaluation: dnew, bnew, pn (the contact's
+#: material point at the step start [mm]), ft friction [N, world], slide, fn normal force (sum
+#: over surfaces) [N], pen deepest penetration of the contact sphere [mm] (< 0: clearance; -1e30:
+#: not evaluated), cpt contact point on the surface [mm], nrm its normal, surf its index (-1:
+#: none), u the contact sphere's centre along the axis [mm from the body centre]
+SHAFT = np.dtype(
+    [
+        ("radius", "f8"),
+        ("lo", "f8"),
+        ("hi", "f8"),
+        ("near", "i8"),
+        ("delta", "f8", 3),
+        ("beta", "f8"),
+        ("dnew", "f8", 3),
+        ("bnew", "f8"),
+        ("pn", "f8", 3),
+        ("ft", "f8", 3),
+        ("slide", "i8"),
+        ("fn", "f8"),
+        ("pen", "f8"),
+        ("cpt", "f8", 3),
+        ("nrm", "f8", 3),
+        ("surf", "i8"),
+        ("u", "f8"),
+    ]
+)
+
 #: the contact laws, ``ContactScene.cp`` (1,): the fields of ``scene.ContactParams`` (Tables 2-3):
 #: tip-surface normal law k, m1, c, m2, m3 (eq 6); friction mu_s, mu_d, v_s, v_d, delta_max
 #: (eq 7-10); tip-tip normal law k_tt, m1_tt, c_tt, m2_tt, m3_tt (Table 3)
@@ -195,7 +227,18 @@ Chain = namedtuple(
 Drive = namedtuple("Drive", ["hist_ok", "tcp_p", "tcp_R"])
 ContactScene = namedtuple(
     "ContactScene",
-    ["surf", "cp", "tips", "pair_ptr", "pair_idx", "mesh", "tip_args", "tip_state", "sdf"],
+    [
+        "surf",
+        "cp",
+        "tips",
+        "pair_ptr",
+        "pair_idx",
+        "mesh",
+        "tip_args",
+        "tip_state",
+        "sdf",
+        "shaft",
+    ],
 )
 NewtonCache = namedtuple("NewtonCache", ["D", "G", "L", "piv", "key", "age", "S"])
 StepOut = namedtuple("StepOut", ["rootw", "iters", "nsub", "status"])
@@ -223,6 +266,10 @@ TipScratch = namedtuple(
     "TipScratch",
     ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A", "gres"],
 )
+#: scratch of the shaft contact (shaft.py): D6 (nmax, 6, 6) each body's block of the Newton
+#: matrix from its shaft contacts, on (nmax,) 1 where a body's block is set; F (3,), K (3, 3) one
+#: contact's force and tangent; J, gd a surface's normal rate; pt, pp, v (3,) points, velocity
+ShaftScratch = namedtuple("ShaftScratch", ["D6", "on", "F", "K", "J", "gd", "pt", "pp", "v"])
 #: scratch of the tip block of the Newton matrix (3x3 products)
 BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFSr"])
 #: scratch of the predictors and the chain update
@@ -267,7 +314,7 @@ Iterate = namedtuple(
     ],
 )
 #: a bristle's state at the start of the step (restored when every sub-step level fails)
-Backup = namedtuple("Backup", ["v3", "R", "tip_state"])
+Backup = namedtuple("Backup", ["v3", "R", "tip_state", "shaft"])
 #: the sweeps of ``step_bristles`` and the tip-tip coupling (``coupling.py``): every bristle's
 #: state at the step's start (v3, R, tip_state, hist_ok as in ``Backup``, all bodies), the last
 #: sweep's solution (warm_pos, warm_rot), the partner tips each bristle was solved against (used,
@@ -308,10 +355,11 @@ Sweeps = namedtuple(
         "f",
         "C",
         "e6",
+        "shaft",
     ],
 )
 Work = namedtuple(
-    "Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup", "sw"]
+    "Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup", "sw", "sh"]
 )
 
 
@@ -346,7 +394,7 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
     tipw = TipScratch(*(v(3, 3) if f in ("J", "A") else v(3) for f in TipScratch._fields))
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
     mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
-    backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), np.zeros(1, TIP_STATE))
+    backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), np.zeros(1, TIP_STATE), np.zeros(nmax, SHAFT))
     # the coupling's dense system: only with tip-tip pairs, at most MAX_GROUP bristles
     n3 = 3 * min(n_bristles, MAX_GROUP) if n_pair_entries else 1
     sw = Sweeps(
@@ -375,8 +423,14 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         v(3),
         v(3, 3),
         v(6),
+        np.zeros(n_bodies, SHAFT),
     )
-    return Work(it, hist, base, v(3), v(3, 3), el, tipw, blk, mot, backup, sw)
+    sh = ShaftScratch(
+        v(nmax, 6, 6),
+        np.zeros(nmax, np.int64),
+        *(v(3, 3) if f in ("K", "J") else v(3) for f in ShaftScratch._fields[2:]),
+    )
+    return Work(it, hist, base, v(3), v(3, 3), el, tipw, blk, mot, backup, sw, sh)
 
 
 def make_newton_cache(n_bodies: int, n_bristles: int) -> NewtonCache:

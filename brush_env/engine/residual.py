@@ -25,6 +25,7 @@ from ._kernels import (
 )
 from .contact import tip_load
 from .records import Damp, Node
+from .shaft import add_shaft_blocks, shaft_load
 from .tipblock import add_tip_block as _add_tip_block
 
 
@@ -139,6 +140,7 @@ def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     res[n - 1, 3] -= ry * tipF[2] - rz * tipF[1]
     res[n - 1, 4] -= rz * tipF[0] - rx * tipF[2]
     res[n - 1, 5] -= rx * tipF[1] - ry * tipF[0]
+    shaft_load(br, chain, sub, con, ws, res)  # the bodies' capsules (shaft.py; no-op if off)
     return _residual_norm(br, model.bp, res)
 
 
@@ -152,6 +154,7 @@ def jacobian(br, model, chain, sub, base, hist, D, U, L, ws):
     converged state is fixed by the residual alone.
     """
     _jacobian_chain(br, model, chain, sub, base, hist, D, U, L, ws.el)
+    add_shaft_blocks(br, D, ws.sh)
     _add_tip_block(D[br.n - 1], model.bp, chain.rot, br.il, ws.it, ws.blk)
 
 
@@ -279,6 +282,7 @@ def rebuild_factors(br, model, chain, sub, base, jc, ws, key):
     piv = jc.piv[b0 : b0 + n]
     S = jc.S[br.b]
     _jacobian_chain(br, model, chain, sub, base, ws.hist, D, ws.it.U, L, ws.el)
+    add_shaft_blocks(br, D, ws.sh)  # the shaft contacts' blocks (part of S for the tip body)
     jc.age[br.b] = 0
     good = block_factor_head(n, D, ws.it.U, L, G, piv)
     if good:

@@ -5,6 +5,8 @@ Scene files live in ``configs/scenes/*.toml``::
     name = "flat_plate"
     brush = "default"                 # name in configs/brushes or a path
     tip_tip = true                    # tip-tip contact between neighbouring bristles (Table 3)
+    shaft_contact = true              # every body's capsule touches the surfaces (shaft.py)
+    head_contact = true               # report the head's clearance (the env stops at contact)
     [[surface]]
     kind = "plane"                    # see SURFACE_KINDS
     point_mm = [0, 0, 0]
@@ -252,7 +254,11 @@ CONTACT_LIMITS = dict(
 @dataclass(frozen=True)
 class Scene:
     """A brush and its environment.  ``surfaces`` empty means a free brush (no contact);
-    ``contact`` the parameters of Tables 2-3."""
+    ``contact`` the parameters of Tables 2-3.  ``shaft_contact``: every body of a bristle is a
+    capsule in contact with the surfaces (``shaft.py``), not only the tip spheres;
+    ``head_contact``: the engine reports the head's clearance to the surfaces
+    (``StepResult.extra["head_clearance"]``).  Both off for a scene built in code, on by default
+    in a scene file (``load_scene``)."""
 
     brush: BrushConfig
     surfaces: tuple = field(default_factory=tuple)
@@ -260,6 +266,8 @@ class Scene:
     name: str = ""
     tip_travel_fraction: float = 0.6
     contact: ContactParams = field(default_factory=ContactParams)
+    shaft_contact: bool = False
+    head_contact: bool = False
 
 
 def _check_scene_keys(p: Path, data: dict) -> None:
@@ -283,7 +291,11 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
     file's."""
     p = resolve_config("scene", path_or_name)
     data = read_toml(p)  # a syntax error (a duplicated key, ...) names the file
-    check_keys(str(p), data, ("name", "brush", "tip_tip", "surface", "contact"))
+    check_keys(
+        str(p),
+        data,
+        ("name", "brush", "tip_tip", "surface", "contact", "shaft_contact", "head_contact"),
+    )
     _check_scene_keys(p, data)
     table = data.get("contact", {})
     check_keys(f"{p} [contact]", table, [f.name for f in fields(ContactParams)])
@@ -307,6 +319,8 @@ def load_scene(path_or_name=None, *, brush=None) -> Scene:
         bool(data.get("tip_tip", True)),
         data.get("name", p.stem),
         contact=contact,
+        shaft_contact=bool(data.get("shaft_contact", True)),
+        head_contact=bool(data.get("head_contact", True)),
     )
 
 

@@ -46,7 +46,9 @@ __all__ = [
 ]
 
 #: a tip's penetration beyond this fraction of its radius is outside the penalty law's range
-#: (eq 6 models a shallow indentation of the tip sphere): warned once per simulator
+#: (eq 6 models a shallow indentation of the tip sphere): warned once per simulator episode (the
+#: warning is re-armed by ``reset``), and every solver step beyond it is counted
+#: (``StepResult.extra["steps_beyond_penalty_range"]``)
 PENETRATION_WARN_FRACTION = 0.1
 
 
@@ -75,6 +77,15 @@ class StepResult:
     contact per tip (zero without surfaces): tip_normal_force (nb,) [N], tip_tangential_force
     (nb,3) [N, world], tip_in_contact (nb,) bool, tip_sliding (nb,) bool, tip_penetration (nb,)
     [mm], tip_contact_point (nb,3) [mm]; iterations (Newton, all bristles), substeps.
+
+    ``extra`` (besides the bristle model's counters): tip_tip_force (nb,) [N], tip_surface (nb,);
+    over every solver step of this step (the in-step peaks a step-end value hides):
+    max_tip_penetration [mm], max_shaft_penetration [mm] (0 without shaft contact),
+    steps_beyond_penalty_range (solver steps with a tip deeper than PENETRATION_WARN_FRACTION of
+    its radius); with the scene's shaft contact: shaft_normal_force (nb,) [N] per bristle, summed
+    over its bodies, at the step's end; with its head contact: head_clearance [mm], the smallest
+    clearance of the head's outline to the surfaces over the solver steps (<= 0: the head
+    touches).
     """
 
     time: float
@@ -115,6 +126,7 @@ class Simulator:
         self.brush = scene.brush
         self.bristles = make_bristle_model(scene, self.settings)
         self._pen_warned = False
+        self._peaks = _Peaks()
 
     @property
     def model(self):
@@ -132,6 +144,9 @@ class Simulator:
         tcp_R = np.eye(3) if tcp_R is None else np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
         self.bristles.reset(tcp_p, tcp_R, time)
+        self._pen_warned = False  # warned once per episode, not once per Simulator
+        self._peaks = _Peaks()
+        self._track()
         return self._result(0, 0)
 
     @staticmethod
@@ -189,6 +204,7 @@ class Simulator:
         tcp_R = np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
         self._check_motion(tcp_p, tcp_R)
+        self._peaks = _Peaks()
         n = self.settings.substeps
         if n == 1:
             return self._result(*self._advance(tcp_p, tcp_R, st.time + self.settings.dt))
@@ -228,20 +244,38 @@ class Simulator:
         tcp_R = st.tcp_R[1].copy() if tcp_R is None else np.asarray(tcp_R, float)
         self._check_pose(tcp_p, tcp_R)
         full = self.bristles.tip_forces.copy()
+        self._peaks = _Peaks()
         try:
             for k in range(1, increments + 1):
                 self.bristles.set_tip_forces(full * (k / increments))
                 counts = self.bristles.solve_static(tcp_p, tcp_R)
+                self._track()
         finally:
             self.bristles.set_tip_forces(full)
         return self._result(*counts)
 
     def _advance(self, tcp_p, tcp_R, t_new, rollback=None) -> tuple[int, int]:
-        """One solver step of the bristle model, then the penetration check."""
+        """One solver step of the bristle model, then the penetration check and the in-step
+        peaks."""
         counts = self.bristles.advance(tcp_p, tcp_R, t_new, rollback)
+        pen = self._track()
         if not self._pen_warned:
-            self._warn_penetration(self.bristles.tip_penetration())
+            self._warn_penetration(pen)
         return counts
+
+    def _track(self) -> np.ndarray:
+        """The in-step peaks (``_Peaks``) after a solver step; returns the tips' penetrations."""
+        pk = self._peaks
+        pen = self.bristles.tip_penetration()
+        if pen.size:
+            pk.tip = max(pk.tip, float(pen.max()))
+            excess = pen / self.model.tip_radius
+            pk.beyond += int(bool(np.any(excess > PENETRATION_WARN_FRACTION)))
+        pk.shaft = max(pk.shaft, self.bristles.shaft_penetration_max())
+        hc = self.bristles.head_clearance()
+        if hc is not None:
+            pk.head = min(pk.head, hc)
+        return pen
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
         """TCP height z [mm] at which the lowest tip sphere of the unloaded brush just touches the
@@ -293,6 +327,20 @@ class Simulator:
         F, M = w[0:3], w[3:6]
         c = self.bristles.contact()
         tips = self.bristles.tips.copy()
+        pk = self._peaks
+        extra = {
+            "tip_tip_force": c.tip_tip_force,
+            # index of the surface each tip touches deepest (-1: none; Scene.surfaces order)
+            "tip_surface": c.surface,
+            "max_tip_penetration": pk.tip,
+            "max_shaft_penetration": pk.shaft,
+            "steps_beyond_penalty_range": pk.beyond,
+        }
+        sc = self.bristles.shaft_contact()
+        if sc is not None:
+            extra["shaft_normal_force"] = np.add.reduceat(sc.normal_force, self.model.bstart[:-1])
+        if np.isfinite(pk.head):
+            extra["head_clearance"] = pk.head
         return StepResult(
             st.time,
             F,
@@ -309,10 +357,16 @@ class Simulator:
             c.sliding,
             c.penetration,
             c.contact_point,
-            extra={
-                "tip_tip_force": c.tip_tip_force,
-                # index of the surface each tip touches deepest (-1: none; Scene.surfaces order)
-                "tip_surface": c.surface,
-                **self.bristles.solver_info(),
-            },
+            extra={**extra, **self.bristles.solver_info()},
         )
+
+
+@dataclass
+class _Peaks:
+    """The largest tip and shaft penetration [mm], the solver steps with a tip beyond the penalty
+    law's range and the head's smallest clearance [mm] over the solver steps of one ``step``."""
+
+    tip: float = 0.0
+    shaft: float = 0.0
+    beyond: int = 0
+    head: float = float("inf")

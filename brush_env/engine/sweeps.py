@@ -124,6 +124,8 @@ def _save_all(chain, con, drive, sw):
     for b in range(con.tip_state.shape[0]):
         sw.tip_state[b] = con.tip_state[b]
         sw.hist_ok[b] = drive.hist_ok[b]
+    for i in range(con.shaft.shape[0]):
+        sw.shaft[i] = con.shaft[i]
 
 
 @njit(**HOT, inline="always")
@@ -140,6 +142,9 @@ def _restore_bristle(br, chain, con, drive, sw):
                     vR[q][k, a, c] = sw.R[q, k, a, c]
     con.tip_state[br.b] = sw.tip_state[br.b]
     drive.hist_ok[br.b] = sw.hist_ok[br.b]
+    if con.shaft.shape[0] > 0:
+        for k in range(br.b0, br.b0 + br.n):
+            con.shaft[k] = sw.shaft[k]
 
 
 @njit(**HOT, inline="always")

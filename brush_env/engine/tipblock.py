@@ -55,3 +55,23 @@ def add_tip_block(Dk, bp, rot, il, it, blk):
             Dk[a, 3 + b] += blk.KS[a, b]
             Dk[3 + a, b] -= blk.SrK[a, b]
             Dk[3 + a, 3 + b] += blk.SrKS[a, b] - blk.SFSr[a, b]
+
+
+@njit(**HOT, inline="always")
+def add_point_block(Dk, r, F, K, blk):
+    """Dk += d(-F, -(r x F))/d(dc, dtheta) of a load F [N] with stiffness K = dF/dp [N/mm] acting
+    at the body point p = c + r (r [mm] turning with the body): the shaft contacts' block
+    (shaft.py), the same algebra as ``add_tip_block``."""
+    Sr = blk.Sr
+    _skew_into(r[0], r[1], r[2], Sr)
+    _skew_into(F[0], F[1], F[2], blk.SF)
+    _mul3(K, Sr, blk.KS)
+    _mul3(Sr, K, blk.SrK)
+    _mul3(Sr, blk.KS, blk.SrKS)
+    _mul3(blk.SF, Sr, blk.SFSr)
+    for a in range(3):
+        for b in range(3):
+            Dk[a, b] -= K[a, b]
+            Dk[a, 3 + b] += blk.KS[a, b]
+            Dk[3 + a, b] -= blk.SrK[a, b]
+            Dk[3 + a, 3 + b] += blk.SrKS[a, b] - blk.SFSr[a, b]

@@ -247,6 +247,15 @@ class EnvConfig:
         hi=1e4,
         lo_open=True,
     )
+    max_penetration: float = _f(
+        0.2,
+        "episode",
+        "mm",
+        "tip or shaft penetration at any solver step that terminates the episode",
+        lo=0.0,
+        hi=10.0,
+        lo_open=True,
+    )
     workspace_xy: float = _f(
         45.0,
         "episode",

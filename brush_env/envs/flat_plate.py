@@ -87,7 +87,13 @@ Episode End
 ``"divergence"`` the engine failed to converge (``info["divergence"]`` holds the message; the
 state is the last converged engine step, never corrupted); ``"force_limit"`` the total normal
 force exceeded ``hard_force_limit`` (15 N) at an engine step (the robot's protective stop: the
-step ends there); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
+step ends there; the total normal force is the tips' plus the shafts', i.e. every eq 6 contact);
+``"head_contact"`` the head's outline (the roots' bounding rectangle, 1 mm wider) reached a surface
+at a solver step (``info["head_clearance_mm"] <= 0``: a rigid stop, the step ends there);
+``"penetration"`` a tip or shaft sank deeper than ``max_penetration`` (0.2 mm) at any solver step
+of the control step -- the in-step peak ``info["max_tip_penetration_mm"]`` /
+``info["max_shaft_penetration_mm"]``, not the step-end value, which hides contact-onset overshoot
+(the penalty law is not meant for it); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
 (TCP z - z_t) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
@@ -132,6 +138,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | termination_penalty | 10.0 | - | one-off penalty on termination |
 | max_episode_steps | 300 | steps | time limit (gym.make's value wins) |
 | hard_force_limit | 15.0 | N | total normal force that terminates |
+| max_penetration | 0.2 | mm | tip or shaft penetration at any solver step that terminates |
 | workspace_xy | 45.0 | mm | workspace half-width |
 | workspace_height | (-5.0, 15.0) | mm | TCP height range above touching |
 | max_tilt_deg | 30.0 | deg | largest tilt of the bristle axis |
@@ -402,6 +409,9 @@ class BrushEnv(gym.Env):
         starts, ends = [], []
         total_int = tip_int = above_t = gum_int = 0.0
         peak_total = peak_tip = peak_gum = 0.0
+        pen_tip = pen_shaft = 0.0
+        beyond = 0
+        head = math.inf
         termination = divergence = None
         for _ in range(cfg.frame_skip):
             p_new = self._p + self._v * dte
@@ -413,7 +423,12 @@ class BrushEnv(gym.Env):
                 break
             self._p, self._R, self._last = p_new, R_new, out
             f = out.tip_normal_force
-            fn = float(f.sum())
+            fn = self._normal_force(out)
+            ex = out.extra
+            pen_tip = max(pen_tip, float(ex.get("max_tip_penetration", 0.0)))
+            pen_shaft = max(pen_shaft, float(ex.get("max_shaft_penetration", 0.0)))
+            beyond += int(ex.get("steps_beyond_penalty_range", 0))
+            head = min(head, float(ex.get("head_clearance", math.inf)))
             total_int += dte * max(0.0, fn - cfg.total_force_limit)
             tip_int += dte * float(np.maximum(f - cfg.tip_force_limit, 0.0).sum())
             above_t += dte if fn > cfg.total_force_limit else 0.0
@@ -430,7 +445,13 @@ class BrushEnv(gym.Env):
             if fn > cfg.hard_force_limit:
                 termination = "force_limit"
                 break
-        self._total_force = float(self._last.tip_normal_force.sum())
+            if head <= 0.0:
+                termination = "head_contact"
+                break
+            if max(pen_tip, pen_shaft) > cfg.max_penetration:
+                termination = "penetration"
+                break
+        self._total_force = self._normal_force(self._last)
         new_cells = (
             self.coverage.stamp(np.concatenate(starts), np.concatenate(ends)) if starts else 0
         )
@@ -447,7 +468,18 @@ class BrushEnv(gym.Env):
             peak_tip=peak_tip,
             termination=termination,
             divergence=divergence,
+            pen_tip=pen_tip,
+            pen_shaft=pen_shaft,
+            beyond=beyond,
+            head=head,
         )
+
+    @staticmethod
+    def _normal_force(out) -> float:
+        """Total normal force [N] of an engine step: the tips' and the shafts' (eq 6)."""
+        fn = float(out.tip_normal_force.sum())
+        shaft = out.extra.get("shaft_normal_force")
+        return fn if shaft is None else fn + float(shaft.sum())
 
     def _in_workspace(self) -> bool:
         cfg = self.config
@@ -517,6 +549,11 @@ class BrushEnv(gym.Env):
             "time": float(out.time),
             "termination": sim["termination"],
             "divergence": sim["divergence"],
+            # over every solver step of the control step (a step-end value hides them)
+            "max_tip_penetration_mm": sim["pen_tip"],
+            "max_shaft_penetration_mm": sim["pen_shaft"],
+            "steps_beyond_penalty_range": sim["beyond"],
+            "head_clearance_mm": sim["head"],
         }
 
     # ------------------------------------------------------------------ rendering

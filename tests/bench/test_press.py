@@ -5,10 +5,16 @@ from __future__ import annotations
 import json
 import math
 
+import pytest
+
 from brush_env import cli
 from brush_env.bench.press import format_press_table
 
 
+# With the plate's shaft contact (issue 28) one tip of this press reaches 10.0 % of its radius
+# (44 um) in a solver step, and the PenetrationWarning, now re-armed at every reset, says so; the
+# rows' forces are what this test checks (tips-only, no warning: tests.golden --tips-only)
+@pytest.mark.filterwarnings("ignore::brush_env.engine.simulator.PenetrationWarning")
 def test_quick_rows_agree_with_the_small_step_run(capsys):
     assert cli.main(["bench", "press", "--quick", "--json"]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]

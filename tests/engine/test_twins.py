@@ -131,7 +131,8 @@ def kernel_tip_load(
     F = np.zeros(3)
     Kt = np.zeros((3, 3))
     tw = rec.make_work(1).tipw
-    con = rec.ContactScene(surf, cpa, tips, pair_ptr, pair_idx, _MESH, args, st, _SDF)
+    shaft = np.zeros(0, rec.SHAFT)  # no shaft contact in the twin
+    con = rec.ContactScene(surf, cpa, tips, pair_ptr, pair_idx, _MESH, args, st, _SDF, shaft)
     sub = rec.Substep(c[0], c[1], c[2], h, 1.0 / h, static, np.zeros(3), 0.0, 0, 0.0)
     ct.tip_load(0, pt, sub, con, F, Kt, tw)
     st = con.tip_state[0]
