@@ -114,6 +114,10 @@ def _run(env_id, mode, seed, steps):
 
 
 @pytest.mark.slow
+# bang-bang slides pressed tips hard enough that one solver step's tip penetration passes 10 % of
+# the radius: the simulator warns (re-armed every reset) and info carries the peak; what this test
+# asserts is the geometry of the body centres and the force, not that warning
+@pytest.mark.filterwarnings("ignore::brush_env.engine.simulator.PenetrationWarning")
 @pytest.mark.parametrize("env_id", ["FlatPlate-v0", "ToothRow-v0"])
 @pytest.mark.parametrize("mode", ["press", "tilt", "bang"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
