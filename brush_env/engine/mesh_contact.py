@@ -16,43 +16,55 @@ from numba import njit
 from ._kernels import HOT
 
 
+@njit(**HOT, inline="always")
+def dot3(x0, x1, x2, y0, y1, y2):
+    """x . y of two 3-vectors given by their components."""
+    return x0 * y0 + x1 * y1 + x2 * y2
+
+
 @njit(**HOT)
-def closest_on_triangle(p, a, b, c):
-    """Closest point (x, y, z) to p on triangle abc (Ericson, Real-Time Collision Detection
-    5.1.5)."""
+def closest_feature(p0, p1, p2, a, b, c):
+    """Closest point (q0, q1, q2) on triangle abc to p and its feature: 0 face, 1/2/3 vertex
+    a/b/c, 4/5/6 edge ab/bc/ca (Ericson, Real-Time Collision Detection, 2005, §5.1.5).  The one
+    implementation: the mesh contact (``closest_on_triangle``) and the SDF baking's signs
+    (``geometry.sdf_bake``, the feature's pseudonormal) both use it."""
     ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    ap0, ap1, ap2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
-    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
-    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+    d1 = dot3(ab0, ab1, ab2, p0 - a[0], p1 - a[1], p2 - a[2])
+    d2 = dot3(ac0, ac1, ac2, p0 - a[0], p1 - a[1], p2 - a[2])
     if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2]
-    bp0, bp1, bp2 = p[0] - b[0], p[1] - b[1], p[2] - b[2]
-    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
-    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
+        return a[0], a[1], a[2], 1
+    d3 = dot3(ab0, ab1, ab2, p0 - b[0], p1 - b[1], p2 - b[2])
+    d4 = dot3(ac0, ac1, ac2, p0 - b[0], p1 - b[1], p2 - b[2])
     if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2]
+        return b[0], b[1], b[2], 2
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
-        return a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2
-    cp0, cp1, cp2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
-    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
-    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
+        return a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2, 4
+    d5 = dot3(ab0, ab1, ab2, p0 - c[0], p1 - c[1], p2 - c[2])
+    d6 = dot3(ac0, ac1, ac2, p0 - c[0], p1 - c[1], p2 - c[2])
     if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2]
+        return c[0], c[1], c[2], 3
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
-        return a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2
+        return a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2, 6
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])
+        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]), 5
     den = 1.0 / (va + vb + vc)
     v = vb * den
     w = vc * den
-    return a[0] + ab0 * v + ac0 * w, a[1] + ab1 * v + ac1 * w, a[2] + ab2 * v + ac2 * w
+    return a[0] + ab0 * v + ac0 * w, a[1] + ab1 * v + ac1 * w, a[2] + ab2 * v + ac2 * w, 0
+
+
+@njit(**HOT)
+def closest_on_triangle(p, a, b, c):
+    """Closest point (x, y, z) to p on triangle abc: ``closest_feature`` without the feature."""
+    q0, q1, q2, _ = closest_feature(p[0], p[1], p[2], a, b, c)
+    return q0, q1, q2
 
 
 @njit(cache=True)

@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from brush_env.engine.checks import ConfigError
+from brush_env.engine.mesh_contact import closest_feature, dot3
 from brush_env.engine.sdf import SdfGrid
 
 __all__ = [
@@ -38,47 +39,6 @@ __all__ = [
 ]
 
 BAKE_VERSION = 2  # bump when the baking changes: cached grids of older versions are not used
-
-
-@njit(cache=True, inline="always")
-def _dot(x0, x1, x2, y0, y1, y2):
-    return x0 * y0 + x1 * y1 + x2 * y2
-
-
-@njit(cache=True)
-def closest_feature(p0, p1, p2, a, b, c):
-    """Closest point (q0, q1, q2) on triangle abc to p and its feature: 0 face, 1/2/3 vertex
-    a/b/c, 4/5/6 edge ab/bc/ca (Ericson, Real-Time Collision Detection, 2005, §5.1.5)."""
-    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    d1 = _dot(ab0, ab1, ab2, p0 - a[0], p1 - a[1], p2 - a[2])
-    d2 = _dot(ac0, ac1, ac2, p0 - a[0], p1 - a[1], p2 - a[2])
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2], 1
-    d3 = _dot(ab0, ab1, ab2, p0 - b[0], p1 - b[1], p2 - b[2])
-    d4 = _dot(ac0, ac1, ac2, p0 - b[0], p1 - b[1], p2 - b[2])
-    if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2], 2
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        v = d1 / (d1 - d3)
-        return a[0] + v * ab0, a[1] + v * ab1, a[2] + v * ab2, 4
-    d5 = _dot(ab0, ab1, ab2, p0 - c[0], p1 - c[1], p2 - c[2])
-    d6 = _dot(ac0, ac1, ac2, p0 - c[0], p1 - c[1], p2 - c[2])
-    if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2], 3
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return a[0] + w * ac0, a[1] + w * ac1, a[2] + w * ac2, 6
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]), 5
-    den = 1.0 / (va + vb + vc)
-    v = vb * den
-    w = vc * den
-    return a[0] + ab0 * v + ac0 * w, a[1] + ab1 * v + ac1 * w, a[2] + ab2 * v + ac2 * w, 0
 
 
 @njit(cache=True)
@@ -113,7 +73,7 @@ def _splat(V, T, pseudo, lo, h, band, dist, nrm, known):
                         pn = vn[T[t, feat - 1]]
                     else:
                         pn = en[t, feat - 4]
-                    s = 1.0 if _dot(r0, r1, r2, pn[0], pn[1], pn[2]) >= 0.0 else -1.0
+                    s = 1.0 if dot3(r0, r1, r2, pn[0], pn[1], pn[2]) >= 0.0 else -1.0
                     dist[i, j, k] = s * dd
                     if dd > 1e-9:
                         nrm[i, j, k, 0] = s * r0 / dd
