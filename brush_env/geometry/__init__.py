@@ -7,3 +7,8 @@ this package (``engine.scene`` builds surfaces from it); it imports only the eng
 modules (``engine.checks`` for errors, ``engine.sdf`` for the grid it bakes into), never the
 envs, experiments or anything above them.
 """
+
+# The engine's package initialises first: ``engine.scene`` imports ``sdf_bake``, which imports the
+# engine's leaf modules; importing a geometry module first (``from brush_env.geometry.sdf_bake
+# import bake_mesh``) would otherwise meet its own half-initialised module through the engine.
+import brush_env.engine  # noqa: E402,F401  (import order, see above)
