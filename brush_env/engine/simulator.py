@@ -258,24 +258,25 @@ class Simulator:
         """One solver step of the bristle model, then the penetration check and the in-step
         peaks."""
         counts = self.bristles.advance(tcp_p, tcp_R, t_new, rollback)
-        pen = self._track()
+        pen, excess = self._track()
         if not self._pen_warned:
-            self._warn_penetration(pen)
+            self._warn_penetration(pen, excess)
         return counts
 
-    def _track(self) -> np.ndarray:
-        """The in-step peaks (``_Peaks``) after a solver step; returns the tips' penetrations."""
+    def _track(self) -> tuple[np.ndarray, np.ndarray]:
+        """The in-step peaks (``_Peaks``) after a solver step; returns the tips' penetrations
+        [mm] and the same as fractions of their radii."""
         pk = self._peaks
         pen = self.bristles.tip_penetration()
+        excess = pen / self.model.tip_radius
         if pen.size:
             pk.tip = max(pk.tip, float(pen.max()))
-            excess = pen / self.model.tip_radius
             pk.beyond += int(bool(np.any(excess > PENETRATION_WARN_FRACTION)))
         pk.shaft = max(pk.shaft, self.bristles.shaft_penetration_max())
         hc = self.bristles.head_clearance()
         if hc is not None:
             pk.head = min(pk.head, hc)
-        return pen
+        return pen, excess
 
     def touch_height(self, tcp_R=None, plate_z: float = 0.0) -> float:
         """TCP height z [mm] at which the lowest tip sphere of the unloaded brush just touches the
@@ -283,9 +284,13 @@ class Simulator:
         brush pointing down, diag(1, -1, -1)).  Reset there (or higher) so that the first step
         does not start with the tips inside the plate."""
         R = np.diag([1.0, -1.0, -1.0]) if tcp_R is None else np.asarray(tcp_R, float)
+        return float(plate_z - np.min((self.rest_tips() @ R.T)[:, 2] - self.model.tip_radius))
+
+    def rest_tips(self) -> np.ndarray:
+        """(nb, 3) [mm] the tip nodes (sphere centres) of the straight, unloaded brush in the TCP
+        frame: each root plus its length along the bristle's axis."""
         m = self.model
-        tips_tcp = m.root_p + m.length[:, None] * m.root_R[:, :, 0]
-        return float(plate_z - np.min((tips_tcp @ R.T)[:, 2] - m.tip_radius))
+        return m.root_p + m.length[:, None] * m.root_R[:, :, 0]
 
     @property
     def n_tip_pairs(self) -> int:
@@ -302,9 +307,9 @@ class Simulator:
         """Tip node velocity of every bristle [mm/s, world], (nb, 3)."""
         return self.bristles.tip_states()[:, 3:6]
 
-    def _warn_penetration(self, pen: np.ndarray) -> None:
-        """Once per simulator: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius."""
-        excess = pen / self.model.tip_radius
+    def _warn_penetration(self, pen: np.ndarray, excess: np.ndarray) -> None:
+        """Once per reset: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius
+        (``excess``: penetration / radius)."""
         b = int(np.argmax(excess))
         if excess[b] > PENETRATION_WARN_FRACTION:
             self._pen_warned = True
@@ -314,7 +319,7 @@ class Simulator:
                 f"({self.model.tip_radius[b]:g} mm), beyond the "
                 f"{100 * PENETRATION_WARN_FRACTION:.0f} % the penalty law (eq 6) is meant for: "
                 "contact forces there are not reliable (stiffer material or deeper press than "
-                "the scene's contact parameters were fitted for); warned once per simulator",
+                "the scene's contact parameters were fitted for); warned once per reset",
                 PenetrationWarning,
                 stacklevel=_caller_level(),
             )

@@ -239,7 +239,7 @@ class BrushEnv(gym.Env):
         self.n_bristles = model.n_bristles
         self.L = float(brush.max_length)
         # touch height: lowest tip sphere of the straight brush at the start orientation R_START
-        rest = model.root_p + model.length[:, None] * model.root_R[:, :, 0]
+        rest = self.sim.rest_tips()
         self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
         self.action_type = make_action_type(cfg)
         self.action_space = self.action_type.space()
@@ -354,7 +354,7 @@ class BrushEnv(gym.Env):
         """Refuse a start pose given in ``options`` whose tip spheres would begin inside a
         surface (the first step would start from a deep, unphysical penetration)."""
         m = self.sim.model
-        tips = self._p + (m.root_p + m.length[:, None] * m.root_R[:, :, 0]) @ self._R.T
+        tips = self._p + self.sim.rest_tips() @ self._R.T
         depth, tip, srf = deepest_tip(self.scene, tips, m.tip_radius)
         if depth > 1e-6:
             given = ", ".join(
