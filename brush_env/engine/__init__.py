@@ -25,6 +25,10 @@ from .simulator import (
     StepResult,
 )
 
+# the bristle models register themselves by name (bristles.register_bristle_model): the full
+# chain "dfm" through simulator -> chain, the reduced model "prb" here
+from . import prb as _prb  # noqa: E402,F401
+
 __all__ = [
     "BristleConfig",
     "BrushConfig",

@@ -1,0 +1,186 @@
+"""``brush-env calibrate``: the reduced bristle model (``engine/prb.py``) of every bristle type of a
+brush, fitted to the continuum and cached by content.
+
+For one bristle type (section, length, material, lean, tip radius) the constants (g0, g1, c1,
+c2) of ``engine/prb_calibration.py`` are fitted by least squares so that the reduced model,
+pressed onto a plate 0.25-3 mm (``PRESS_MM``) with a sliding (frictionless) and with a sticking
+tip, gives the plate force of the planar geometrically exact rod with shear and extension
+(``validation.rod``: the limit of the full chain with many bodies, what ``validate buckling``
+checks the full model against).  The joints' stiffness toward the wide side (local y, which the
+planar rod does not see) is then scaled so that the small-deflection tip compliance of that side
+is the Timoshenko cantilever's (bending and shear, ``validation.references``).  The fit's own
+error is stored with it and printed.
+
+Cache: ``brush_env/engine/prb_calibrations.json`` ships the types of the brushes in
+``configs/brushes`` (remade by ``brush-env calibrate --all --ship``); other types go to the
+user's cache (``$BRUSH_ENV_CACHE`` or ``~/.cache/brush_env/prb_calibrations.json``) the first
+time an env or experiment at a level with ``model = "prb"`` needs them.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+
+from .engine import BrushConfig, SimSettings, Simulator, load_brush
+from .engine import prb_calibration as pc
+from .engine.config import IMPERFECTION_DEG
+from .validation.buckling import R_DOWN, BucklingCase
+from .validation.references import timoshenko_cantilever_tip
+from .validation.rod import buckled_bristle
+
+#: compressions of the fit [mm] (the acceptance range of ``validate buckling``, issue 11)
+PRESS_MM = (0.25, 0.5, 1.0, 2.0, 3.0)
+#: the reduced model's press: solver step [s] and clamp speed [mm/s] (quasi-static: the model
+#: has no inertia, the joints' damping time beta is ~0.3 ms)
+FIT_DT = 4e-3
+FIT_SPEED = 10.0
+
+
+def press_reduced(case: BucklingCase, constants, targets=PRESS_MM) -> np.ndarray:
+    """Plate force [N] of the reduced model with ``constants`` pressed to each compression of
+    ``targets`` [mm] (the same protocol as ``validation.buckling.press``)."""
+    pc.set_override(constants)
+    try:
+        sim = Simulator(case.scene(), SimSettings(dt=FIT_DT, model="prb", gravity=(0.0, 0.0, 0.0)))
+    finally:
+        pc.set_override(None)
+    z0 = sim.touch_height(R_DOWN, 0.0)
+    res = sim.reset(np.array([0.0, 0.0, z0]), R_DOWN)
+    out = []
+    d = 0.0
+    for t in targets:
+        for _ in range(2):  # the second pass corrects for the change of penetration
+            pen = float(res.tip_penetration[0])
+            goal = t + pen
+            n = max(1, int(math.ceil(abs(goal - d) / (FIT_SPEED * FIT_DT))))
+            for k in range(1, n + 1):
+                res = sim.step(np.array([0.0, 0.0, z0 - (d + (goal - d) * k / n)]), R_DOWN)
+            for _ in range(3):
+                res = sim.step(np.array([0.0, 0.0, z0 - goal]), R_DOWN)
+            d = goal
+        out.append(res.tip_normal_force[0])
+    return np.array(out)
+
+
+def _case(br, lean: float, tip: str) -> BucklingCase:
+    sec, mat = br.section, br.material
+    return BucklingCase(
+        length=br.length,
+        width=sec.width,
+        thickness=sec.thickness,
+        E=mat.E,
+        nu=mat.nu,
+        radius=br.tip_radius,
+        lean_deg=abs(math.degrees(lean)),
+        tip=tip,
+    )
+
+
+def fit(br, lean: float, verbose: bool = False) -> dict:
+    """Fit the reduced model of bristle ``br`` (module docstring); returns the cache record:
+    constants, the strong-side scale, the fit's force errors per case and compression, time."""
+    from scipy.optimize import least_squares
+
+    t0 = time.perf_counter()
+    cases = {tip: _case(br, lean, tip) for tip in ("free", "pinned")}
+    ref = {}
+    for tip, case in cases.items():
+        lean = math.degrees(case.scene().brush.effective_lean)
+        r = buckled_bristle(
+            PRESS_MM,
+            length=case.length,
+            width=case.width,
+            thickness=case.thickness,
+            E=case.E,
+            nu=case.nu,
+            lean_deg=lean,
+            tip=tip,
+            radius=case.radius,
+        )
+        ref[tip] = np.asarray(r["force_N"], float)
+
+    def residual(c):
+        g0, g1, c1, c2 = c
+        return np.concatenate(
+            [press_reduced(cases[t], (g0, g1, c1, c2, 1.0)) / ref[t] - 1.0 for t in cases]
+        )
+
+    x0 = np.array(pc.DEFAULT[:4])
+    sol = least_squares(
+        residual,
+        x0,
+        bounds=([0.0, 0.15, 0.5, 0.5], [0.3, 0.6, 10.0, 10.0]),
+        diff_step=1e-3,
+        xtol=1e-6,
+        ftol=1e-6,
+        max_nfev=80,
+    )
+    g0, g1, c1, c2 = (float(v) for v in sol.x)
+    scale_z = _strong_scale(br, (g0, g1, c1, c2))
+    err = residual(sol.x)
+    n = len(PRESS_MM)
+    rec = {
+        "constants": [g0, g1, c1, c2, scale_z],
+        "press_mm": list(PRESS_MM),
+        "force_error_free": [float(e) for e in err[:n]],
+        "force_error_pinned": [float(e) for e in err[n:]],
+        "max_abs_error": float(np.max(np.abs(err))),
+        "fit_seconds": round(time.perf_counter() - t0, 2),
+        "reference": "validation.rod (Reissner rod), PRESS_MM, free and pinned tips",
+    }
+    if verbose:
+        print(
+            f"  fit: g0 = {g0:.4f}, g1 = {g1:.4f}, c1 = {c1:.4f}, c2 = {c2:.4f}, "
+            f"wide-side scale = {scale_z:.4f}; force error free "
+            + ", ".join(f"{100 * e:+.1f}%" for e in err[:n])
+            + "; pinned "
+            + ", ".join(f"{100 * e:+.1f}%" for e in err[n:])
+            + f" ({rec['fit_seconds']:.1f} s)",
+            file=sys.stderr,
+        )
+    return rec
+
+
+def _strong_scale(br, constants) -> float:
+    """The factor on the wide-side joint springs that makes the small-deflection tip compliance
+    toward local y that of the Timoshenko cantilever about I_z (bending + shear)."""
+    g0, g1, c1, c2 = constants
+    L = br.length
+    sec, mat = br.section, br.material
+    l1, l2 = g1 * L, (1.0 - g0 - g1) * L
+    k1, k2 = c1 * mat.E * sec.I_z / L, c2 * mat.E * sec.I_z / L
+    comp_prb = (l1 + l2) ** 2 / k1 + l2**2 / k2
+    timo = timoshenko_cantilever_tip(
+        1.0, L, mat.E, mat.G, sec.I_z, sec.area, sec.shear_coeff(mat.nu)
+    )["v"]
+    return comp_prb / timo
+
+
+def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> int:
+    """Fit every bristle type of ``brush`` that has no calibration yet; returns how many were
+    fitted.  ``ship``: store them in the package's file (the shipped brushes)."""
+    if not isinstance(brush, BrushConfig):
+        brush = load_brush(brush)
+    done = 0
+    for key, (br, lean) in pc.bristle_types(brush).items():
+        if pc.lookup(key) is not None and not ship:
+            continue
+        if verbose:
+            print(
+                f"calibrating the reduced model of {br.group or 'a'} bristle "
+                f"({br.section.kind} {br.section.width:g} x {br.section.thickness:g} mm, "
+                f"{br.length:g} mm, E = {br.material.E:g} MPa, lean "
+                f"{math.degrees(lean):.3g} deg)",
+                file=sys.stderr,
+            )
+        rec = fit(br, lean, verbose=verbose)
+        pc.store(key, rec, ship=ship)
+        done += 1
+    return done
+
+
+__all__ = ["calibrate_brush", "fit", "press_reduced", "IMPERFECTION_DEG"]

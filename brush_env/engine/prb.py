@@ -1,0 +1,416 @@
+"""The reduced bristle model behind the seam (``bristles.py``), registered as ``"prb"``: every
+bristle a quasi-static pseudo-rigid-body chain (a clamped stub and two links on bending joints,
+``prb_kernels.py``) whose joint springs are calibrated against the continuum rod
+(``prb_calibration.py``), with the full model's tip contact: every surface kind with eq 6, the
+stick-slip friction of eq 7-10 and the tip-tip law of Table 3 (``contact.tip_load``).  The
+fidelity level ``fast`` uses it (``configs/fidelity/fast.toml``): it is what a policy trains on.
+
+What it leaves out, and why that is what a 25 Hz policy needs (docs/model.md, "The reduced
+model"): the bristles' own inertia and their ~100 Hz bending modes (the tip is in equilibrium in
+every solver step, with the elements' stiffness-proportional damping), axial and shear
+compliance (in the calibration instead), torsion, and the shafts' contact with the surfaces
+(the tip sphere alone touches; the head's clearance is reported as for the full model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import prb_kernels as K
+from . import records as rec
+from . import shaft as shf
+from .bristles import BristleModel, TipContact, register_bristle_model
+from .chain import _fresh_tip_state, _surface_rows, head_outline, tip_pairs
+from .checks import ConfigError
+from .config import BrushConfig
+from .mesh_contact import build_mesh, empty_mesh
+from .prb_calibration import joint_parameters
+from .scene import MeshPlate
+from .sdf import pack_grids
+from .settings import SimSettings, SimulationDivergence
+
+#: Newton's tolerance on the joint angles [rad] (a tip error of ~1e-9 mm on a 10 mm bristle)
+ANGLE_TOL = 1e-10
+#: Newton iterations per bristle and solver step before the step is refused
+MAX_ITER = 60
+
+
+@dataclass
+class PRBGeometry:
+    """The brush as the reduced model holds it (the seam's ``model``): two bodies (the links) per
+    bristle, ``bstart`` (nb+1,), roots ``root_p`` (nb, 3) [mm] and frames ``root_R`` (nb, 3, 3) in
+    the TCP frame, ``length`` (nb,) [mm], ``tip_radius`` (nb,) [mm], ``seg_len`` (2 nb,) [mm] the
+    links' lengths, ``prm`` (nb, 8) the joints (s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad],
+    beta [s])."""
+
+    bstart: np.ndarray
+    root_p: np.ndarray
+    root_R: np.ndarray
+    length: np.ndarray
+    tip_radius: np.ndarray
+    seg_len: np.ndarray
+    prm: np.ndarray
+
+    @property
+    def n_bristles(self) -> int:
+        return len(self.bstart) - 1
+
+    @property
+    def n_bodies(self) -> int:
+        return int(self.bstart[-1])
+
+
+@dataclass
+class PRBState:
+    """The reduced model's complete state; ``copy()`` and ``set_state`` restore it exactly.
+
+    q (nb, 4) [rad] joint angles; tips (nb, 7) tip node [mm], velocity [mm/s], radius [mm];
+    tip_state (nb,) ``records.TIP_STATE``; pos (2 nb, 3) [mm] / rot (2 nb, 3, 3) the links as
+    bodies (derived, for drawing); tcp_p (4, 3) / tcp_R (4, 3, 3) the drive (row 1 now, row 0 one
+    solver step before); time [s]; steps."""
+
+    q: np.ndarray
+    tips: np.ndarray
+    tip_state: np.ndarray
+    pos: np.ndarray
+    rot: np.ndarray
+    tcp_p: np.ndarray
+    tcp_R: np.ndarray
+    time: float = 0.0
+    steps: int = 0
+
+    def copy(self) -> PRBState:
+        return PRBState(
+            self.q.copy(),
+            self.tips.copy(),
+            self.tip_state.copy(),
+            self.pos.copy(),
+            self.rot.copy(),
+            self.tcp_p.copy(),
+            self.tcp_R.copy(),
+            self.time,
+            self.steps,
+        )
+
+
+def build_geometry(brush: BrushConfig) -> PRBGeometry:
+    """The reduced model of ``brush``: roots and frames as the full chain's (``chain.build_model``,
+    lean included), joints from the calibration of each bristle type."""
+    from .chain import build_model  # the roots, frames and lengths exactly as the full model's
+
+    full = build_model(brush.with_bodies(1))
+    nb = full.n_bristles
+    prm = np.zeros((nb, 8))
+    lean = float(brush.effective_lean)
+    for j, br in enumerate(brush.bristles):
+        prm[j] = joint_parameters(br, lean)
+    seg = np.stack([prm[:, 1], prm[:, 2]], axis=1).reshape(-1)
+    return PRBGeometry(
+        np.arange(0, 2 * nb + 1, 2, dtype=np.int64),
+        full.root_p.copy(),
+        full.root_R.copy(),
+        full.length.copy(),
+        full.tip_radius.copy(),
+        seg,
+        prm,
+    )
+
+
+class PRBBristles(BristleModel):
+    """Every bristle of ``scene`` as the reduced model (module docstring)."""
+
+    def __init__(self, scene, settings: SimSettings):
+        if settings.bodies_per_bristle not in (0, 2):
+            raise ConfigError(
+                f"settings.bodies_per_bristle = {settings.bodies_per_bristle!r} is not allowed "
+                'with model = "prb": the reduced model has two links per bristle (2, or 0 for '
+                "the brush's own number)"
+            )
+        self.settings = settings
+        self.model = build_geometry(scene.brush)
+        m = self.model
+        nb = m.n_bristles
+        self.tip_args = np.zeros(nb, rec.TIP_ARGS)
+        self.tip_args["radius"] = m.tip_radius
+        self.contact_params = scene.contact.as_array()
+        self.surfaces, grids = _surface_rows(scene.surfaces)
+        self.sdf = pack_grids(grids)
+        meshes = [s for s in scene.surfaces if isinstance(s, MeshPlate)]
+        if len(meshes) > 1:
+            raise ConfigError(
+                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
+            )
+        self.mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
+        self.pair_ptr, self.pair_idx = (
+            tip_pairs(_PairModel(m), scene)
+            if scene.tip_tip
+            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
+        )
+        # half of each bristle's weight at its tip, the other half at its root (statics of a
+        # uniform cantilever: the same root force, the root moment within the bristle's sag)
+        g = np.asarray(settings.gravity, float)
+        mass = np.array(
+            [br.material.density * br.section.area * br.length for br in scene.brush.bristles]
+        )
+        self.gtip = 0.5 * mass[:, None] * g[None, :]
+        self.root_wrench = np.zeros((nb, 6))
+        self._rootpos = np.zeros((nb, 3))
+        self._Bw = np.zeros((nb, 3, 3))
+        self._wk = _work()
+        self._out = _Out(np.zeros(nb, np.int64), np.zeros(nb, np.int64))
+        self._head = (
+            head_outline(scene.brush, _PairModel(m))
+            if getattr(scene, "head_contact", False) and len(self.surfaces)
+            else None
+        )
+        self._g23 = np.zeros((3, 3))
+        self.state: PRBState | None = None
+        self._snap: PRBState | None = None
+
+    # ------------------------------------------------------------------ the seam
+    @property
+    def tips(self) -> np.ndarray:
+        return self.state.tips[:, 0:6]
+
+    def tip_states(self) -> np.ndarray:
+        return np.array(self.state.tips[:, 0:6])
+
+    @property
+    def tip_forces(self) -> np.ndarray:
+        return self.tip_args["fext"]
+
+    def set_tip_forces(self, forces) -> None:
+        self.tip_args["fext"] = forces
+
+    def reset(self, tcp_p, tcp_R, time: float) -> None:
+        m = self.model
+        nb = m.n_bristles
+        tips = np.zeros((nb, 7))
+        tips[:, 0:3] = tcp_p + (m.root_p + m.length[:, None] * m.root_R[:, :, 0]) @ tcp_R.T
+        tips[:, 6] = m.tip_radius
+        self.state = PRBState(
+            np.zeros((nb, K.NQ)),
+            tips,
+            _fresh_tip_state(nb),
+            np.zeros((2 * nb, 3)),
+            np.zeros((2 * nb, 3, 3)),
+            np.stack([tcp_p] * 4),
+            np.stack([tcp_R] * 4),
+            time,
+            0,
+        )
+        self.root_wrench[:] = 0.0
+        self._links()
+
+    def _links(self) -> None:
+        st = self.state
+        K.frames(
+            st.tcp_p[1], st.tcp_R[1], self.model.root_p, self.model.root_R, self._rootpos, self._Bw
+        )
+        K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
+
+    def snapshot(self) -> PRBState:
+        st, snap = self.state, self._snap
+        if snap is None:
+            snap = self._snap = st.copy()
+        else:
+            for name in ("q", "tips", "pos", "rot", "tcp_p", "tcp_R"):
+                np.copyto(getattr(snap, name), getattr(st, name))
+            np.copyto(snap.tip_state.view(np.uint8), st.tip_state.view(np.uint8))
+            snap.time, snap.steps = st.time, st.steps
+        return snap
+
+    def set_state(self, state: PRBState) -> None:
+        self.state = state.copy()
+        self._links()
+
+    def advance(self, tcp_p, tcp_R, t_new, rollback=None) -> tuple[int, int]:
+        s = self.settings
+        return self._solve(tcp_p, tcp_R, s.dt / s.substeps, False, t_new, rollback)
+
+    def solve_static(self, tcp_p, tcp_R) -> tuple[int, int]:
+        return self._solve(tcp_p, tcp_R, self.settings.dt, True, self.state.time, None)
+
+    def _solve(self, tcp_p, tcp_R, h, static, t_new, rollback) -> tuple[int, int]:
+        if rollback is None:
+            rollback = self.snapshot()
+        st = self.state
+        sub = rec.Substep(1.0, -1.0, 0.0, h, 1.0 / h, static, np.zeros(3), ANGLE_TOL, MAX_ITER, 0)
+        K.step_all(
+            np.asarray(tcp_p, float),
+            np.asarray(tcp_R, float),
+            self.model.root_p,
+            self.model.root_R,
+            self.model.prm,
+            st.q,
+            sub,
+            self._contact(),
+            self.gtip,
+            self.root_wrench,
+            self._Bw,
+            self._rootpos,
+            self._wk,
+            self._out,
+        )
+        bad = np.flatnonzero(self._out.status)
+        if bad.size or not np.all(np.isfinite(st.tips)):
+            self.set_state(rollback)
+            raise SimulationDivergence(
+                t_new, bad, "the reduced model's equilibrium did not converge (Newton)"
+            )
+        st.tcp_p[3], st.tcp_R[3] = st.tcp_p[0], st.tcp_R[0]
+        st.tcp_p[0], st.tcp_R[0] = st.tcp_p[1], st.tcp_R[1]
+        st.tcp_p[1], st.tcp_R[1] = tcp_p, tcp_R
+        st.time = t_new
+        st.steps += 1
+        K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
+        return int(self._out.iters.sum()), 1
+
+    def _contact(self) -> rec.ContactScene:
+        return rec.ContactScene(
+            self.surfaces,
+            self.contact_params,
+            self.state.tips,
+            self.pair_ptr,
+            self.pair_idx,
+            self.mesh,
+            self.tip_args,
+            self.state.tip_state,
+            self.sdf,
+            _NO_SHAFT,
+        )
+
+    def contact(self) -> TipContact:
+        ts = self.state.tip_state
+        fn = ts["fn"].copy()
+        touching = fn > 0.0
+        return TipContact(
+            fn,
+            ts["ft"].copy(),
+            (ts["slide"] > 0) & touching,
+            np.maximum(ts["pen"], 0.0) * touching,
+            ts["cpt"].copy(),
+            ts["ftt"].copy(),
+            np.where(touching, ts["surf"], -1).astype(np.int64),
+        )
+
+    def tip_penetration(self) -> np.ndarray:
+        ts = self.state.tip_state
+        return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
+
+    def head_clearance(self) -> float | None:
+        if self._head is None:
+            return None
+        st = self.state
+        pts = st.tcp_p[1] + self._head @ st.tcp_R[1].T
+        g = self._g23
+        return float(shf.clearance(self.surfaces, self.mesh, self.sdf, pts, g[0], g[1]))
+
+    def solver_info(self) -> dict:
+        return {"newton_max": int(self._out.iters.max()) if self._out.iters.size else 0}
+
+    @property
+    def n_tip_pairs(self) -> int:
+        return len(self.pair_idx) // 2
+
+
+@dataclass
+class _PairModel:
+    """What ``chain.tip_pairs`` and ``chain.head_outline`` read of a model."""
+
+    g: PRBGeometry
+
+    @property
+    def n_bristles(self):
+        return self.g.n_bristles
+
+    @property
+    def root_p(self):
+        return self.g.root_p
+
+    @property
+    def length(self):
+        return self.g.length
+
+    @property
+    def tip_radius(self):
+        return self.g.tip_radius
+
+
+from collections import namedtuple  # noqa: E402
+
+_Out = namedtuple("_Out", ["iters", "status"])
+_Work = namedtuple(
+    "_Work",
+    [
+        "x",
+        "xw",
+        "J",
+        "G",
+        "F",
+        "Kt",
+        "Fl",
+        "A",
+        "r",
+        "JK",
+        "Ktl",
+        "zero3",
+        "cs",
+        "orders",
+        "v",
+        "tmp",
+        "piv",
+        "qn",
+        "qt",
+        "tw",
+        "s",
+        "dq",
+        "qt2",
+        "dp",
+        "A2",
+        "S",
+        "V",
+        "w",
+    ],
+)
+_NO_SHAFT = np.zeros(0, rec.SHAFT)
+
+
+def _work() -> _Work:
+    z = np.zeros
+    tw = rec.TipScratch(*(z((3, 3)) if f in ("J", "A") else z(3) for f in rec.TipScratch._fields))
+    return _Work(
+        z(3),
+        z(3),
+        z((3, K.NQ)),
+        z((K.NQ, K.NQ)),
+        z(3),
+        z((3, 3)),
+        z(3),
+        z((K.NQ, K.NQ)),
+        z(K.NQ),
+        z((3, K.NQ)),
+        z((3, 3)),
+        z(3),
+        z((K.NQ, 2)),
+        np.zeros(K.NQ, np.int64),
+        z(3),
+        z(3),
+        np.zeros(K.NQ, np.int64),
+        z(K.NQ),
+        z(K.NQ),
+        tw,
+        z(K.NQ),
+        z(K.NQ),
+        z(K.NQ),
+        z(3),
+        z((K.NQ, K.NQ)),
+        z((K.NQ, K.NQ)),
+        z((K.NQ, K.NQ)),
+        z(K.NQ),
+    )
+
+
+register_bristle_model("prb", PRBBristles)

@@ -1,0 +1,170 @@
+"""The reduced model's joints (``prb.py``) for one bristle: lengths and spring constants.
+
+A bristle of length L [mm], Young's modulus E [MPa], second moments I_y, I_z [mm^4] becomes a
+rigid stub g0 L, two links g1 L, g2 L (g0 + g1 + g2 = 1) and two joints with springs
+
+    k_a,i = c_i E I_y / L  (bending toward the thin side, local z),
+    k_b,i = c_i E I_z / L  (toward the wide side, local y)          [N mm / rad],
+
+and the full chain's stiffness-proportional damping beta = 2 zeta / omega_1 [s] (eq 4-5).
+
+The dimensionless constants (g0, g1, c1, c2) are fitted to the continuum: the planar
+geometrically exact rod with shear and extension (``validation.rod``, what the full chain converges
+to with many bodies), pressed onto a plate with a sliding and with a sticking tip
+(``brush-env calibrate``, ``prb_fit.py``).  A fit depends on the bristle's slenderness (shear),
+Poisson ratio and lean, so it is made per bristle type and cached by the content of that type
+(as the baked SDF grids are); :data:`DEFAULT` are the constants of the default brush's inner
+bristle, used until a type has its own fit.
+"""
+
+from __future__ import annotations
+
+from .beam import first_bending_omega
+
+#: (g0, g1, c1, c2): stub and first link as fractions of L, joint spring coefficients
+DEFAULT = (0.08, 0.38, 3.4, 2.9)
+
+
+def joint_parameters(br, lean: float) -> tuple:
+    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s]) of bristle ``br``
+    (``BristleConfig``) on a brush of effective lean ``lean`` [rad], with its type's fitted
+    constants (``constants_for``)."""
+    g0, g1, c1, c2, sz = constants_for(br, lean)
+    L = br.length
+    E = br.material.E
+    sec = br.section
+    Iy, Iz = sec.I_y, sec.I_z
+    beta = (
+        2.0
+        * br.material.damping_ratio
+        / first_bending_omega(E, min(Iy, Iz), br.material.density, sec.area, L)
+    )
+    return (
+        g0 * L,
+        g1 * L,
+        (1.0 - g0 - g1) * L,
+        c1 * E * Iy / L,
+        sz * c1 * E * Iz / L,
+        c2 * E * Iy / L,
+        sz * c2 * E * Iz / L,
+        beta,
+    )
+
+
+# --------------------------------------------------------------------------- the cache
+import hashlib  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import os  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+#: the calibrations that ship with the package (the brushes of configs/brushes)
+SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
+#: bump when the reduced model or the fit changes: older records are not used
+VERSION = 1
+
+_override: tuple | None = None
+_memory: dict = {}
+_warned: set = set()
+
+
+def user_cache() -> Path:
+    """The user's calibration file: $BRUSH_ENV_CACHE/prb_calibrations.json or
+    ~/.cache/brush_env/prb_calibrations.json."""
+    root = os.environ.get("BRUSH_ENV_CACHE") or os.path.join(
+        os.path.expanduser("~"), ".cache", "brush_env"
+    )
+    return Path(root) / "prb_calibrations.json"
+
+
+def bristle_key(br, lean: float) -> str:
+    """Content key of a bristle type: what the fit depends on (section, length, material's E
+    and nu, tip radius, the brush's effective lean [rad]) and the model's VERSION."""
+    sec, mat = br.section, br.material
+    text = json.dumps(
+        [
+            VERSION,
+            sec.kind,
+            round(sec.width, 9),
+            round(sec.thickness, 9),
+            round(br.length, 9),
+            round(mat.E, 9),
+            round(mat.nu, 9),
+            round(br.tip_radius, 9),
+            round(abs(lean), 12),
+        ]
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def bristle_types(brush) -> dict:
+    """key -> (a bristle of that type, the brush's effective lean [rad]) for every distinct
+    bristle type of ``brush`` (``BrushConfig``)."""
+    lean = float(brush.effective_lean)
+    out: dict = {}
+    for br in brush.bristles:
+        out.setdefault(bristle_key(br, lean), (br, lean))
+    return out
+
+
+def _read(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def lookup(key: str) -> dict | None:
+    """The calibration record of a bristle type (shipped, then the user's), or None."""
+    if key in _memory:
+        return _memory[key]
+    for path in (SHIPPED, user_cache()):
+        rec = _read(path).get(key)
+        if rec is not None:
+            _memory[key] = rec
+            return rec
+    return None
+
+
+def store(key: str, rec: dict, ship: bool = False) -> None:
+    """Add a record to the shipped file (``ship``) or the user's cache (written atomically)."""
+    path = SHIPPED if ship else user_cache()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = _read(path)
+    data[key] = rec
+    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    os.replace(tmp, path)
+    _memory[key] = rec
+
+
+def set_override(constants) -> None:
+    """Use ``constants`` (g0, g1, c1, c2, wide-side scale) for every bristle built until reset
+    with None (the fit evaluates candidates this way)."""
+    global _override
+    _override = None if constants is None else tuple(float(c) for c in constants)
+
+
+def constants_for(br, lean: float) -> tuple:
+    """The fitted constants of the bristle type (the override during a fit); a type never
+    calibrated gets :data:`DEFAULT` with a warning naming the command that fits it."""
+    if _override is not None:
+        return _override
+    key = bristle_key(br, lean)
+    rec = lookup(key)
+    if rec is not None:
+        return tuple(rec["constants"])
+    if key not in _warned:
+        _warned.add(key)
+        warnings.warn(
+            f"the reduced bristle model has no calibration for a {br.section.kind} "
+            f"{br.section.width:g} x {br.section.thickness:g} mm bristle, {br.length:g} mm, "
+            f"E = {br.material.E:g} MPa, lean {math.degrees(lean):.3g} deg: using the default "
+            "brush's constants (forces may be off by tens of %); `brush-env calibrate BRUSH` "
+            "fits it (the envs and experiments do it on first use)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return DEFAULT + (1.0,)
