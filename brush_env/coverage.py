@@ -64,6 +64,28 @@ class EffectiveSweep:
         self.prev_eff = eff
         return seg
 
+    def segments_many(
+        self, f: np.ndarray, cp: np.ndarray, contact: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``segments`` over n steps at once: tip normal forces f (n, nb) [N], contact points cp
+        (n, nb, 3) [mm], in-contact flags (n, nb); returns all (start, end) pairs ((m, 3) each,
+        in step order, m = 0 when no tip was effective)."""
+        eff = contact & (f >= self.lo) & (f <= self.hi)
+        n = len(f)
+        if n == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        prev = np.concatenate([self.prev_eff[None], eff[:-1]], axis=0)
+        # the last effective contact point of each tip before each step (the sweep's start)
+        last = np.empty_like(cp)
+        held = self.prev_cp
+        for k in range(n):
+            last[k] = held
+            held = np.where(eff[k][:, None], cp[k], held)
+        self.prev_cp = held.copy()
+        self.prev_eff = eff[-1].copy()
+        starts = np.where(prev[..., None], last, cp)[eff]
+        return starts, cp[eff]
+
 
 def gum_force(out, gum: np.ndarray) -> float:
     """Normal force [N] of the tips whose deepest contact is a gum surface (``gum``: one bool a

@@ -19,7 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import prb_kernels as K
+from . import prb_rollout as R_
 from . import records as rec
+from . import records as rec_
 from . import shaft as shf
 from .bristles import BristleModel, TipContact, register_bristle_model
 from .chain import _fresh_tip_state, _surface_rows, head_outline, tip_pairs
@@ -30,11 +32,13 @@ from .prb_calibration import joint_parameters
 from .scene import MeshPlate
 from .sdf import pack_grids
 from .settings import SimSettings, SimulationDivergence
+from .simulator import PENETRATION_WARN_FRACTION
 
-#: Newton's tolerance on the joint angles [rad] (a tip error of ~1e-9 mm on a 10 mm bristle)
-ANGLE_TOL = 1e-10
+#: Newton's tolerance on the joint angles [rad] (a tip error of ~1e-7 mm on a 10 mm bristle; the
+#: residual's, this times the stiffest joint [N mm])
+ANGLE_TOL = 1e-8
 #: Newton iterations per bristle and solver step before the step is refused
-MAX_ITER = 60
+MAX_ITER = 30
 
 
 @dataclass
@@ -66,12 +70,13 @@ class PRBGeometry:
 class PRBState:
     """The reduced model's complete state; ``copy()`` and ``set_state`` restore it exactly.
 
-    q (nb, 4) [rad] joint angles; tips (nb, 7) tip node [mm], velocity [mm/s], radius [mm];
+    q (nb, 4) [rad] joint angles, qp (nb, 4) those of one solver step before; tips (nb, 7) tip node [mm], velocity [mm/s], radius [mm];
     tip_state (nb,) ``records.TIP_STATE``; pos (2 nb, 3) [mm] / rot (2 nb, 3, 3) the links as
     bodies (derived, for drawing); tcp_p (4, 3) / tcp_R (4, 3, 3) the drive (row 1 now, row 0 one
     solver step before); time [s]; steps."""
 
     q: np.ndarray
+    qp: np.ndarray
     tips: np.ndarray
     tip_state: np.ndarray
     pos: np.ndarray
@@ -84,6 +89,7 @@ class PRBState:
     def copy(self) -> PRBState:
         return PRBState(
             self.q.copy(),
+            self.qp.copy(),
             self.tips.copy(),
             self.tip_state.copy(),
             self.pos.copy(),
@@ -158,7 +164,7 @@ class PRBBristles(BristleModel):
         self.root_wrench = np.zeros((nb, 6))
         self._rootpos = np.zeros((nb, 3))
         self._Bw = np.zeros((nb, 3, 3))
-        self._wk = _work()
+        self._wk = _work(nb)
         self._out = _Out(np.zeros(nb, np.int64), np.zeros(nb, np.int64))
         self._head = (
             head_outline(scene.brush, _PairModel(m))
@@ -166,6 +172,19 @@ class PRBBristles(BristleModel):
             else None
         )
         self._g23 = np.zeros((3, 3))
+        self._headw = np.zeros((0 if self._head is None else len(self._head), 3))
+        self._geo = R_.Geometry(m.root_p, m.root_R, m.prm)
+        self._backup = R_.Backup(
+            np.zeros((nb, K.NQ)),
+            np.zeros((nb, K.NQ)),
+            np.zeros((nb, 7)),
+            np.zeros(nb, rec.TIP_STATE),
+        )
+        self._rec = None
+        self._Rn = np.zeros((3, 3))
+        self._ps = np.zeros(3)
+        self._pp = np.zeros(3)
+        self._Rp = np.zeros((3, 3))
         self.state: PRBState | None = None
         self._snap: PRBState | None = None
 
@@ -192,6 +211,7 @@ class PRBBristles(BristleModel):
         tips[:, 6] = m.tip_radius
         self.state = PRBState(
             np.zeros((nb, K.NQ)),
+            np.zeros((nb, K.NQ)),
             tips,
             _fresh_tip_state(nb),
             np.zeros((2 * nb, 3)),
@@ -216,7 +236,7 @@ class PRBBristles(BristleModel):
         if snap is None:
             snap = self._snap = st.copy()
         else:
-            for name in ("q", "tips", "pos", "rot", "tcp_p", "tcp_R"):
+            for name in ("q", "qp", "tips", "pos", "rot", "tcp_p", "tcp_R"):
                 np.copyto(getattr(snap, name), getattr(st, name))
             np.copyto(snap.tip_state.view(np.uint8), st.tip_state.view(np.uint8))
             snap.time, snap.steps = st.time, st.steps
@@ -239,12 +259,15 @@ class PRBBristles(BristleModel):
         st = self.state
         sub = rec.Substep(1.0, -1.0, 0.0, h, 1.0 / h, static, np.zeros(3), ANGLE_TOL, MAX_ITER, 0)
         K.step_all(
+            st.tcp_p[1],
+            st.tcp_R[1],
             np.asarray(tcp_p, float),
             np.asarray(tcp_R, float),
             self.model.root_p,
             self.model.root_R,
             self.model.prm,
             st.q,
+            st.qp,
             sub,
             self._contact(),
             self.gtip,
@@ -267,6 +290,77 @@ class PRBBristles(BristleModel):
         st.steps += 1
         K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
         return int(self._out.iters.sum()), 1
+
+    def rollout(self, v, w, n: int, force_stop: float, penetration_stop: float):
+        """``Simulator.rollout`` in one compiled call (``prb_rollout.rollout``): returns (steps
+        done, stop reason or None, divergence message or None, the record)."""
+        from .rotation import expmap
+
+        s = self.settings
+        st = self.state
+        nb = self.model.n_bristles
+        if self._rec is None or self._rec.p.shape[0] != n:
+            self._rec = R_.make_record(n, nb)
+        rec = self._rec
+        m = s.substeps
+        drv = R_.Drive(
+            st.tcp_p[1].copy(),
+            st.tcp_R[1].copy(),
+            v,
+            expmap(w * s.dt),
+            s.dt,
+            m,
+            expmap(w * (s.dt / m)),
+            self._g23,
+            self._head if self._head is not None else _NO_HEAD,
+            self._headw,
+            self._Rn,
+            self._ps,
+            self._pp,
+            self._Rp,
+        )
+        h = s.dt / m
+        sub = rec_.Substep(1.0, -1.0, 0.0, h, 1.0 / h, False, _ZERO3, ANGLE_TOL, MAX_ITER, 0)
+        lim = R_.Limits(float(force_stop), float(penetration_stop), PENETRATION_WARN_FRACTION)
+        done, stop, bad = R_.rollout(
+            self._geo,
+            st.q,
+            st.qp,
+            sub,
+            self._contact(),
+            self.gtip,
+            self.root_wrench,
+            self._Bw,
+            self._rootpos,
+            self._wk,
+            self._out,
+            drv,
+            lim,
+            self._backup,
+            rec,
+        )
+        if done:  # the drive and the clock move on by the steps done
+            last = rec.p[done - 1], rec.R[done - 1]
+            before = (rec.p[done - 2], rec.R[done - 2]) if done > 1 else (st.tcp_p[1], st.tcp_R[1])
+            st.tcp_p[3], st.tcp_R[3] = st.tcp_p[0], st.tcp_R[0]
+            st.tcp_p[0], st.tcp_R[0] = before[0], before[1]
+            st.tcp_p[1], st.tcp_R[1] = last
+            st.time = st.time + done * s.dt
+            st.steps += done
+        K.frames(
+            st.tcp_p[1], st.tcp_R[1], self.model.root_p, self.model.root_R, self._rootpos, self._Bw
+        )
+        K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
+        msg = None
+        if stop == R_.STOP_DIVERGENCE:
+            msg = str(
+                SimulationDivergence(
+                    st.time + s.dt,
+                    np.array([bad]),
+                    "the reduced model's equilibrium did not converge (Newton)",
+                )
+            )
+        return done, R_.STOP_REASONS[stop], msg, rec
 
     def _contact(self) -> rec.ContactScene:
         return rec.ContactScene(
@@ -373,12 +467,21 @@ _Work = namedtuple(
         "S",
         "V",
         "w",
+        "rp0",
+        "B0",
+        "d0",
+        "xs",
+        "qs",
+        "rws",
+        "Bs",
     ],
 )
 _NO_SHAFT = np.zeros(0, rec.SHAFT)
+_NO_HEAD = np.zeros((0, 3))
+_ZERO3 = np.zeros(3)
 
 
-def _work() -> _Work:
+def _work(nb: int) -> _Work:
     z = np.zeros
     tw = rec.TipScratch(*(z((3, 3)) if f in ("J", "A") else z(3) for f in rec.TipScratch._fields))
     return _Work(
@@ -410,6 +513,13 @@ def _work() -> _Work:
         z((K.NQ, K.NQ)),
         z((K.NQ, K.NQ)),
         z(K.NQ),
+        z((nb, 3)),
+        z((nb, 3, 3)),
+        z(4),
+        z(3),
+        z(K.NQ),
+        z(3),
+        z((3, 3)),
     )
 
 

@@ -29,6 +29,11 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT, lu_dense, lus_dense
+
+#: the reduced model's kernels: as HOT, with fast floating point (reassociation and fused
+#: multiply-add; results stay deterministic for one build on one machine)
+PRB = dict(HOT, fastmath=True)
+from .records import Substep
 from .contact import penetration_step_limit, slip_step_limit, tip_load
 
 #: joint coordinates per bristle
@@ -38,9 +43,15 @@ NQ = 4
 MAX_DQ = 0.15
 #: steps off a saddle (an unstable equilibrium) per bristle and solver step
 MAX_ESCAPES = 4
+#: [rad] a bristle whose joints all turn less than this is "straight": only there is a converged
+#: equilibrium checked for stability (the saddle of a column pressed along its axis; a bent
+#: bristle was followed along its branch from a stable state)
+STRAIGHT = 0.05
+#: a bristle whose step fails is retried in up to 2**MAX_HALVINGS sub-steps (``_halved``)
+MAX_HALVINGS = 5
 
 
-@njit(**HOT, inline="always")
+@njit(**PRB, inline="always")
 def _rot_apply(kind, order, c, s, v, out):
     """out <- Rk(angle)^... : the factor k applied to v, differentiated ``order`` times (0-2);
     kind 0: about y, 1: about z.  d/dt R = R G and d2 R = R G G (G the generator)."""
@@ -59,7 +70,7 @@ def _rot_apply(kind, order, c, s, v, out):
         out[2] = w2
 
 
-@njit(**HOT)
+@njit(**PRB)
 def _chain_vec(cs, nf, orders, out, tmp):
     """out <- F_1 F_2 ... F_nf e1 with F_k the k-th joint factor (Ry, Rz, Ry, Rz) differentiated
     orders[k] times; cs (4, 2) the cosines and sines."""
@@ -69,7 +80,7 @@ def _chain_vec(cs, nf, orders, out, tmp):
         out[0], out[1], out[2] = tmp[0], tmp[1], tmp[2]
 
 
-@njit(**HOT)
+@njit(**PRB)
 def kinematics(q, geo, x, J, cs, orders, v, tmp):
     """Tip of one bristle in its local frame x (3,) [mm] and J = dx/dq (3, 4) [mm/rad];
     geo = (s0, l1, l2) [mm].  Leaves the cosines and sines of q in cs (4, 2)."""
@@ -96,7 +107,7 @@ def kinematics(q, geo, x, J, cs, orders, v, tmp):
                 J[a, i] += ln * v[a]
 
 
-@njit(**HOT)
+@njit(**PRB)
 def geometric_stiffness(geo, Fl, G, cs, orders, v, tmp):
     """G_ij = sum_a Fl_a d2x_a/dq_i dq_j (4, 4) [N mm] for the local tip load Fl (3,) [N], with
     the cosines and sines cs of ``kinematics``: the load's share of the tangent (negative for a
@@ -121,13 +132,13 @@ def geometric_stiffness(geo, Fl, G, cs, orders, v, tmp):
             orders[i] = 0
 
 
-@njit(**HOT, inline="always")
+@njit(**PRB, inline="always")
 def _to_world(B, xl, rw, out):
     for a in range(3):
         out[a] = rw[a] + B[a, 0] * xl[0] + B[a, 1] * xl[1] + B[a, 2] * xl[2]
 
 
-@njit(**HOT)
+@njit(**PRB)
 def frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
     """Every root in the world (rootw (nb, 3) [mm]) and its bristle frame (Bw (nb, 3, 3))."""
     for j in range(root_p.shape[0]):
@@ -143,11 +154,11 @@ def frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
                 Bw[j, a, b] = t
 
 
-@njit(**HOT)
-def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, tangent):
+@njit(**PRB)
+def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk):
     """Residual wk.s = K q + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the angles q, its
-    tip (wk.x local, wk.xw world) and tip load (wk.F world, wk.Fl local) and, with ``tangent``,
-    the Newton matrix wk.A = K (1 + damp) - G - J^T Kt J.  Returns max |s|."""
+    tip (wk.x local, wk.xw world), tip load (wk.F world, wk.Fl local) and the load's tangent
+    (wk.Kt, world).  Returns max |s|."""
     x, xw, J, F, Kt, Fl = wk.x, wk.xw, wk.J, wk.F, wk.Kt, wk.Fl
     kinematics(q, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
@@ -164,10 +175,14 @@ def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, tangent):
         wk.s[i] = si
         if abs(si) > smax:
             smax = abs(si)
-    if not tangent:
-        return smax
-    geometric_stiffness(geo, Fl, wk.G, wk.cs, wk.orders, wk.v, wk.tmp)
-    Ktl, JK, A = wk.Ktl, wk.JK, wk.A
+    return smax
+
+
+@njit(**PRB)
+def _tangent(geo, kq, damp, B, wk):
+    """wk.A <- the Newton matrix K (1 + damp) - G - J^T Kt J at the last ``_evaluate``."""
+    geometric_stiffness(geo, wk.Fl, wk.G, wk.cs, wk.orders, wk.v, wk.tmp)
+    J, Kt, Ktl, JK, A = wk.J, wk.Kt, wk.Ktl, wk.JK, wk.A
     for a in range(3):  # Kt in the bristle frame, then J^T Kt J
         for c in range(3):
             t = 0.0
@@ -188,21 +203,42 @@ def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, tangent):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
         A[i, i] += kq[i] * (1.0 + damp)
-    return smax
 
 
-@njit(**HOT, inline="always")
+@njit(**PRB)
+def _stable(A, S):
+    """True if the symmetric part of A (4, 4) is positive definite (Cholesky on S, scratch)."""
+    for i in range(NQ):
+        for j in range(NQ):
+            S[i, j] = 0.5 * (A[i, j] + A[j, i])
+    for j in range(NQ):
+        d = S[j, j]
+        for k in range(j):
+            d -= S[j, k] * S[j, k]
+        if d <= 0.0:
+            return False
+        d = np.sqrt(d)
+        S[j, j] = d
+        for i in range(j + 1, NQ):
+            t = S[i, j]
+            for k in range(j):
+                t -= S[i, k] * S[j, k]
+            S[i, j] = t / d
+    return True
+
+
+@njit(**PRB, inline="always")
 def _along(q, dq, alpha, out):
     for i in range(NQ):
         out[i] = q[i] + alpha * dq[i]
 
 
-@njit(**HOT, inline="always")
+@njit(**PRB, inline="always")
 def _slope(s, dq):
     return s[0] * dq[0] + s[1] * dq[1] + s[2] * dq[2] + s[3] * dq[3]
 
 
-@njit(**HOT)
+@njit(**PRB)
 def _sym_min_eig(A, S, V, w):
     """Smallest eigenvalue of the symmetric part of A (4, 4) and its eigenvector (left in w) by
     cyclic Jacobi rotations on S (scratch); V scratch (4, 4)."""
@@ -246,8 +282,8 @@ def _sym_min_eig(A, S, V, w):
     return S[m, m]
 
 
-@njit(**HOT)
-def _escape(q, s, A, kq, wk, dq):
+@njit(**PRB)
+def _escape(q, s, A, kq, wk, dq, push):
     """dq <- a step off a saddle when the Newton matrix is not positive definite (a column
     pressed past its buckling load, held straight by the last Newton iterates): the shifted
     Newton step (A - lam I + eps) dq = -s plus a move along the direction of negative curvature,
@@ -269,116 +305,314 @@ def _escape(q, s, A, kq, wk, dq):
     sign = (
         -1.0 if sv > 1e-12 * kmax else (1.0 if sv < -1e-12 * kmax else (1.0 if qv >= 0 else -1.0))
     )
-    for i in range(NQ):
-        dq[i] += sign * 0.5 * MAX_DQ * wk.w[i]
+    if push:
+        for i in range(NQ):
+            dq[i] += sign * 0.5 * MAX_DQ * wk.w[i]
     return lam
 
 
-@njit(**HOT)
+@njit(**PRB)
+def _direction(b, q, kq, B, con, wk, dq, escape, push):
+    """dq <- the Newton direction -A^-1 s from wk.A (kept in wk.A2), or, with ``escape`` and A
+    not positive definite, the step off the saddle (``_escape``).  Returns (ok, escaped)."""
+    for i in range(NQ):
+        dq[i] = -wk.s[i]
+        for j in range(NQ):
+            wk.A2[i, j] = wk.A[i, j]
+    if not lu_dense(wk.A, NQ, wk.piv):
+        return False, False
+    lus_dense(wk.A, NQ, wk.piv, dq)
+    if escape:
+        _conservative_part(b, con, B, wk)
+        if not _stable(wk.A2, wk.S):
+            return True, _escape(q, wk.s, wk.A2, kq, wk, dq, push) < 0.0
+    return True, False
+
+
+@njit(**PRB)
+def _conservative_part(b, con, B, wk):
+    """wk.A2 <- the Newton matrix without friction's dependence on the normal force (the rank-one
+    term -kk F_t n^T / F_n of ``contact._surface_load``, kk = -n^T Kt n): what is left is the
+    tangent of an energy (springs, the load's geometric stiffness, the normal contact, the
+    stiction spring and the sliding force's turn), whose definiteness says whether the
+    equilibrium is stable.  (The coupling's symmetric part is indefinite, of the order of the
+    penalty stiffness, and would flag every pressed tip.)"""
+    st = con.tip_state[b]
+    if st.fn <= 0.0:
+        return
+    n = wk.tw.nrm
+    Kt = wk.Kt
+    kk = 0.0
+    for a in range(3):
+        for c in range(3):
+            kk -= n[a] * Kt[a, c] * n[c]
+    if kk <= 0.0:
+        return
+    for a in range(3):  # the friction force and the normal in the bristle frame, through J
+        wk.tmp[a] = B[0, a] * st.ft[0] + B[1, a] * st.ft[1] + B[2, a] * st.ft[2]
+        wk.v[a] = B[0, a] * n[0] + B[1, a] * n[1] + B[2, a] * n[2]
+    c = kk / st.fn
+    for i in range(NQ):
+        fi = wk.J[0, i] * wk.tmp[0] + wk.J[1, i] * wk.tmp[1] + wk.J[2, i] * wk.tmp[2]
+        for j in range(NQ):
+            nj = wk.J[0, j] * wk.v[0] + wk.J[1, j] * wk.v[1] + wk.J[2, j] * wk.v[2]
+            wk.A2[i, j] -= c * fi * nj
+
+
+@njit(**PRB)
+def _step_limit(b, B, dq, static, sub, con, wk):
+    """The fraction of dq to take: the cap MAX_DQ on the angles, and the full model's contact
+    limits on the tip's (linearised) step: ``penetration_step_limit``, ``slip_step_limit``."""
+    dmax = 0.0
+    for i in range(NQ):
+        dmax = max(dmax, abs(dq[i]))
+    alpha = 1.0 if dmax <= MAX_DQ else MAX_DQ / dmax
+    for a in range(3):
+        t = 0.0
+        for i in range(NQ):
+            t += wk.J[a, i] * dq[i]
+        wk.tmp[a] = t
+    dp = wk.dp
+    for a in range(3):
+        dp[a] = B[a, 0] * wk.tmp[0] + B[a, 1] * wk.tmp[1] + B[a, 2] * wk.tmp[2]
+    a_pen = penetration_step_limit(b, wk.xw, dp, con.tip_args[b].radius, con, wk.tw)
+    if a_pen < alpha:
+        alpha = max(a_pen, 1e-3)
+    if not static:
+        a_slip = slip_step_limit(wk.xw, dp, con.tip_state[b], sub.c0, sub.inv_h, con.cp[0].v_d)
+        if a_slip < alpha:
+            alpha = max(a_slip, 1e-4)
+    return alpha, dmax
+
+
+@njit(**PRB)
+def _line_search(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax0, descend):
+    """Move to q + alpha dq if the residual falls there (max |s| below smax0, the current one)
+    and ``descend`` is False; else, where the slope g(a) = dq . s(q + a dq) turned positive, to the energy's minimum along
+    dq (regula falsi, Illinois).  ``descend``: off a saddle, where a falling residual may lead
+    straight back to it (its residual is zero), only the energy counts.  The last evaluation is at the returned point.  Returns (alpha
+    taken, max |s| there)."""
+    qt = wk.qt2
+    g0 = _slope(wk.s, dq)
+    _along(q, dq, alpha, qt)
+    smax = _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
+    g1 = _slope(wk.s, dq)
+    if (smax < smax0 and not descend) or not (g0 < 0.0 and g1 > 0.0):
+        return alpha, smax  # the residual fell (Newton's quadratic step), or no minimum to find
+    lo, glo, hi, ghi = 0.0, g0, alpha, g1
+    side = 0
+    for _ in range(12):
+        alpha = lo - glo * (hi - lo) / (ghi - glo)
+        _along(q, dq, alpha, qt)
+        smax = _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
+        g = _slope(wk.s, dq)
+        if abs(g) <= 0.1 * abs(g0):
+            break
+        if g > 0.0:
+            hi, ghi = alpha, g
+            if side == 1:
+                glo *= 0.5
+            side = 1
+        else:
+            lo, glo = alpha, g
+            if side == -1:
+                ghi *= 0.5
+            side = -1
+    return alpha, smax
+
+
+@njit(**PRB)
 def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, tol):
     """Quasi-static equilibrium of bristle b (module docstring) from the guess q (4,), updated
     in place; qn the joint angles at the step start.  prm[b] = (s0, l1, l2, ka1, kb1, ka2, kb2,
-    beta); rw, B its root [mm] and frame in the world; gtip (3,) its lumped weight [N].
+    beta); rw, B its root [mm] and frame in the world; gtip (3,) its lumped weight [N]; tol [rad].
 
-    Newton with the full model's safeguards (``newton.py``): the step is capped (MAX_DQ, and
-    ``contact.penetration_step_limit`` / ``slip_step_limit`` on the tip's step), then a line
-    search on the slope g(alpha) = dq . s(q + alpha dq) (regula falsi where it changes sign: the
-    minimum of the energy along dq), which stops the limit cycle of a tip thrown in and out of
-    the stiff penalty contact.  Leaves the tip (world) in wk.xw and its load in wk.F at the
-    returned q.  Returns the Newton iterations, or -1 if it did not converge."""
+    Newton with the full model's safeguards (``newton.py``): the step is capped (``_step_limit``)
+    and searched along (``_line_search``), which stops the limit cycle of a tip thrown in and out
+    of the stiff penalty contact.  Converged when the residual is below tol times the stiffest
+    joint, or the step below tol; an equilibrium whose tangent is not positive definite (a
+    column held straight past its buckling load) is left along its negative curvature
+    (``_escape``, at most MAX_ESCAPES times).  Leaves the tip (world) in wk.xw and its load in
+    wk.F at the returned q.  Returns the Newton iterations, or -1 if it did not converge."""
     geo = prm[b, 0:3]
     kq = prm[b, 3:7]
     damp = 0.0 if static else prm[b, 7] / h
-    dq, qt, dp = wk.dq, wk.qt2, wk.dp
-    st = con.tip_state[b]
+    ftol = tol * max(kq[0], kq[1], kq[2], kq[3])
+    dq = wk.dq
     escapes = 0
+    small = False  # the last step was below tol
+    smax = _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
     for it in range(1, maxit + 1):
-        smax = _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, True)
         if not np.isfinite(smax):
             return -1
-        for i in range(NQ):
-            dq[i] = -wk.s[i]
-            for j in range(NQ):
-                wk.A2[i, j] = wk.A[i, j]
-        if not lu_dense(wk.A, NQ, wk.piv):
+        converged = smax <= ftol or small
+        # a converged, straight bristle whose tip is pressed toward its root may sit on a saddle
+        check = (
+            converged
+            and escapes < MAX_ESCAPES
+            and wk.Fl[0] < 0.0
+            and max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < STRAIGHT
+        )
+        if converged and not check:
+            return it
+        _tangent(geo, kq, damp, B, wk)
+        # is a converged equilibrium stable?  (checked only where it can fail: the tip pressed
+        # toward the root)
+        # after a step off a saddle, Newton goes on with the shifted (positive definite) matrix
+        # while the conservative tangent stays indefinite: plain Newton would climb back
+        ok, escaped = _direction(b, q, kq, B, con, wk, dq, check or escapes > 0, converged)
+        if not ok:
             return -1
-        lus_dense(wk.A, NQ, wk.piv, dq)
-        g0 = _slope(wk.s, dq)
-        dmax = 0.0
-        for i in range(NQ):
-            if abs(dq[i]) > dmax:
-                dmax = abs(dq[i])
-        if g0 >= 0.0 or (dmax < tol and escapes < MAX_ESCAPES):
-            # not a descent direction, or converged: is the equilibrium stable?
-            if _escape(q, wk.s, wk.A2, kq, wk, dq) < 0.0 and escapes < MAX_ESCAPES:
-                escapes += 1
-                g0 = _slope(wk.s, dq)
-                dmax = 0.0
-                for i in range(NQ):
-                    if abs(dq[i]) > dmax:
-                        dmax = abs(dq[i])
-            elif dmax < tol:
-                return it
-        elif dmax < tol:
+        if converged and not escaped:
             return it
-        alpha = 1.0 if dmax <= MAX_DQ else MAX_DQ / dmax
-        # the tip's step (world), linearised, for the contact step limits
-        for a in range(3):
-            t = 0.0
-            for i in range(NQ):
-                t += wk.J[a, i] * dq[i]
-            wk.tmp[a] = t
-        for a in range(3):
-            dp[a] = B[a, 0] * wk.tmp[0] + B[a, 1] * wk.tmp[1] + B[a, 2] * wk.tmp[2]
-        a_pen = penetration_step_limit(b, wk.xw, dp, con.tip_args[b].radius, con, wk.tw)
-        if a_pen < alpha:
-            alpha = max(a_pen, 1e-3)
-        if not static:
-            a_slip = slip_step_limit(wk.xw, dp, st, sub.c0, sub.inv_h, con.cp[0].v_d)
-            if a_slip < alpha:
-                alpha = max(a_slip, 1e-4)
-        _along(q, dq, alpha, qt)
-        _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, False)
-        g1 = _slope(wk.s, dq)
-        if g0 < 0.0 and g1 > 0.0:
-            # overshoot: the energy's minimum along dq lies inside (0, alpha); Illinois
-            lo, glo, hi, ghi = 0.0, g0, alpha, g1
-            side = 0
-            for _ in range(12):
-                a_new = lo - glo * (hi - lo) / (ghi - glo)
-                _along(q, dq, a_new, qt)
-                _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, False)
-                g = _slope(wk.s, dq)
-                alpha = a_new
-                if abs(g) <= 0.1 * abs(g0):
-                    break
-                if g > 0.0:
-                    hi, ghi = a_new, g
-                    if side == 1:
-                        glo *= 0.5
-                    side = 1
-                else:
-                    lo, glo = a_new, g
-                    if side == -1:
-                        ghi *= 0.5
-                    side = -1
+        escapes += int(escaped and converged)
+        alpha, dmax = _step_limit(b, B, dq, static, sub, con, wk)
+        alpha, smax = _line_search(
+            b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax, escapes > 0
+        )
         for i in range(NQ):
-            q[i] = qt[i]
-        if dmax * alpha < tol:
-            return it
+            q[i] = wk.qt2[i]
+        small = dmax * alpha < tol and not escaped
     return -1
 
 
-@njit(**HOT)
-def step_all(tcp_p, tcp_R, root_p, root_R, prm, q, sub, con, gtip, rootw, Bw, rootpos, wk, out):
-    """One solver step of every bristle to the TCP pose (tcp_p [mm], tcp_R) at the step's end:
-    each bristle's equilibrium (``solve_bristle``) in turn, its stiction state committed (eq 7-10)
-    and its tip (con.tips: position [mm], velocity [mm/s]) moved on, so that the next bristle sees
-    it (one Gauss-Seidel sweep of the tip-tip contacts).  out.rootw (nb, 6): the force [N] and
-    moment [N mm] about the root with which each bristle pushes on the head (its tip load and its
-    weight, gtip being half of it).  A bristle that fails leaves its state untouched and sets
-    out.status[b] = 1 (the caller rolls the whole step back)."""
+@njit(**PRB)
+def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
+    """The step of a bristle that touches nothing: its joints relax toward their unloaded angles
+    (K q + (C/h)(q - q_n) = 0, C = beta K: q = q_n beta / (beta + h)) and sag under the weight
+    lumped at the tip (one linear step from there: the weight is ~1e-4 N, the sag ~0.03 mm).  The
+    tip's load is evaluated there; if anything touches it (a surface, a partner tip, a dead load)
+    nothing is kept and False is returned (the bristle is solved by Newton).  Costs one tip
+    position and one contact evaluation instead of Newton's three or more."""
+    geo = prm[b, 0:3]
+    damp = prm[b, 7] / h
+    f = damp / (1.0 + damp)
+    for i in range(NQ):
+        wk.qt[i] = f * wk.qn[i]
+    x, xw, J, F = wk.x, wk.xw, wk.J, wk.F
+    kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
+    _to_world(B, x, rw, xw)
+    tip_load(b, xw, sub, con, F, wk.Kt, wk.tw)
+    st = con.tip_state[b]
+    if st.fn > 0.0 or st.ftt > 0.0 or F[0] != 0.0 or F[1] != 0.0 or F[2] != 0.0:
+        return False
+    for a in range(3):
+        F[a] = gtip[a]
+        wk.Fl[a] = B[0, a] * F[0] + B[1, a] * F[1] + B[2, a] * F[2]
+    for i in range(NQ):
+        g = J[0, i] * wk.Fl[0] + J[1, i] * wk.Fl[1] + J[2, i] * wk.Fl[2]
+        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + damp))
+    kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
+    _to_world(B, x, rw, xw)
+    return True
+
+
+@njit(**PRB)
+def _frame_at(b, s, rw0, B0, rw1, B1, rw, B):
+    """The root (rw [mm]) and frame (B) of bristle b at the fraction s of the step: linear
+    between its start and end, the frame's columns re-orthonormalised (Gram-Schmidt)."""
+    for a in range(3):
+        rw[a] = rw0[b, a] + s * (rw1[b, a] - rw0[b, a])
+        for c in range(3):
+            B[a, c] = B0[b, a, c] + s * (B1[b, a, c] - B0[b, a, c])
+    for c in range(3):
+        for d in range(c):
+            t = B[0, c] * B[0, d] + B[1, c] * B[1, d] + B[2, c] * B[2, d]
+            for a in range(3):
+                B[a, c] -= t * B[a, d]
+        t = np.sqrt(B[0, c] * B[0, c] + B[1, c] * B[1, c] + B[2, c] * B[2, c])
+        for a in range(3):
+            B[a, c] /= t
+
+
+@njit(**PRB)
+def _halved(b, prm, sub, con, gtip, wk, x0, rw0, B0, rw1, B1):
+    """Bristle b's step as 2, 4, ... 2**MAX_HALVINGS equal sub-steps (the root moving linearly
+    through them) after the whole step failed: the joints' damping (C / h) grows as the step
+    shrinks, which carries the bristle through a snap (a tip torn off its stiction and slipping
+    far, a bristle springing back) that has no equilibrium near the last one.  Each sub-step
+    commits its stiction state, as a shorter step would.  Leaves the result in wk.qt (and the
+    tip and load as ``solve_bristle``); returns the iterations, or -1."""
+    st = con.tip_state[b]
+    for lev in range(1, MAX_HALVINGS + 1):
+        m = 1 << lev
+        hs = sub.h / m
+        subk = Substep(1.0, -1.0, 0.0, hs, 1.0 / hs, False, sub.g, sub.rtol, sub.maxit, sub.jage)
+        for a in range(3):  # back to the step's start
+            st.delta[a] = wk.d0[a]
+            wk.xs[a] = x0[a]
+        st.beta = wk.d0[3]
+        for i in range(NQ):
+            wk.qs[i] = wk.qn[i]
+        iters = 0
+        for k in range(1, m + 1):
+            _frame_at(b, k / m, rw0, B0, rw1, B1, wk.rws, wk.Bs)
+            for a in range(3):
+                st.pn[a] = wk.xs[a]
+                st.hist[a] = -wk.xs[a]
+            for i in range(NQ):
+                wk.qt[i] = wk.qs[i]
+            n = solve_bristle(
+                b,
+                wk.qt,
+                wk.qs,
+                prm,
+                wk.rws,
+                wk.Bs,
+                hs,
+                False,
+                subk,
+                con,
+                gtip,
+                wk,
+                sub.maxit,
+                sub.rtol,
+            )
+            if n < 0:
+                iters = -1
+                break
+            iters += n
+            for a in range(3):
+                st.delta[a] = st.dnew[a]
+                wk.xs[a] = wk.xw[a]
+            st.beta = st.bnew
+            for i in range(NQ):
+                wk.qs[i] = wk.qt[i]
+        if iters >= 0:
+            return iters
+    return -1
+
+
+@njit(**PRB)
+def step_all(
+    tcp_p0,
+    tcp_R0,
+    tcp_p,
+    tcp_R,
+    root_p,
+    root_R,
+    prm,
+    q,
+    qp,
+    sub,
+    con,
+    gtip,
+    rootw,
+    Bw,
+    rootpos,
+    wk,
+    out,
+):
+    """One solver step of every bristle from the TCP pose (tcp_p0, tcp_R0) to (tcp_p [mm], tcp_R)
+    at the step's end: each bristle's equilibrium (``solve_bristle``; ``_halved`` if it fails) in
+    turn, its stiction state committed (eq 7-10) and its tip (con.tips: position [mm], velocity
+    [mm/s]) moved on, so that the next bristle sees it (one Gauss-Seidel sweep of the tip-tip
+    contacts).  out.rootw (nb, 6): the force [N] and moment [N mm] about the root with which
+    each bristle pushes on the head (its tip load and its weight, gtip being half of it).  A
+    bristle that fails even halved leaves its state untouched and sets out.status[b] = 1 (the
+    caller rolls the whole step back)."""
     frames(tcp_p, tcp_R, root_p, root_R, rootpos, Bw)
+    frames(tcp_p0, tcp_R0, root_p, root_R, wk.rp0, wk.B0)
     h = sub.h
     tips = con.tips
     for b in range(q.shape[0]):
@@ -386,31 +620,48 @@ def step_all(tcp_p, tcp_R, root_p, root_R, prm, q, sub, con, gtip, rootw, Bw, ro
         for a in range(3):
             st.pn[a] = tips[b, a]
             st.hist[a] = -tips[b, a]  # backward Euler: v = (p - p_n) / h
+            wk.d0[a] = st.delta[a]
+        wk.d0[3] = st.beta
         for i in range(NQ):
             wk.qn[i] = q[b, i]
             wk.qt[i] = q[b, i]
-        n = solve_bristle(
-            b,
-            wk.qt,
-            wk.qn,
-            prm,
-            rootpos[b],
-            Bw[b],
-            h,
-            sub.static,
-            sub,
-            con,
-            gtip[b],
-            wk,
-            sub.maxit,
-            sub.rtol,
-        )
+        touching = st.fn > 0.0 or st.ftt > 0.0  # at the end of the last step
+        if not sub.static and _free_step(b, prm, rootpos[b], Bw[b], h, sub, con, gtip[b], wk):
+            n = 1
+        else:
+            # first guess: the joints' last motion carried on (a tip held or dragged along
+            # moves its joints smoothly); from rest, the last angles
+            ex = 1.0 if touching and not sub.static else 0.0
+            for i in range(NQ):
+                wk.qt[i] = q[b, i] + ex * (q[b, i] - qp[b, i])
+            n = solve_bristle(
+                b,
+                wk.qt,
+                wk.qn,
+                prm,
+                rootpos[b],
+                Bw[b],
+                h,
+                sub.static,
+                sub,
+                con,
+                gtip[b],
+                wk,
+                sub.maxit,
+                sub.rtol,
+            )
+            if n < 0 and not sub.static:
+                n = _halved(b, prm, sub, con, gtip[b], wk, tips[b], wk.rp0, wk.B0, rootpos, Bw)
         out.iters[b] = max(n, 0)
         if n < 0:
             out.status[b] = 1
+            for a in range(3):
+                st.delta[a] = wk.d0[a]
+            st.beta = wk.d0[3]
             continue
         out.status[b] = 0
         for i in range(NQ):
+            qp[b, i] = q[b, i]
             q[b, i] = wk.qt[i]
         for a in range(3):
             st.delta[a] = st.dnew[a]
@@ -428,7 +679,7 @@ def step_all(tcp_p, tcp_R, root_p, root_R, prm, q, sub, con, gtip, rootw, Bw, ro
         rootw[b, 5] = d0 * F[1] - d1 * F[0]
 
 
-@njit(**HOT)
+@njit(**PRB)
 def link_poses(q, prm, rootpos, Bw, pos, rot, wk):
     """The two links of every bristle as bodies (for drawing and ``State.pos``): centre [mm] and
     frame (x along the link) in the world, bodies 2 b and 2 b + 1."""

@@ -18,6 +18,7 @@ back) and the outputs; the bristles themselves are stepped through the seam of `
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import warnings
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ __all__ = [
     "INTEGRATORS",
     "PENETRATION_WARN_FRACTION",
     "PenetrationWarning",
+    "Rollout",
     "SimSettings",
     "SimulationDivergence",
     "Simulator",
@@ -231,6 +233,109 @@ class Simulator:
         st.steps = start.steps + 1  # steps counts calls of step, not internal steps
         return self._result(iters, nsub)
 
+    def rollout(
+        self,
+        v,
+        w,
+        n: int,
+        force_stop: float = math.inf,
+        penetration_stop: float = math.inf,
+    ) -> Rollout:
+        """``n`` steps of ``settings.dt`` with the TCP at the constant twist (v [mm/s], w [rad/s],
+        world): p_k = p_{k-1} + v dt, R_k = expmap(w dt) R_{k-1}.  Stops after the step at which
+        the total tip normal force exceeds ``force_stop`` [N], the head touches a surface
+        (``head_clearance`` <= 0) or a tip's in-step penetration exceeds ``penetration_stop``
+        [mm]; a divergence restores the last converged step and stops (``Rollout.stop``).
+
+        A bristle model with a compiled rollout (the reduced model) runs all of it in one call
+        (``prb_rollout.py``); any other goes through ``step`` (``Rollout.record`` holds the same
+        per-step arrays either way)."""
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before rollout()")
+        v = np.asarray(v, float)
+        w = np.asarray(w, float)
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"n = {n!r}: must be an integer >= 1 (steps)")
+        s = self.settings
+        sp, wp = float(np.linalg.norm(v)), float(np.linalg.norm(w))
+        if not (np.all(np.isfinite(v)) and sp <= s.max_tcp_speed):
+            raise ValueError(
+                f"v = {v.tolist()}: must be finite, |v| = {sp:.4g} mm/s up to "
+                f"settings.max_tcp_speed = {s.max_tcp_speed:g} mm/s"
+            )
+        if not (np.all(np.isfinite(w)) and wp <= s.max_tcp_angular_speed):
+            raise ValueError(
+                f"w = {w.tolist()}: must be finite, |w| = {wp:.4g} rad/s up to "
+                f"settings.max_tcp_angular_speed = {s.max_tcp_angular_speed:g} rad/s"
+            )
+        fast = getattr(self.bristles, "rollout", None)
+        if fast is not None:
+            done, stop, msg, rec = fast(v, w, int(n), force_stop, penetration_stop)
+            beyond = int(rec.beyond[:done].sum()) if done else 0
+            self._peaks = _Peaks(
+                float(rec.pen_max[:done].max()) if done else 0.0,
+                0.0,
+                beyond,
+                float(rec.head[:done].min()) if done else math.inf,
+            )
+            if beyond and not self._pen_warned:
+                self._warn_penetration(*self._deepest(rec, done))
+            return Rollout(done, stop, msg, rec, self._result(0, done * s.substeps))
+        return self._rollout_steps(v, w, int(n), force_stop, penetration_stop)
+
+    def _deepest(self, rec, done) -> tuple[np.ndarray, np.ndarray]:
+        """(penetration, excess) of the step's deepest tip, as ``_track`` gives them."""
+        pen = self.bristles.tip_penetration()
+        k = int(np.argmax(rec.pen_max[:done]))
+        pen = np.maximum(pen, 0.0)
+        b = int(np.argmax(pen))
+        pen = pen.copy()
+        pen[b] = max(pen[b], float(rec.pen_max[k]))
+        return pen, pen / self.model.tip_radius
+
+    def _rollout_steps(self, v, w, n, force_stop, penetration_stop) -> Rollout:
+        """``rollout`` through ``step`` (models without a compiled one)."""
+        from .prb_rollout import make_record  # the record's layout (numpy only)
+
+        nb = self.model.n_bristles
+        rec = make_record(n, nb)
+        dt = self.settings.dt
+        dR = expmap(w * dt)
+        p, R = self.state.tcp_p[1].copy(), self.state.tcp_R[1].copy()
+        out = self._result(0, 0)
+        done, stop, msg = 0, None, None
+        for k in range(n):
+            p_new, R_new = p + v * dt, dR @ R
+            try:
+                out = self.step(p_new, R_new)
+            except SimulationDivergence as e:
+                stop, msg = "divergence", str(e)
+                break
+            p, R = p_new, R_new
+            ex = out.extra
+            rec.fn[k] = out.tip_normal_force
+            rec.cpt[k] = out.tip_contact_point
+            rec.surf[k] = ex["tip_surface"]
+            rec.pen_max[k] = ex["max_tip_penetration"]
+            rec.shaft_pen[k] = ex["max_shaft_penetration"]
+            rec.beyond[k] = ex["steps_beyond_penalty_range"]
+            rec.head[k] = ex.get("head_clearance", math.inf)
+            rec.p[k], rec.R[k] = p, R
+            done = k + 1
+            if "shaft_normal_force" in ex:
+                rec.shaft_fn[k] = float(ex["shaft_normal_force"].sum())
+            total = float(out.tip_normal_force.sum()) + rec.shaft_fn[k]
+            if total > force_stop:
+                stop = "force_limit"
+            elif rec.head[k] <= 0.0:
+                stop = "head_contact"
+            elif max(rec.pen_max[k], rec.shaft_pen[k]) > penetration_stop:
+                stop = "penetration"
+            if stop is not None:
+                break
+        return Rollout(done, stop, msg, rec, out)
+
     def solve_static(self, tcp_p=None, tcp_R=None, increments: int = 1) -> StepResult:
         """Static equilibrium at the given (or current) TCP pose under the current tip loads.
 
@@ -364,6 +469,20 @@ class Simulator:
             c.contact_point,
             extra={**extra, **self.bristles.solver_info()},
         )
+
+
+@dataclass
+class Rollout:
+    """What ``Simulator.rollout`` did: ``done`` steps (<= n), ``stop`` why it stopped early (None,
+    "divergence", "force_limit", "head_contact", "penetration"), ``message`` (the divergence's),
+    ``record`` the per-step arrays (``prb_rollout.Record``; rows < done), ``last`` the
+    ``StepResult`` of the last step done (its ``extra`` peaks cover the whole rollout)."""
+
+    done: int
+    stop: str | None
+    message: str | None
+    record: object
+    last: StepResult
 
 
 @dataclass

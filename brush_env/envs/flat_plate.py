@@ -165,7 +165,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from brush_env.coverage import CoverageMap, EffectiveSweep, gum_force
+from brush_env.coverage import CoverageMap, EffectiveSweep
 from brush_env.engine import (
     ConfigError,
     Plane,
@@ -175,7 +175,7 @@ from brush_env.engine import (
     load_scene,
 )
 from brush_env.engine.clearance import deepest_tip
-from brush_env.engine.rotation import expmap, rot_axis
+from brush_env.engine.rotation import rot_axis
 from brush_env.engine.scene import surface_labels
 from brush_env.motion import R0
 
@@ -399,79 +399,50 @@ class BrushEnv(gym.Env):
         return obs, reward, terminated, False, info
 
     def _simulate(self) -> dict:
-        """``frame_skip`` engine steps at the commanded twist; accumulates forces and coverage.
+        """``frame_skip`` engine steps at the commanded twist (``Simulator.rollout``: one compiled
+        call for the reduced model of ``fast``); forces and coverage accumulated from its per-step
+        record.
 
-        Stops early on divergence (the engine restores its last converged state) or when the
-        total normal force exceeds the hard limit.  Workspace is checked on the final pose."""
+        The rollout stops early on divergence (the engine restores its last converged state),
+        when the total normal force exceeds the hard limit, the head touches or a penetration
+        exceeds ``max_penetration``.  Workspace is checked on the final pose."""
         cfg = self.config
         dte = cfg.engine_dt
-        dR = expmap(self._w * dte)
-        starts, ends = [], []
-        total_int = tip_int = above_t = gum_int = 0.0
-        peak_total = peak_tip = peak_gum = 0.0
-        pen_tip = pen_shaft = 0.0
-        beyond = 0
-        head = math.inf
-        termination = divergence = None
-        for _ in range(cfg.frame_skip):
-            p_new = self._p + self._v * dte
-            R_new = dR @ self._R
-            try:
-                out = self.sim.step(p_new, R_new)
-            except SimulationDivergence as e:
-                termination, divergence = "divergence", str(e)
-                break
-            self._p, self._R, self._last = p_new, R_new, out
-            f = out.tip_normal_force
-            fn = self._normal_force(out)
-            ex = out.extra
-            pen_tip = max(pen_tip, float(ex.get("max_tip_penetration", 0.0)))
-            pen_shaft = max(pen_shaft, float(ex.get("max_shaft_penetration", 0.0)))
-            beyond += int(ex.get("steps_beyond_penalty_range", 0))
-            head = min(head, float(ex.get("head_clearance", math.inf)))
-            total_int += dte * max(0.0, fn - cfg.total_force_limit)
-            tip_int += dte * float(np.maximum(f - cfg.tip_force_limit, 0.0).sum())
-            above_t += dte if fn > cfg.total_force_limit else 0.0
-            peak_total = max(peak_total, fn)
-            peak_tip = max(peak_tip, float(f.max()))
-            if self._gum.any():
-                fg = gum_force(out, self._gum)
-                gum_int += dte * max(0.0, fg - cfg.gum_force_limit)
-                peak_gum = max(peak_gum, fg)
-            seg = self._sweep.segments(out)
-            if seg is not None:
-                starts.append(seg[0])
-                ends.append(seg[1])
-            if fn > cfg.hard_force_limit:
-                termination = "force_limit"
-                break
-            if head <= 0.0:
-                termination = "head_contact"
-                break
-            if max(pen_tip, pen_shaft) > cfg.max_penetration:
-                termination = "penetration"
-                break
-        self._total_force = self._normal_force(self._last)
-        new_cells = (
-            self.coverage.stamp(np.concatenate(starts), np.concatenate(ends)) if starts else 0
+        ro = self.sim.rollout(
+            self._v, self._w, cfg.frame_skip, cfg.hard_force_limit, cfg.max_penetration
         )
+        n, rec = ro.done, ro.record
+        if n:
+            self._p, self._R, self._last = rec.p[n - 1].copy(), rec.R[n - 1].copy(), ro.last
+        f = rec.fn[:n]
+        fn = f.sum(axis=1) + rec.shaft_fn[:n]  # every eq 6 contact: the tips' and the shafts'
+        gum = np.zeros(n)
+        if self._gum.any():
+            surf = rec.surf[:n]
+            on_gum = (surf >= 0) & self._gum[np.maximum(surf, 0)]
+            gum = np.where(on_gum, f, 0.0).sum(axis=1)
+        self._total_force = self._normal_force(self._last)
+        starts, ends = self._sweep.segments_many(f, rec.cpt[:n], f > 0.0)
+        new_cells = self.coverage.stamp(starts, ends) if len(starts) else 0
+        termination = ro.stop
         if termination is None and not self._in_workspace():
             termination = "workspace"
+        pk = (lambda x, empty: float(x.max()) if n else empty)  # noqa: E731
         return dict(
             new_cells=new_cells,
-            total_int=total_int,
-            tip_int=tip_int,
-            time_above=above_t,
-            gum_int=gum_int,
-            peak_gum=peak_gum,
-            peak_total=peak_total,
-            peak_tip=peak_tip,
+            total_int=dte * float(np.maximum(fn - cfg.total_force_limit, 0.0).sum()),
+            tip_int=dte * float(np.maximum(f - cfg.tip_force_limit, 0.0).sum()),
+            time_above=dte * int(np.count_nonzero(fn > cfg.total_force_limit)),
+            gum_int=dte * float(np.maximum(gum - cfg.gum_force_limit, 0.0).sum()),
+            peak_gum=pk(gum, 0.0),
+            peak_total=pk(fn, 0.0),
+            peak_tip=pk(f, 0.0),
             termination=termination,
-            divergence=divergence,
-            pen_tip=pen_tip,
-            pen_shaft=pen_shaft,
-            beyond=beyond,
-            head=head,
+            divergence=ro.message,
+            pen_tip=pk(rec.pen_max[:n], 0.0),
+            pen_shaft=pk(rec.shaft_pen[:n], 0.0),
+            beyond=int(rec.beyond[:n].sum()),
+            head=float(rec.head[:n].min()) if n else math.inf,
         )
 
     @staticmethod
