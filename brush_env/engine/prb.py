@@ -46,8 +46,8 @@ class PRBGeometry:
     """The brush as the reduced model holds it (the seam's ``model``): two bodies (the links) per
     bristle, ``bstart`` (nb+1,), roots ``root_p`` (nb, 3) [mm] and frames ``root_R`` (nb, 3, 3) in
     the TCP frame, ``length`` (nb,) [mm], ``tip_radius`` (nb,) [mm], ``seg_len`` (2 nb,) [mm] the
-    links' lengths, ``prm`` (nb, 8) the joints (s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad],
-    beta [s])."""
+    links' lengths, ``prm`` (nb, 9) the joints (s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad],
+    beta [s], c3 [1/rad^2]: the springs' torque is k (q + c3 q^3))."""
 
     bstart: np.ndarray
     root_p: np.ndarray
@@ -108,7 +108,7 @@ def build_geometry(brush: BrushConfig) -> PRBGeometry:
 
     full = build_model(brush.with_bodies(1))
     nb = full.n_bristles
-    prm = np.zeros((nb, 8))
+    prm = np.zeros((nb, 9))
     lean = float(brush.effective_lean)
     for j, br in enumerate(brush.bristles):
         prm[j] = joint_parameters(br, lean)

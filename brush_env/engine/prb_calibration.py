@@ -8,7 +8,9 @@ rigid stub g0 L, two links g1 L, g2 L (g0 + g1 + g2 = 1) and two joints with spr
 
 and the full chain's stiffness-proportional damping beta = 2 zeta / omega_1 [s] (eq 4-5).
 
-The dimensionless constants (g0, g1, c1, c2) are fitted to the continuum: the planar
+and the springs' torque is k (q + c3 q^3) (a stiffening the rod shows at large turns).
+
+The dimensionless constants (g0, g1, c1, c2, c3) are fitted to the continuum: the planar
 geometrically exact rod with shear and extension (``validation.rod``, what the full chain converges
 to with many bodies), pressed onto a plate with a sliding and with a sticking tip
 (``brush-env calibrate``, ``prb_fit.py``).  A fit depends on the bristle's slenderness (shear),
@@ -21,15 +23,16 @@ from __future__ import annotations
 
 from .beam import first_bending_omega
 
-#: (g0, g1, c1, c2): stub and first link as fractions of L, joint spring coefficients
-DEFAULT = (0.08, 0.38, 3.4, 2.9)
+#: (g0, g1, c1, c2, c3): stub and first link as fractions of L, joint spring coefficients, the
+#: springs' cubic stiffening [1/rad^2]
+DEFAULT = (0.1, 0.36, 3.8, 2.5, 0.0)
 
 
 def joint_parameters(br, lean: float) -> tuple:
-    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s]) of bristle ``br``
+    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c3 [1/rad^2]) of ``br``
     (``BristleConfig``) on a brush of effective lean ``lean`` [rad], with its type's fitted
     constants (``constants_for``)."""
-    g0, g1, c1, c2, sz = constants_for(br, lean)
+    g0, g1, c1, c2, c3, sz = constants_for(br, lean)
     L = br.length
     E = br.material.E
     sec = br.section
@@ -48,6 +51,7 @@ def joint_parameters(br, lean: float) -> tuple:
         c2 * E * Iy / L,
         sz * c2 * E * Iz / L,
         beta,
+        c3,
     )
 
 
@@ -62,7 +66,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 1
+VERSION = 3
 
 _override: tuple | None = None
 _memory: dict = {}
@@ -141,7 +145,7 @@ def store(key: str, rec: dict, ship: bool = False) -> None:
 
 
 def set_override(constants) -> None:
-    """Use ``constants`` (g0, g1, c1, c2, wide-side scale) for every bristle built until reset
+    """Use ``constants`` (g0, g1, c1, c2, c3, wide-side scale) for every bristle built until reset
     with None (the fit evaluates candidates this way)."""
     global _override
     _override = None if constants is None else tuple(float(c) for c in constants)

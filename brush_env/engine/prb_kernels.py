@@ -46,7 +46,7 @@ MAX_ESCAPES = 4
 #: [rad] a bristle whose joints all turn less than this is "straight": only there is a converged
 #: equilibrium checked for stability (the saddle of a column pressed along its axis; a bent
 #: bristle was followed along its branch from a stable state)
-STRAIGHT = 0.05
+STRAIGHT = 0.005
 #: a bristle whose step fails is retried in up to 2**MAX_HALVINGS sub-steps (``_halved``)
 MAX_HALVINGS = 5
 
@@ -155,8 +155,8 @@ def frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
 
 
 @njit(**PRB)
-def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk):
-    """Residual wk.s = K q + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the angles q, its
+def _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk):
+    """Residual wk.s = K (q + c3 q^3) + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the angles q, its
     tip (wk.x local, wk.xw world), tip load (wk.F world, wk.Fl local) and the load's tangent
     (wk.Kt, world).  Returns max |s|."""
     x, xw, J, F, Kt, Fl = wk.x, wk.xw, wk.J, wk.F, wk.Kt, wk.Fl
@@ -169,7 +169,8 @@ def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk):
         Fl[a] = B[0, a] * F[0] + B[1, a] * F[1] + B[2, a] * F[2]
     smax = 0.0
     for i in range(NQ):
-        si = kq[i] * (q[i] + damp * (q[i] - qn[i]))
+        qi = q[i]
+        si = kq[i] * (qi * (1.0 + c3 * qi * qi) + damp * (qi - qn[i]))
         for a in range(3):
             si -= J[a, i] * Fl[a]
         wk.s[i] = si
@@ -179,8 +180,9 @@ def _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk):
 
 
 @njit(**PRB)
-def _tangent(geo, kq, damp, B, wk):
-    """wk.A <- the Newton matrix K (1 + damp) - G - J^T Kt J at the last ``_evaluate``."""
+def _tangent(q, geo, kq, c3, damp, B, wk):
+    """wk.A <- the Newton matrix K (1 + 3 c3 q^2 + damp) - G - J^T Kt J at the last
+    ``_evaluate`` (at q)."""
     geometric_stiffness(geo, wk.Fl, wk.G, wk.cs, wk.orders, wk.v, wk.tmp)
     J, Kt, Ktl, JK, A = wk.J, wk.Kt, wk.Ktl, wk.JK, wk.A
     for a in range(3):  # Kt in the bristle frame, then J^T Kt J
@@ -202,7 +204,7 @@ def _tangent(geo, kq, damp, B, wk):
             for a in range(3):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
-        A[i, i] += kq[i] * (1.0 + damp)
+        A[i, i] += kq[i] * (1.0 + 3.0 * c3 * q[i] * q[i] + damp)
 
 
 @njit(**PRB)
@@ -283,12 +285,48 @@ def _sym_min_eig(A, S, V, w):
 
 
 @njit(**PRB)
-def _escape(q, s, A, kq, wk, dq, push):
+def _bow_side(q, geo, wk):
+    """+1 or -1: the sign of the buckling mode wk.w (4,) that takes the branch of a leaning
+    bristle: the elbow (joint 2) moves across the load away from the side the tip stands off the
+    load's line through the root.  That is the branch the full chain and the rod take (their tip
+    pushes the plate toward the lean; checked in tests/engine/test_prb.py against the full chain,
+    bristle by bristle, for a pressed brush), and the one Newton finds from a bristle pressed
+    slowly enough to bend before it is compressed past its buckling load.  With no offset at
+    all (a perfectly straight bristle pressed along its axis), the side q already leans to."""
+    Fl = wk.Fl
+    fm = np.sqrt(Fl[0] * Fl[0] + Fl[1] * Fl[1] + Fl[2] * Fl[2])
+    if fm == 0.0:
+        return 1.0
+    u0, u1, u2 = Fl[0] / fm, Fl[1] / fm, Fl[2] / fm
+    x = wk.x  # the tip, bristle frame (root at the origin)
+    xu = x[0] * u0 + x[1] * u1 + x[2] * u2
+    o0, o1, o2 = x[0] - xu * u0, x[1] - xu * u1, x[2] - xu * u2
+    # the elbow's motion along w: l1 d(R1 e1)/dq . w, i.e. J's first link part
+    l1 = geo[1]
+    e0 = e1 = e2 = 0.0
+    for i in range(2):
+        wk.orders[0] = 0
+        wk.orders[1] = 0
+        wk.orders[i] = 1
+        _chain_vec(wk.cs, 2, wk.orders, wk.v, wk.tmp)
+        e0 += l1 * wk.v[0] * wk.w[i]
+        e1 += l1 * wk.v[1] * wk.w[i]
+        e2 += l1 * wk.v[2] * wk.w[i]
+    wk.orders[0] = 0
+    wk.orders[1] = 0
+    eo = e0 * o0 + e1 * o1 + e2 * o2
+    if abs(eo) > 1e-12 * l1 * l1:
+        return -1.0 if eo > 0.0 else 1.0
+    return 1.0 if _slope(q, wk.w) >= 0.0 else -1.0
+
+
+@njit(**PRB)
+def _escape(q, s, A, kq, geo, wk, dq, push):
     """dq <- a step off a saddle when the Newton matrix is not positive definite (a column
     pressed past its buckling load, held straight by the last Newton iterates): the shifted
-    Newton step (A - lam I + eps) dq = -s plus a move along the direction of negative curvature,
-    signed to go down the residual, or (at the saddle itself) toward the side q already leans
-    to.  Returns the smallest eigenvalue (>= 0: A is fine, dq untouched)."""
+    Newton step (A - lam I + eps) dq = -s plus, with ``push`` (at the saddle itself), a move
+    along the direction of negative curvature, to the side ``_bow_side`` picks.  Returns the
+    smallest eigenvalue (>= 0: A is fine, dq untouched)."""
     lam = _sym_min_eig(A, wk.S, wk.V, wk.w)
     if lam >= 0.0:
         return lam
@@ -300,19 +338,15 @@ def _escape(q, s, A, kq, wk, dq, push):
         dq[i] = -s[i]
     lu_dense(wk.S, NQ, wk.piv)
     lus_dense(wk.S, NQ, wk.piv, dq)
-    sv = _slope(s, wk.w)
-    qv = _slope(q, wk.w)
-    sign = (
-        -1.0 if sv > 1e-12 * kmax else (1.0 if sv < -1e-12 * kmax else (1.0 if qv >= 0 else -1.0))
-    )
     if push:
+        sign = _bow_side(q, geo, wk)
         for i in range(NQ):
             dq[i] += sign * 0.5 * MAX_DQ * wk.w[i]
     return lam
 
 
 @njit(**PRB)
-def _direction(b, q, kq, B, con, wk, dq, escape, push):
+def _direction(b, q, geo, kq, B, con, wk, dq, escape, push):
     """dq <- the Newton direction -A^-1 s from wk.A (kept in wk.A2), or, with ``escape`` and A
     not positive definite, the step off the saddle (``_escape``).  Returns (ok, escaped)."""
     for i in range(NQ):
@@ -325,7 +359,7 @@ def _direction(b, q, kq, B, con, wk, dq, escape, push):
     if escape:
         _conservative_part(b, con, B, wk)
         if not _stable(wk.A2, wk.S):
-            return True, _escape(q, wk.s, wk.A2, kq, wk, dq, push) < 0.0
+            return True, _escape(q, wk.s, wk.A2, kq, geo, wk, dq, push) < 0.0
     return True, False
 
 
@@ -386,7 +420,7 @@ def _step_limit(b, B, dq, static, sub, con, wk):
 
 
 @njit(**PRB)
-def _line_search(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax0, descend):
+def _line_search(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax0, descend):
     """Move to q + alpha dq if the residual falls there (max |s| below smax0, the current one)
     and ``descend`` is False; else, where the slope g(a) = dq . s(q + a dq) turned positive, to the energy's minimum along
     dq (regula falsi, Illinois).  ``descend``: off a saddle, where a falling residual may lead
@@ -395,7 +429,7 @@ def _line_search(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, 
     qt = wk.qt2
     g0 = _slope(wk.s, dq)
     _along(q, dq, alpha, qt)
-    smax = _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
+    smax = _evaluate(b, qt, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
     g1 = _slope(wk.s, dq)
     if (smax < smax0 and not descend) or not (g0 < 0.0 and g1 > 0.0):
         return alpha, smax  # the residual fell (Newton's quadratic step), or no minimum to find
@@ -404,7 +438,7 @@ def _line_search(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, 
     for _ in range(12):
         alpha = lo - glo * (hi - lo) / (ghi - glo)
         _along(q, dq, alpha, qt)
-        smax = _evaluate(b, qt, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
+        smax = _evaluate(b, qt, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
         g = _slope(wk.s, dq)
         if abs(g) <= 0.1 * abs(g0):
             break
@@ -425,7 +459,7 @@ def _line_search(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, 
 def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, tol):
     """Quasi-static equilibrium of bristle b (module docstring) from the guess q (4,), updated
     in place; qn the joint angles at the step start.  prm[b] = (s0, l1, l2, ka1, kb1, ka2, kb2,
-    beta); rw, B its root [mm] and frame in the world; gtip (3,) its lumped weight [N]; tol [rad].
+    beta, c3); rw, B its root [mm] and frame in the world; gtip (3,) its lumped weight [N]; tol [rad].
 
     Newton with the full model's safeguards (``newton.py``): the step is capped (``_step_limit``)
     and searched along (``_line_search``), which stops the limit cycle of a tip thrown in and out
@@ -436,12 +470,13 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
     wk.F at the returned q.  Returns the Newton iterations, or -1 if it did not converge."""
     geo = prm[b, 0:3]
     kq = prm[b, 3:7]
+    c3 = prm[b, 8]
     damp = 0.0 if static else prm[b, 7] / h
     ftol = tol * max(kq[0], kq[1], kq[2], kq[3])
     dq = wk.dq
     escapes = 0
     small = False  # the last step was below tol
-    smax = _evaluate(b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk)
+    smax = _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
     for it in range(1, maxit + 1):
         if not np.isfinite(smax):
             return -1
@@ -455,24 +490,27 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
         )
         if converged and not check:
             return it
-        _tangent(geo, kq, damp, B, wk)
-        # is a converged equilibrium stable?  (checked only where it can fail: the tip pressed
-        # toward the root)
-        # after a step off a saddle, Newton goes on with the shifted (positive definite) matrix
-        # while the conservative tangent stays indefinite: plain Newton would climb back
-        ok, escaped = _direction(b, q, kq, B, con, wk, dq, check or escapes > 0, converged)
+        _tangent(q, geo, kq, c3, damp, B, wk)
+        # a tip pressed toward its root: wherever the conservative tangent is indefinite (past
+        # a buckling load) Newton takes the shifted, positive definite one and the energy's line
+        # search (plain Newton heads for the nearest equilibrium: back onto the saddle, or over
+        # to the other side's branch); at a converged straight one, it steps off the saddle
+        pressed = wk.Fl[0] < 0.0
+        straight = max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < STRAIGHT
+        push = pressed and straight and escapes < MAX_ESCAPES  # the side: ``_bow_side``
+        ok, modified = _direction(b, q, geo, kq, B, con, wk, dq, pressed, push)
         if not ok:
             return -1
-        if converged and not escaped:
+        if converged and not modified:
             return it
-        escapes += int(escaped and converged)
+        escapes += int(modified and push)
         alpha, dmax = _step_limit(b, B, dq, static, sub, con, wk)
         alpha, smax = _line_search(
-            b, q, qn, geo, kq, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax, escapes > 0
+            b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax, modified
         )
         for i in range(NQ):
             q[i] = wk.qt2[i]
-        small = dmax * alpha < tol and not escaped
+        small = dmax * alpha < tol and not modified
     return -1
 
 
@@ -486,9 +524,13 @@ def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
     position and one contact evaluation instead of Newton's three or more."""
     geo = prm[b, 0:3]
     damp = prm[b, 7] / h
-    f = damp / (1.0 + damp)
-    for i in range(NQ):
-        wk.qt[i] = f * wk.qn[i]
+    c3 = prm[b, 8]
+    for i in range(NQ):  # q + c3 q^3 + damp (q - q_n) = 0, by Newton from the linear answer
+        qn = wk.qn[i]
+        qi = damp / (1.0 + damp) * qn
+        for _ in range(3):
+            qi -= (qi * (1.0 + c3 * qi * qi) + damp * (qi - qn)) / (1.0 + 3.0 * c3 * qi * qi + damp)
+        wk.qt[i] = qi
     x, xw, J, F = wk.x, wk.xw, wk.J, wk.F
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
@@ -501,7 +543,8 @@ def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
         wk.Fl[a] = B[0, a] * F[0] + B[1, a] * F[1] + B[2, a] * F[2]
     for i in range(NQ):
         g = J[0, i] * wk.Fl[0] + J[1, i] * wk.Fl[1] + J[2, i] * wk.Fl[2]
-        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + damp))
+        qi = wk.qt[i]
+        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + 3.0 * c3 * qi * qi + damp))
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
     return True
