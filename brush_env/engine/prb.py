@@ -47,7 +47,8 @@ class PRBGeometry:
     bristle, ``bstart`` (nb+1,), roots ``root_p`` (nb, 3) [mm] and frames ``root_R`` (nb, 3, 3) in
     the TCP frame, ``length`` (nb,) [mm], ``tip_radius`` (nb,) [mm], ``seg_len`` (2 nb,) [mm] the
     links' lengths, ``prm`` (nb, 9) the joints (s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad],
-    beta [s], c3 [1/rad^2]: the springs' torque is k (q + c3 q^3))."""
+    beta [s], c3 [1/rad^2]: the springs' torque is k (e + c3 e^3), e = q - q_rest; q_rest (4,)
+    [rad] the rest angles: ``prb_calibration.rest_angles``)."""
 
     bstart: np.ndarray
     root_p: np.ndarray
@@ -108,7 +109,7 @@ def build_geometry(brush: BrushConfig) -> PRBGeometry:
 
     full = build_model(brush.with_bodies(1))
     nb = full.n_bristles
-    prm = np.zeros((nb, 9))
+    prm = np.zeros((nb, 13))
     lean = float(brush.effective_lean)
     for j, br in enumerate(brush.bristles):
         prm[j] = joint_parameters(br, lean)
@@ -209,9 +210,10 @@ class PRBBristles(BristleModel):
         tips = np.zeros((nb, 7))
         tips[:, 0:3] = tcp_p + (m.root_p + m.length[:, None] * m.root_R[:, :, 0]) @ tcp_R.T
         tips[:, 6] = m.tip_radius
+        rest = m.prm[:, 9:13]
         self.state = PRBState(
-            np.zeros((nb, K.NQ)),
-            np.zeros((nb, K.NQ)),
+            rest.copy(),
+            rest.copy(),
             tips,
             _fresh_tip_state(nb),
             np.zeros((2 * nb, 3)),
@@ -474,6 +476,7 @@ _Work = namedtuple(
         "qs",
         "rws",
         "Bs",
+        "qr",
     ],
 )
 _NO_SHAFT = np.zeros(0, rec.SHAFT)
@@ -520,6 +523,7 @@ def _work(nb: int) -> _Work:
         z(K.NQ),
         z(3),
         z((3, 3)),
+        z(K.NQ),
     )
 
 

@@ -6,7 +6,9 @@ rigid stub g0 L, two links g1 L, g2 L (g0 + g1 + g2 = 1) and two joints with spr
     k_a,i = c_i E I_y / L  (bending toward the thin side, local z),
     k_b,i = c_i E I_z / L  (toward the wide side, local y)          [N mm / rad],
 
-and the full chain's stiffness-proportional damping beta = 2 zeta / omega_1 [s] (eq 4-5).
+and joint damping c = beta k with beta = max(2 zeta, 1) / omega_1 [s] (the full chain's
+stiffness-proportional damping, eq 4-5, or the first mode's time scale standing in for the
+inertia the model leaves out, whichever is longer).
 
 and the springs' torque is k (q + c3 q^3) (a stiffening the rod shows at large turns).
 
@@ -21,6 +23,8 @@ bristle, used until a type has its own fit.
 
 from __future__ import annotations
 
+import math
+
 from .beam import first_bending_omega
 
 #: (g0, g1, c1, c2, c3): stub and first link as fractions of L, joint spring coefficients, the
@@ -29,36 +33,58 @@ DEFAULT = (0.1, 0.36, 3.8, 2.5, 0.0)
 
 
 def joint_parameters(br, lean: float) -> tuple:
-    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c3 [1/rad^2]) of ``br``
-    (``BristleConfig``) on a brush of effective lean ``lean`` [rad], with its type's fitted
-    constants (``constants_for``)."""
+    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c3 [1/rad^2], and the four
+    rest angles [rad], ``rest_angles``) of ``br`` (``BristleConfig``) on a brush of effective
+    lean ``lean`` [rad], with its type's fitted constants (``constants_for``)."""
     g0, g1, c1, c2, c3, sz = constants_for(br, lean)
     L = br.length
     E = br.material.E
     sec = br.section
     Iy, Iz = sec.I_y, sec.I_z
-    beta = (
-        2.0
-        * br.material.damping_ratio
-        / first_bending_omega(E, min(Iy, Iz), br.material.density, sec.area, L)
-    )
+    # the joints' damping time: the material's stiffness-proportional damping (2 zeta / omega_1,
+    # as the full chain's elements), but at least one period of the first bending mode over
+    # 2 pi: the model has no inertia, and this relaxation stands for it -- a snap (a tip torn
+    # off its stiction, a bristle springing back) takes about that long in the full chain too,
+    # and the implicit step stays well posed through it
+    omega1 = first_bending_omega(E, min(Iy, Iz), br.material.density, sec.area, L)
+    beta = max(2.0 * br.material.damping_ratio, 1.0) / omega1
+    l1, l2 = g1 * L, (1.0 - g0 - g1) * L
     return (
         g0 * L,
-        g1 * L,
-        (1.0 - g0 - g1) * L,
+        l1,
+        l2,
         c1 * E * Iy / L,
         sz * c1 * E * Iz / L,
         c2 * E * Iy / L,
         sz * c2 * E * Iz / L,
         beta,
         c3,
+        *rest_angles(l1, l2, lean),
     )
+
+
+#: [rad] the rest bend of the two joints along the fold that keeps the tip in place (see
+#: ``rest_angles``)
+REST_BEND = 0.05
+
+
+def rest_angles(l1: float, l2: float, lean: float) -> tuple:
+    """The joints' rest angles (a1, b1, a2, b2) [rad]: a bend of REST_BEND at joint 1 and the
+    turn at joint 2 that keeps the tip on the bristle's axis (to first order; it shortens by
+    ~0.01 mm), toward the side the full chain and the rod buckle to (the elbow away from the lean:
+    ``prb_kernels._bow_side``).  Why: a two-link chain pressed slowly from straight takes the
+    branch its own kinematics prefer, which for a leaning bristle is the other side; the small
+    rest bend makes it take the continuum's (tests/engine/test_prb.py presses one against the
+    full chain).  No lean: no bend (a straight bristle picks its side when it buckles)."""
+    if lean == 0.0:
+        return (0.0, 0.0, 0.0, 0.0)
+    e = math.copysign(REST_BEND, lean)
+    return (e, 0.0, -e * (l1 + l2) / l2, 0.0)
 
 
 # --------------------------------------------------------------------------- the cache
 import hashlib  # noqa: E402
 import json  # noqa: E402
-import math  # noqa: E402
 import os  # noqa: E402
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -66,7 +92,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 3
+VERSION = 5
 
 _override: tuple | None = None
 _memory: dict = {}

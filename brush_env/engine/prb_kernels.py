@@ -47,8 +47,11 @@ MAX_ESCAPES = 4
 #: equilibrium checked for stability (the saddle of a column pressed along its axis; a bent
 #: bristle was followed along its branch from a stable state)
 STRAIGHT = 0.005
+#: [rad] a pressed bristle whose joints turn less than this from rest keeps to the energy's
+#: descent where its conservative tangent is indefinite (``_direction``; all of them, as set)
+BUCKLING = 10.0
 #: a bristle whose step fails is retried in up to 2**MAX_HALVINGS sub-steps (``_halved``)
-MAX_HALVINGS = 5
+MAX_HALVINGS = 6
 
 
 @njit(**PRB, inline="always")
@@ -170,7 +173,8 @@ def _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk):
     smax = 0.0
     for i in range(NQ):
         qi = q[i]
-        si = kq[i] * (qi * (1.0 + c3 * qi * qi) + damp * (qi - qn[i]))
+        ei = qi - wk.qr[i]  # the spring's turn from its rest angle
+        si = kq[i] * (ei * (1.0 + c3 * ei * ei) + damp * (qi - qn[i]))
         for a in range(3):
             si -= J[a, i] * Fl[a]
         wk.s[i] = si
@@ -204,7 +208,8 @@ def _tangent(q, geo, kq, c3, damp, B, wk):
             for a in range(3):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
-        A[i, i] += kq[i] * (1.0 + 3.0 * c3 * q[i] * q[i] + damp)
+        ei = q[i] - wk.qr[i]
+        A[i, i] += kq[i] * (1.0 + 3.0 * c3 * ei * ei + damp)
 
 
 @njit(**PRB)
@@ -339,9 +344,13 @@ def _escape(q, s, A, kq, geo, wk, dq, push):
     lu_dense(wk.S, NQ, wk.piv)
     lus_dense(wk.S, NQ, wk.piv, dq)
     if push:
+        # the side is the geometry's (``_bow_side``), not the residual's: a tip that meets the
+        # plate within a step loads the straight column at once, and its residual's component
+        # along the mode (friction, the penetration) would pick the side by accident
         sign = _bow_side(q, geo, wk)
+        along = _slope(dq, wk.w)
         for i in range(NQ):
-            dq[i] += sign * 0.5 * MAX_DQ * wk.w[i]
+            dq[i] += (sign * 0.5 * MAX_DQ - along) * wk.w[i]
     return lam
 
 
@@ -471,11 +480,14 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
     geo = prm[b, 0:3]
     kq = prm[b, 3:7]
     c3 = prm[b, 8]
+    for i in range(NQ):
+        wk.qr[i] = prm[b, 9 + i]
     damp = 0.0 if static else prm[b, 7] / h
     ftol = tol * max(kq[0], kq[1], kq[2], kq[3])
     dq = wk.dq
     escapes = 0
     small = False  # the last step was below tol
+    stalls = 0  # modified Newton steps cut below 1 % by the line search
     smax = _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
     for it in range(1, maxit + 1):
         if not np.isfinite(smax):
@@ -486,7 +498,10 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
             converged
             and escapes < MAX_ESCAPES
             and wk.Fl[0] < 0.0
-            and max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < STRAIGHT
+            and max(
+                abs(q[0] - wk.qr[0]), abs(q[1] - wk.qr[1]), abs(q[2] - wk.qr[2]), abs(q[3] - wk.qr[3])
+            )
+            < STRAIGHT
         )
         if converged and not check:
             return it
@@ -495,9 +510,11 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
         # a buckling load) Newton takes the shifted, positive definite one and the energy's line
         # search (plain Newton heads for the nearest equilibrium: back onto the saddle, or over
         # to the other side's branch); at a converged straight one, it steps off the saddle
-        pressed = wk.Fl[0] < 0.0
-        straight = max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < STRAIGHT
-        push = pressed and straight and escapes < MAX_ESCAPES  # the side: ``_bow_side``
+        turn = 0.0
+        for i in range(NQ):
+            turn = max(turn, abs(q[i] - wk.qr[i]))
+        pressed = wk.Fl[0] < 0.0 and turn < BUCKLING and stalls < 2
+        push = pressed and turn < STRAIGHT and escapes < MAX_ESCAPES  # the side: _bow_side
         ok, modified = _direction(b, q, geo, kq, B, con, wk, dq, pressed, push)
         if not ok:
             return -1
@@ -511,6 +528,9 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
         for i in range(NQ):
             q[i] = wk.qt2[i]
         small = dmax * alpha < tol and not modified
+        # the energy's descent stalls where friction, not an energy, shapes the tangent (a
+        # sliding tip on a bent bristle): plain Newton from then on
+        stalls += int(modified and alpha < 1e-2)
     return -1
 
 
@@ -525,12 +545,14 @@ def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
     geo = prm[b, 0:3]
     damp = prm[b, 7] / h
     c3 = prm[b, 8]
-    for i in range(NQ):  # q + c3 q^3 + damp (q - q_n) = 0, by Newton from the linear answer
-        qn = wk.qn[i]
-        qi = damp / (1.0 + damp) * qn
+    for i in range(NQ):
+        wk.qr[i] = prm[b, 9 + i]
+    for i in range(NQ):  # e + c3 e^3 + damp (q - q_n) = 0, e = q - q_rest, by Newton
+        qn = wk.qn[i] - wk.qr[i]
+        ei = damp / (1.0 + damp) * qn
         for _ in range(3):
-            qi -= (qi * (1.0 + c3 * qi * qi) + damp * (qi - qn)) / (1.0 + 3.0 * c3 * qi * qi + damp)
-        wk.qt[i] = qi
+            ei -= (ei * (1.0 + c3 * ei * ei) + damp * (ei - qn)) / (1.0 + 3.0 * c3 * ei * ei + damp)
+        wk.qt[i] = ei + wk.qr[i]
     x, xw, J, F = wk.x, wk.xw, wk.J, wk.F
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
@@ -543,8 +565,8 @@ def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
         wk.Fl[a] = B[0, a] * F[0] + B[1, a] * F[1] + B[2, a] * F[2]
     for i in range(NQ):
         g = J[0, i] * wk.Fl[0] + J[1, i] * wk.Fl[1] + J[2, i] * wk.Fl[2]
-        qi = wk.qt[i]
-        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + 3.0 * c3 * qi * qi + damp))
+        ei = wk.qt[i] - wk.qr[i]
+        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + 3.0 * c3 * ei * ei + damp))
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
     return True
@@ -675,6 +697,9 @@ def step_all(
             # first guess: the joints' last motion carried on (a tip held or dragged along
             # moves its joints smoothly); from rest, the last angles
             ex = 1.0 if touching and not sub.static else 0.0
+            for i in range(NQ):
+                if abs(q[b, i] - qp[b, i]) > MAX_DQ:
+                    ex = 0.0  # not after a snap: its motion does not go on
             for i in range(NQ):
                 wk.qt[i] = q[b, i] + ex * (q[b, i] - qp[b, i])
             n = solve_bristle(
