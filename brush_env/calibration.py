@@ -27,7 +27,6 @@ import numpy as np
 
 from .engine import BrushConfig, SimSettings, Simulator, load_brush
 from .engine import prb_calibration as pc
-from .engine.config import IMPERFECTION_DEG
 from .validation.buckling import R_DOWN, BucklingCase
 from .validation.references import timoshenko_cantilever_tip
 from .validation.rod import buckled_bristle
@@ -199,6 +198,14 @@ def _strong_scale(br, constants) -> float:
     return comp_prb / timo
 
 
+def ensure_calibrated(brush: BrushConfig, settings) -> None:
+    """Before a Simulator at ``settings`` is built on ``brush``: if its bristle model is the
+    reduced one, fit the bristle types that have no calibration yet (a few seconds each, said on
+    stderr; the shipped brushes need none)."""
+    if getattr(settings, "model", "dfm") == "prb":
+        calibrate_brush(brush, verbose=True)
+
+
 def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> int:
     """Fit every bristle type of ``brush`` that has no calibration yet; returns how many were
     fitted.  ``ship``: store them in the package's file (the shipped brushes)."""
@@ -222,4 +229,36 @@ def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool 
     return done
 
 
-__all__ = ["calibrate_brush", "fit", "press_reduced", "IMPERFECTION_DEG"]
+def add_arguments(p) -> None:
+    """``brush-env calibrate [BRUSH ...] [--all] [--ship] [--force]``."""
+    p.add_argument(
+        "brushes",
+        nargs="*",
+        metavar="BRUSH",
+        help="brush names in configs/brushes or TOML paths (default: default)",
+    )
+    p.add_argument("--all", action="store_true", help="every brush in configs/brushes")
+    p.add_argument(
+        "--ship",
+        action="store_true",
+        help="write into the package's shipped file (engine/prb_calibrations.json), refitting",
+    )
+
+
+def run(args) -> int:
+    """Fit the bristle types of the brushes that have no calibration (all of them with
+    ``--ship``) and print each fit's error."""
+    from .engine import configs_dir
+
+    names = list(args.brushes) or ["default"]
+    if args.all:
+        names = sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
+    for name in names:
+        brush = load_brush(name)
+        n = calibrate_brush(brush, ship=args.ship)
+        where = pc.SHIPPED if args.ship else pc.user_cache()
+        print(f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}")
+    return 0
+
+
+__all__ = ["calibrate_brush", "ensure_calibrated", "fit", "press_reduced"]

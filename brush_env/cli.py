@@ -42,6 +42,11 @@ SUBCOMMANDS = {
         "effects and sensitivity ranking of a sweep (DIR/report.md with figures)",
     ),
     "warmup": ("brush_env.cli", "compile the numba kernels once, so later runs start at once"),
+    "calibrate": (
+        "brush_env.calibration",
+        "fit the reduced bristle model (fidelity level 'reduced') of a brush's bristle types to "
+        "the rod, cached by content",
+    ),
 }
 
 

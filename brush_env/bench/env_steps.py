@@ -15,7 +15,7 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 
     brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
                         [--engine-dt 0.004] [--max-substep 0.001] [--frame-skip 10]
-                        [--json]
+                        [--fidelity LEVEL] [--json]
 
 Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
 first: ``add_arguments`` skips options the parser already has); ``run(args)`` prints and returns
@@ -42,10 +42,19 @@ DEFAULTS = {
     "max_substep": 0.001,
     "frame_skip": 10,
     "config": "flat_plate",
+    "fidelity": None,
 }
 
 
 def _env_kwargs(a: dict) -> dict:
+    if a.get("fidelity"):  # a level's own settings, unchanged (e.g. the reduced model's)
+        return {
+            "config": a["config"],
+            "brush": a["brush"],
+            "engine_dt": a["engine_dt"],
+            "fidelity": a["fidelity"],
+            "frame_skip": a["frame_skip"],
+        }
     return {
         "config": a["config"],
         "brush": a["brush"],
@@ -143,7 +152,8 @@ def _row(mode, n, steps, wall, cold, terminations, u, a) -> dict:
         "terminations": terminations,
         "brush": a["brush"],
         "n_bristles": u.n_bristles,
-        "bodies_per_bristle": a["bodies"],
+        "bodies_per_bristle": int(np.diff(u.sim.model.bstart).max()),
+        "model": u.sim.settings.model,
         "engine_dt": u.config.engine_dt,
         "max_substep": u.sim.settings.max_substep,
         "frame_skip": u.config.frame_skip,
@@ -203,6 +213,14 @@ _OPTIONS = (
         ),
     ),
     ("--frame-skip", dict(type=int, default=DEFAULTS["frame_skip"])),
+    (
+        "--fidelity",
+        dict(
+            default=None,
+            help="a fidelity level (configs/fidelity), its settings unchanged: --bodies and "
+            "--max-substep then do not apply",
+        ),
+    ),
     ("--config", dict(default=DEFAULTS["config"], help="env config name or TOML path")),
     ("--json", dict(action="store_true", help="one JSON object per row on stdout")),
 )

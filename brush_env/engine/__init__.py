@@ -4,6 +4,9 @@ Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator`
 ``load_brush``/``load_scene``.  Robot motions (trajectories) live in ``brush_env.motion``.
 """
 
+# the bristle models register themselves by name (bristles.register_bristle_model): the full
+# chain "dfm" through simulator -> chain, the reduced model "prb" here
+from . import prb as _prb  # noqa: E402,F401
 from .config import (
     BristleConfig,
     BrushConfig,
@@ -24,10 +27,6 @@ from .simulator import (
     State,
     StepResult,
 )
-
-# the bristle models register themselves by name (bristles.register_bristle_model): the full
-# chain "dfm" through simulator -> chain, the reduced model "prb" here
-from . import prb as _prb  # noqa: E402,F401
 
 __all__ = [
     "BristleConfig",

@@ -162,7 +162,7 @@ class DFMChain(BristleModel):
         self.tip_args = np.zeros(nb, rec.TIP_ARGS)
         self.tip_args["radius"] = self.model.tip_radius
         self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
-        self.surfaces, grids = _surface_rows(scene.surfaces)
+        self.surfaces, grids = surface_rows(scene.surfaces)
         self.sdf = pack_grids(grids)
         meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
         if len(meshes) > 1:
@@ -260,7 +260,7 @@ class DFMChain(BristleModel):
             np.zeros(nb, np.int64),
             np.stack([tcp_p] * 4),
             np.stack([tcp_R] * 4),
-            _fresh_tip_state(nb),
+            fresh_tip_state(nb),
             time,
             0,
             rec.make_newton_cache(N, nb),
@@ -528,14 +528,14 @@ def _shaft_capsules(brush: BrushConfig, model: Model) -> np.ndarray:
     return sh
 
 
-def _fresh_tip_state(nb: int) -> np.ndarray:
+def fresh_tip_state(nb: int) -> np.ndarray:
     """Tip states of untouched tips: zeros, no surface (surf = -1)."""
     ts = np.zeros(nb, rec.TIP_STATE)
     ts["surf"] = -1
     return ts
 
 
-def _surface_rows(surfaces) -> tuple[np.ndarray, list]:
+def surface_rows(surfaces) -> tuple[np.ndarray, list]:
     """The scene's surfaces as kernel records (``records.SURFACE``), and the baked SDF grids that
     records of kind SURF_GRID index (in their order)."""
     rows = np.zeros(len(surfaces), rec.SURFACE)

@@ -24,7 +24,7 @@ from . import records as rec
 from . import records as rec_
 from . import shaft as shf
 from .bristles import BristleModel, TipContact, register_bristle_model
-from .chain import _fresh_tip_state, _surface_rows, head_outline, tip_pairs
+from .chain import fresh_tip_state, head_outline, surface_rows, tip_pairs
 from .checks import ConfigError
 from .config import BrushConfig
 from .mesh_contact import build_mesh, empty_mesh
@@ -71,7 +71,8 @@ class PRBGeometry:
 class PRBState:
     """The reduced model's complete state; ``copy()`` and ``set_state`` restore it exactly.
 
-    q (nb, 4) [rad] joint angles, qp (nb, 4) those of one solver step before; tips (nb, 7) tip node [mm], velocity [mm/s], radius [mm];
+    q (nb, 4) [rad] joint angles, qp (nb, 4) those of one solver step before; tips (nb, 7) tip
+    node [mm], velocity [mm/s], radius [mm];
     tip_state (nb,) ``records.TIP_STATE``; pos (2 nb, 3) [mm] / rot (2 nb, 3, 3) the links as
     bodies (derived, for drawing); tcp_p (4, 3) / tcp_R (4, 3, 3) the drive (row 1 now, row 0 one
     solver step before); time [s]; steps."""
@@ -109,11 +110,12 @@ def build_geometry(brush: BrushConfig) -> PRBGeometry:
 
     full = build_model(brush.with_bodies(1))
     nb = full.n_bristles
-    prm = np.zeros((nb, 13))
+    prm = np.zeros(nb, K.JOINT)
     lean = float(brush.effective_lean)
     for j, br in enumerate(brush.bristles):
-        prm[j] = joint_parameters(br, lean)
-    seg = np.stack([prm[:, 1], prm[:, 2]], axis=1).reshape(-1)
+        v = joint_parameters(br, lean)
+        prm[j] = (v[0:3], v[3:7], v[7], v[8], v[9:13])
+    seg = np.stack([prm["geo"][:, 1], prm["geo"][:, 2]], axis=1).reshape(-1)
     return PRBGeometry(
         np.arange(0, 2 * nb + 1, 2, dtype=np.int64),
         full.root_p.copy(),
@@ -142,7 +144,12 @@ class PRBBristles(BristleModel):
         self.tip_args = np.zeros(nb, rec.TIP_ARGS)
         self.tip_args["radius"] = m.tip_radius
         self.contact_params = scene.contact.as_array()
-        self.surfaces, grids = _surface_rows(scene.surfaces)
+        # friction is the reduced model's own return mapping (prb_kernels._friction): the shared
+        # tip load runs without it
+        self._cp_frictionless = self.contact_params.copy()
+        self._cp_frictionless["mu_s"] = 0.0
+        self._cp_frictionless["mu_d"] = 0.0
+        self.surfaces, grids = surface_rows(scene.surfaces)
         self.sdf = pack_grids(grids)
         meshes = [s for s in scene.surfaces if isinstance(s, MeshPlate)]
         if len(meshes) > 1:
@@ -166,7 +173,9 @@ class PRBBristles(BristleModel):
         self._rootpos = np.zeros((nb, 3))
         self._Bw = np.zeros((nb, 3, 3))
         self._wk = _work(nb)
-        self._out = _Out(np.zeros(nb, np.int64), np.zeros(nb, np.int64))
+        cp = self.contact_params[0]
+        self._wk.fric[:] = (cp["mu_s"], cp["mu_d"], cp["delta_max"])
+        self._out = _Out(np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64))
         self._head = (
             head_outline(scene.brush, _PairModel(m))
             if getattr(scene, "head_contact", False) and len(self.surfaces)
@@ -174,7 +183,7 @@ class PRBBristles(BristleModel):
         )
         self._g23 = np.zeros((3, 3))
         self._headw = np.zeros((0 if self._head is None else len(self._head), 3))
-        self._geo = R_.Geometry(m.root_p, m.root_R, m.prm)
+        self._geo = K.Geometry(m.root_p, m.root_R, m.prm)
         self._backup = R_.Backup(
             np.zeros((nb, K.NQ)),
             np.zeros((nb, K.NQ)),
@@ -186,6 +195,8 @@ class PRBBristles(BristleModel):
         self._ps = np.zeros(3)
         self._pp = np.zeros(3)
         self._Rp = np.zeros((3, 3))
+        self._k = np.zeros(1, np.int64)
+        self._frames = K.Frames(self._rootpos, self._Bw)
         self.state: PRBState | None = None
         self._snap: PRBState | None = None
 
@@ -210,12 +221,12 @@ class PRBBristles(BristleModel):
         tips = np.zeros((nb, 7))
         tips[:, 0:3] = tcp_p + (m.root_p + m.length[:, None] * m.root_R[:, :, 0]) @ tcp_R.T
         tips[:, 6] = m.tip_radius
-        rest = m.prm[:, 9:13]
+        rest = m.prm["rest"]
         self.state = PRBState(
             rest.copy(),
             rest.copy(),
             tips,
-            _fresh_tip_state(nb),
+            fresh_tip_state(nb),
             np.zeros((2 * nb, 3)),
             np.zeros((2 * nb, 3, 3)),
             np.stack([tcp_p] * 4),
@@ -224,11 +235,12 @@ class PRBBristles(BristleModel):
             0,
         )
         self.root_wrench[:] = 0.0
+        self._out.loose[:] = 0
         self._links()
 
     def _links(self) -> None:
         st = self.state
-        K.frames(
+        K.root_frames(
             st.tcp_p[1], st.tcp_R[1], self.model.root_p, self.model.root_R, self._rootpos, self._Bw
         )
         K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
@@ -265,19 +277,12 @@ class PRBBristles(BristleModel):
             st.tcp_R[1],
             np.asarray(tcp_p, float),
             np.asarray(tcp_R, float),
-            self.model.root_p,
-            self.model.root_R,
-            self.model.prm,
-            st.q,
-            st.qp,
-            sub,
-            self._contact(),
+            self._geo,
+            K.Joints(st.q, st.qp),
+            self._frames,
+            self._ctx(sub),
             self.gtip,
             self.root_wrench,
-            self._Bw,
-            self._rootpos,
-            self._wk,
-            self._out,
         )
         bad = np.flatnonzero(self._out.status)
         if bad.size or not np.all(np.isfinite(st.tips)):
@@ -320,22 +325,18 @@ class PRBBristles(BristleModel):
             self._ps,
             self._pp,
             self._Rp,
+            self._k,
         )
         h = s.dt / m
         sub = rec_.Substep(1.0, -1.0, 0.0, h, 1.0 / h, False, _ZERO3, ANGLE_TOL, MAX_ITER, 0)
         lim = R_.Limits(float(force_stop), float(penetration_stop), PENETRATION_WARN_FRACTION)
         done, stop, bad = R_.rollout(
             self._geo,
-            st.q,
-            st.qp,
-            sub,
-            self._contact(),
+            K.Joints(st.q, st.qp),
+            self._frames,
+            self._ctx(sub),
             self.gtip,
             self.root_wrench,
-            self._Bw,
-            self._rootpos,
-            self._wk,
-            self._out,
             drv,
             lim,
             self._backup,
@@ -349,7 +350,7 @@ class PRBBristles(BristleModel):
             st.tcp_p[1], st.tcp_R[1] = last
             st.time = st.time + done * s.dt
             st.steps += done
-        K.frames(
+        K.root_frames(
             st.tcp_p[1], st.tcp_R[1], self.model.root_p, self.model.root_R, self._rootpos, self._Bw
         )
         K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
@@ -364,10 +365,14 @@ class PRBBristles(BristleModel):
             )
         return done, R_.STOP_REASONS[stop], msg, rec
 
+    def _ctx(self, sub) -> K.Ctx:
+        """The kernels' view of a solver step (``prb_kernels.Ctx``)."""
+        return K.Ctx(self.model.prm, sub, self._contact(), self._wk, self._out)
+
     def _contact(self) -> rec.ContactScene:
         return rec.ContactScene(
             self.surfaces,
-            self.contact_params,
+            self._cp_frictionless,
             self.state.tips,
             self.pair_ptr,
             self.pair_idx,
@@ -405,7 +410,13 @@ class PRBBristles(BristleModel):
         return float(shf.clearance(self.surfaces, self.mesh, self.sdf, pts, g[0], g[1]))
 
     def solver_info(self) -> dict:
-        return {"newton_max": int(self._out.iters.max()) if self._out.iters.size else 0}
+        """Newton's largest iteration count over the bristles of the last solver step, and how
+        many bristle-steps since reset were taken at a loose tolerance (prb_kernels.LOOSE_TOL)."""
+        it = self._out.iters
+        return {
+            "newton_max": int(it.max() % K.LOOSE) if it.size else 0,
+            "loose_steps": int(self._out.loose.sum()),
+        }
 
     @property
     def n_tip_pairs(self) -> int:
@@ -437,7 +448,7 @@ class _PairModel:
 
 from collections import namedtuple  # noqa: E402
 
-_Out = namedtuple("_Out", ["iters", "status"])
+_Out = namedtuple("_Out", ["iters", "status", "loose"])
 _Work = namedtuple(
     "_Work",
     [
@@ -477,6 +488,9 @@ _Work = namedtuple(
         "rws",
         "Bs",
         "qr",
+        "qb",
+        "fric",
+        "dn3",
     ],
 )
 _NO_SHAFT = np.zeros(0, rec.SHAFT)
@@ -524,6 +538,9 @@ def _work(nb: int) -> _Work:
         z(3),
         z((3, 3)),
         z(K.NQ),
+        z(K.NQ),
+        z(3),
+        z(3),
     )
 
 

@@ -92,7 +92,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 5
+VERSION = 6
 
 _override: tuple | None = None
 _memory: dict = {}

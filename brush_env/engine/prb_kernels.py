@@ -25,19 +25,40 @@ sweep, partners held where they are, as the ``fast`` full chain's one sweep).
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
 from ._kernels import HOT, lu_dense, lus_dense
+from .contact import penetration_step_limit, step10, step10_dx, tip_load
+from .records import Substep
 
 #: the reduced model's kernels: as HOT, with fast floating point (reassociation and fused
 #: multiply-add; results stay deterministic for one build on one machine)
 PRB = dict(HOT, fastmath=True)
-from .records import Substep
-from .contact import penetration_step_limit, slip_step_limit, tip_load
 
 #: joint coordinates per bristle
 NQ = 4
+#: one bristle's joints (``prb.build_geometry`` fills them from ``prb_calibration``): geo = (s0,
+#: l1, l2) [mm] the stub and the links, k (4,) [N mm/rad] the springs (joint 1 about y, about z,
+#: joint 2 about y, about z), beta [s] their damping time, c3 [1/rad^2] the cubic of the springs'
+#: torque k (e + c3 e^3), rest (4,) [rad] their rest angles (e = q - rest)
+JOINT = np.dtype(
+    [("geo", "f8", 3), ("k", "f8", 4), ("beta", "f8"), ("c3", "f8"), ("rest", "f8", 4)]
+)
+#: what every kernel of a solver step reads: the joints (JOINT, nb), the step (records.Substep),
+#: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
+#: outputs (iters, status, loose)
+Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out"])
+#: one bristle's root [mm] and frame in the world, and the weight lumped at its tip [N]
+Pose = namedtuple("Pose", ["rw", "B", "gtip"])
+#: the brush: roots [mm] and frames in the TCP frame, joints (JOINT)
+Geometry = namedtuple("Geometry", ["root_p", "root_R", "prm"])
+#: the joint angles now and one solver step before (nb, 4) [rad]
+Joints = namedtuple("Joints", ["q", "qp"])
+#: every root [mm] and bristle frame in the world at the step's end
+Frames = namedtuple("Frames", ["rootpos", "Bw"])
 #: largest Newton correction of a joint angle in one iterate [rad] (a longer step is scaled down:
 #: keeps a tip that meets a surface from jumping through the penalty range in one iterate)
 MAX_DQ = 0.15
@@ -50,8 +71,24 @@ STRAIGHT = 0.005
 #: [rad] a pressed bristle whose joints turn less than this from rest keeps to the energy's
 #: descent where its conservative tangent is indefinite (``_direction``; all of them, as set)
 BUCKLING = 10.0
+#: a bristle-step that Newton cannot bring below its tolerance in MAX_ITER iterations (the whole
+#: step, or any halving of it) is taken at its best iterate if the residual there is below
+#: LOOSE_TOL times the stiffest joint [N mm per N mm/rad]: ~1e-3 N at the tip of a 10 mm
+#: bristle (a light sliding contact at the edge of lift-off); counted in
+#: ``solver_info()["loose_steps"]``
+LOOSE_TOL = 1e-2
+#: the same on the smallest halving, the last resort before the step is refused: ~1e-2 N at the
+#: tip -- a bristle caught between its plate and a neighbour's tip, both contacts coming and
+#: going between Newton's iterates (one bristle-step in ~10^4 under random actions)
+ROUGH_TOL = 1e-1
+#: the iteration count's offset that marks such a step
+LOOSE = 1000
+#: halvings of a Newton step whose residual rose (``_line_search``)
+BACKTRACKS = 4
+#: passes of the free bristle's joint-by-joint solve (``_free_step``)
+FREE_PASSES = 3
 #: a bristle whose step fails is retried in up to 2**MAX_HALVINGS sub-steps (``_halved``)
-MAX_HALVINGS = 6
+MAX_HALVINGS = 5
 
 
 @njit(**PRB, inline="always")
@@ -142,7 +179,7 @@ def _to_world(B, xl, rw, out):
 
 
 @njit(**PRB)
-def frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
+def root_frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
     """Every root in the world (rootw (nb, 3) [mm]) and its bristle frame (Bw (nb, 3, 3))."""
     for j in range(root_p.shape[0]):
         for a in range(3):
@@ -157,15 +194,98 @@ def frames(tcp_p, tcp_R, root_p, root_R, rootw, Bw):
                 Bw[j, a, b] = t
 
 
+@njit(**PRB, inline="always")
+def _spring(e, c3):
+    """(torque / k, its slope) of a joint spring turned by e [rad]: e + c3 e^3 (the fit's cubic),
+    continued linearly past the turn where a softening cubic (c3 < 0) has lost half its slope
+    (beyond it the cubic would fall to zero torque near 2.8 rad and fold the chain)."""
+    if c3 >= 0.0 or e * e <= -0.5 / (3.0 * c3):
+        return e * (1.0 + c3 * e * e), 1.0 + 3.0 * c3 * e * e
+    em = np.sqrt(-0.5 / (3.0 * c3))
+    sg = 1.0 if e > 0.0 else -1.0
+    return sg * (em * (1.0 + c3 * em * em) + 0.5 * (abs(e) - em)), 0.5
+
+
 @njit(**PRB)
-def _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk):
-    """Residual wk.s = K (q + c3 q^3) + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the angles q, its
-    tip (wk.x local, wk.xw world), tip load (wk.F world, wk.Fl local) and the load's tangent
-    (wk.Kt, world).  Returns max |s|."""
+def _friction(b, x, con, wk, fric):
+    """Friction on bristle b's tip at x (world) for a massless tip, as a return mapping: the
+    stiction deformation Delta = P_t (Delta_n + x - p_n) (eq 8's, in the contact's tangent plane)
+    pulls back with mu Fn g(|Delta| / Delta_max) along Delta (g eq 10's step from 0 to 1); past
+    Delta_max the anchor slides (Delta is returned onto |Delta| = Delta_max) and the force is
+    mu Fn along the slip, mu = mu_s (1 - beta) + mu_d beta with beta = 1 after a sliding step
+    (lagged one step, as ``contact._friction_load``).  This is eq 7-10 without the sliding
+    term's dependence on the slip speed (eq 9, v_d = 1.5 mm/s): a tip with no mass has no speed
+    of its own within a step -- that term made Newton chatter on every light, sliding contact.
+    Adds the force and its tangent (with its dependence on Fn, dFn = -kk n^T dx) to wk.F and
+    wk.Kt; stores the trial state (dnew, bnew, ft, slide).  fric = (mu_s, mu_d, Delta_max)."""
+    st = con.tip_state[b]
+    fn = st.fn
+    if fn <= 0.0:
+        return
+    n = wk.tw.nrm
+    Kt = wk.Kt
+    kk = 0.0  # the normal stiffness [N/mm] (tip_load's tangent holds no friction here)
+    for a in range(3):
+        for c in range(3):
+            kk -= n[a] * Kt[a, c] * n[c]
+    d = wk.dn3
+    for a in range(3):
+        d[a] = st.delta[a] + x[a] - st.pn[a]
+    dnn = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+    for a in range(3):
+        d[a] -= dnn * n[a]
+    dmag = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    dmax = fric[2]
+    mu = fric[0] * (1.0 - st.beta) + fric[1] * st.beta
+    sliding = dmag >= dmax
+    st.bnew = 1.0 if sliding else 0.0
+    st.slide = 1 if sliding else 0
+    if dmag == 0.0:
+        for a in range(3):
+            st.dnew[a] = 0.0
+            st.ft[a] = 0.0
+        # the spring's slope at the origin, in the tangent plane
+        k0 = mu * fn * step10_dx(0.0, -1.0, -1.0, 1.0, 1.0) / dmax
+        for a in range(3):
+            for c in range(3):
+                Kt[a, c] -= k0 * ((1.0 if a == c else 0.0) - n[a] * n[c])
+        return
+    u = min(dmag / dmax, 1.0)
+    g = step10(u, -1.0, -1.0, 1.0, 1.0)
+    f = mu * fn * g  # the force's magnitude
+    scale = min(1.0, dmax / dmag)  # the return onto |Delta| = Delta_max
+    for a in range(3):
+        st.dnew[a] = d[a] * scale
+        ft = -f * d[a] / dmag
+        st.ft[a] = ft
+        wk.F[a] += ft
+    # tangent: d(-f u)/dx = -f' u u^T P_t - (f / |Delta|)(P_t - u u^T) - (F_t / Fn) dFn/dx
+    fp = 0.0 if sliding else mu * fn * step10_dx(u, -1.0, -1.0, 1.0, 1.0) / dmax
+    fr = f / dmag
+    for a in range(3):
+        ua = d[a] / dmag
+        for c in range(3):
+            uc = d[c] / dmag
+            pac = (1.0 if a == c else 0.0) - n[a] * n[c]
+            Kt[a, c] -= fp * ua * uc + fr * (pac - ua * uc)
+            Kt[a, c] -= kk * (st.ft[a] / fn) * n[c]
+
+
+@njit(**PRB)
+def _evaluate(b, q, qn, damp, pose, ctx):
+    """Residual wk.s = K (e + c3 e^3) + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the
+    angles q (e = q - q_rest), its tip (wk.x local, wk.xw world), tip load (wk.F world, wk.Fl
+    local: ``contact.tip_load`` with the scene's friction off, then ``_friction``) and the load's
+    tangent (wk.Kt, world).  Returns max |s|."""
+    j = ctx.prm[b]
+    geo, kq, c3 = j.geo, j.k, j.c3
+    rw, B, gtip = pose.rw, pose.B, pose.gtip
+    sub, con, wk = ctx.sub, ctx.con, ctx.wk
     x, xw, J, F, Kt, Fl = wk.x, wk.xw, wk.J, wk.F, wk.Kt, wk.Fl
     kinematics(q, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
     tip_load(b, xw, sub, con, F, Kt, wk.tw)
+    _friction(b, xw, con, wk, wk.fric)
     for a in range(3):
         F[a] += gtip[a]
     for a in range(3):  # the load in the bristle frame
@@ -174,7 +294,7 @@ def _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk):
     for i in range(NQ):
         qi = q[i]
         ei = qi - wk.qr[i]  # the spring's turn from its rest angle
-        si = kq[i] * (ei * (1.0 + c3 * ei * ei) + damp * (qi - qn[i]))
+        si = kq[i] * (_spring(ei, c3)[0] + damp * (qi - qn[i]))
         for a in range(3):
             si -= J[a, i] * Fl[a]
         wk.s[i] = si
@@ -209,7 +329,7 @@ def _tangent(q, geo, kq, c3, damp, B, wk):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
         ei = q[i] - wk.qr[i]
-        A[i, i] += kq[i] * (1.0 + 3.0 * c3 * ei * ei + damp)
+        A[i, i] += kq[i] * (_spring(ei, c3)[1] + damp)
 
 
 @njit(**PRB)
@@ -246,6 +366,29 @@ def _slope(s, dq):
 
 
 @njit(**PRB)
+def _jacobi_rotate(S, V, p, r):
+    """One Jacobi rotation zeroing S[p, r] (S <- J^T S J, V <- V J)."""
+    if abs(S[p, r]) < 1e-300:
+        return
+    th = 0.5 * (S[r, r] - S[p, p]) / S[p, r]
+    t = (1.0 if th >= 0.0 else -1.0) / (abs(th) + np.sqrt(th * th + 1.0))
+    c = 1.0 / np.sqrt(t * t + 1.0)
+    sn = t * c
+    for k in range(NQ):
+        skp, skr = S[k, p], S[k, r]
+        S[k, p] = c * skp - sn * skr
+        S[k, r] = sn * skp + c * skr
+    for k in range(NQ):
+        spk, srk = S[p, k], S[r, k]
+        S[p, k] = c * spk - sn * srk
+        S[r, k] = sn * spk + c * srk
+    for k in range(NQ):
+        vkp, vkr = V[k, p], V[k, r]
+        V[k, p] = c * vkp - sn * vkr
+        V[k, r] = sn * vkp + c * vkr
+
+
+@njit(**PRB)
 def _sym_min_eig(A, S, V, w):
     """Smallest eigenvalue of the symmetric part of A (4, 4) and its eigenvector (left in w) by
     cyclic Jacobi rotations on S (scratch); V scratch (4, 4)."""
@@ -262,24 +405,7 @@ def _sym_min_eig(A, S, V, w):
             break
         for p in range(NQ):
             for r in range(p + 1, NQ):
-                if abs(S[p, r]) < 1e-300:
-                    continue
-                th = 0.5 * (S[r, r] - S[p, p]) / S[p, r]
-                t = (1.0 if th >= 0.0 else -1.0) / (abs(th) + np.sqrt(th * th + 1.0))
-                c = 1.0 / np.sqrt(t * t + 1.0)
-                sn = t * c
-                for k in range(NQ):  # S <- J^T S J
-                    skp, skr = S[k, p], S[k, r]
-                    S[k, p] = c * skp - sn * skr
-                    S[k, r] = sn * skp + c * skr
-                for k in range(NQ):
-                    spk, srk = S[p, k], S[r, k]
-                    S[p, k] = c * spk - sn * srk
-                    S[r, k] = sn * spk + c * srk
-                for k in range(NQ):
-                    vkp, vkr = V[k, p], V[k, r]
-                    V[k, p] = c * vkp - sn * vkr
-                    V[k, r] = sn * vkp + c * vkr
+                _jacobi_rotate(S, V, p, r)
     m = 0
     for i in range(1, NQ):
         if S[i, i] < S[m, m]:
@@ -403,9 +529,11 @@ def _conservative_part(b, con, B, wk):
 
 
 @njit(**PRB)
-def _step_limit(b, B, dq, static, sub, con, wk):
-    """The fraction of dq to take: the cap MAX_DQ on the angles, and the full model's contact
-    limits on the tip's (linearised) step: ``penetration_step_limit``, ``slip_step_limit``."""
+def _step_limit(b, B, dq, static, sub, con, wk, leaving):
+    """(fraction of dq to take, max |dq|, held): the cap MAX_DQ on the angles, the full model's
+    contact limits on the tip's (linearised) step (``penetration_step_limit``,
+    ``slip_step_limit``) and their mirror for a tip leaving its surface (held: it was held back;
+    ``leaving``: it was held back the iterate before, and goes now)."""
     dmax = 0.0
     for i in range(NQ):
         dmax = max(dmax, abs(dq[i]))
@@ -421,33 +549,59 @@ def _step_limit(b, B, dq, static, sub, con, wk):
     a_pen = penetration_step_limit(b, wk.xw, dp, con.tip_args[b].radius, con, wk.tw)
     if a_pen < alpha:
         alpha = max(a_pen, 1e-3)
-    if not static:
-        a_slip = slip_step_limit(wk.xw, dp, con.tip_state[b], sub.c0, sub.inv_h, con.cp[0].v_d)
-        if a_slip < alpha:
-            alpha = max(a_slip, 1e-4)
-    return alpha, dmax
+    st = con.tip_state[b]
+    if st.fn > 0.0 and st.pen > 0.0 and not leaving:
+        # a touching tip leaves its surface at most halfway per iterate (the mirror of the
+        # penetration limit): Newton's tangent inside the contact holds its stiffness, outside
+        # none, and an iterate thrown out comes back deep in -- the contact's on/off cycle.  A
+        # second iterate in a row that wants out goes (the tip lifts off)
+        nrm = wk.tw.nrm
+        dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]  # > 0: out of the surface
+        if dn * alpha > 0.5 * st.pen:
+            return 0.5 * st.pen / dn, dmax, True
+    return alpha, dmax, False
 
 
 @njit(**PRB)
-def _line_search(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax0, descend):
+def _line_search(b, q, qn, damp, pose, ctx, dq, alpha, smax0, descend):
     """Move to q + alpha dq if the residual falls there (max |s| below smax0, the current one)
-    and ``descend`` is False; else, where the slope g(a) = dq . s(q + a dq) turned positive, to the energy's minimum along
-    dq (regula falsi, Illinois).  ``descend``: off a saddle, where a falling residual may lead
-    straight back to it (its residual is zero), only the energy counts.  The last evaluation is at the returned point.  Returns (alpha
-    taken, max |s| there)."""
+    and ``descend`` is False; else, where the slope g(a) = dq . s(q + a dq) turned positive, to
+    the energy's minimum along dq (regula falsi, Illinois), or back off by halving.
+    ``descend``: off a saddle, where a falling residual may lead straight back to it (its
+    residual is zero), only the energy counts.  The last evaluation is at the returned point.
+    Returns (alpha taken, max |s| there)."""
+    wk = ctx.wk
     qt = wk.qt2
     g0 = _slope(wk.s, dq)
     _along(q, dq, alpha, qt)
-    smax = _evaluate(b, qt, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
+    smax = _evaluate(b, qt, qn, damp, pose, ctx)
     g1 = _slope(wk.s, dq)
-    if (smax < smax0 and not descend) or not (g0 < 0.0 and g1 > 0.0):
-        return alpha, smax  # the residual fell (Newton's quadratic step), or no minimum to find
+    if smax < smax0 and not descend:
+        return alpha, smax  # the residual fell (Newton's quadratic step)
+    if not (g0 < 0.0 and g1 > 0.0):
+        # no minimum to find along dq, and the residual rose: back off (halving), keeping the
+        # best point (a tip thrown across the edge of a contact, where the tangent of one side
+        # says nothing of the other)
+        best_a, best_s = alpha, smax
+        a_try = alpha
+        for _ in range(BACKTRACKS):
+            a_try *= 0.5
+            _along(q, dq, a_try, qt)
+            s_try = _evaluate(b, qt, qn, damp, pose, ctx)
+            if s_try < best_s:
+                best_a, best_s = a_try, s_try
+            if s_try < smax0:
+                break
+        if best_a != a_try:  # leave the last evaluation at the point returned
+            _along(q, dq, best_a, qt)
+            best_s = _evaluate(b, qt, qn, damp, pose, ctx)
+        return best_a, best_s
     lo, glo, hi, ghi = 0.0, g0, alpha, g1
     side = 0
     for _ in range(12):
         alpha = lo - glo * (hi - lo) / (ghi - glo)
         _along(q, dq, alpha, qt)
-        smax = _evaluate(b, qt, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
+        smax = _evaluate(b, qt, qn, damp, pose, ctx)
         g = _slope(wk.s, dq)
         if abs(g) <= 0.1 * abs(g0):
             break
@@ -465,10 +619,10 @@ def _line_search(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk, dq, alp
 
 
 @njit(**PRB)
-def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, tol):
+def solve_bristle(b, q, qn, pose, ctx, loose):
     """Quasi-static equilibrium of bristle b (module docstring) from the guess q (4,), updated
-    in place; qn the joint angles at the step start.  prm[b] = (s0, l1, l2, ka1, kb1, ka2, kb2,
-    beta, c3); rw, B its root [mm] and frame in the world; gtip (3,) its lumped weight [N]; tol [rad].
+    in place; qn the joint angles at the step start; ``pose`` its root, frame and tip weight;
+    the step (``ctx.sub``): h, static, maxit, rtol (the tolerance on the angles [rad]).
 
     Newton with the full model's safeguards (``newton.py``): the step is capped (``_step_limit``)
     and searched along (``_line_search``), which stops the limit cycle of a tip thrown in and out
@@ -476,22 +630,35 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
     joint, or the step below tol; an equilibrium whose tangent is not positive definite (a
     column held straight past its buckling load) is left along its negative curvature
     (``_escape``, at most MAX_ESCAPES times).  Leaves the tip (world) in wk.xw and its load in
-    wk.F at the returned q.  Returns the Newton iterations, or -1 if it did not converge."""
-    geo = prm[b, 0:3]
-    kq = prm[b, 3:7]
-    c3 = prm[b, 8]
+    wk.F at the returned q.  Returns the Newton iterations, or -1 if it did not converge.
+
+    ``loose`` > 0: if Newton has not converged after maxit iterations, the iterate with the
+    smallest residual is taken when that residual is below loose times the stiffest joint
+    [N mm] (a light, sliding contact at the edge of lift-off, where the contact's on/off and
+    friction's turn keep Newton from converging; returns maxit + LOOSE, counted by the caller)."""
+    j = ctx.prm[b]
+    geo, kq, c3 = j.geo, j.k, j.c3
+    sub, con, wk = ctx.sub, ctx.con, ctx.wk
+    B = pose.B
+    static, maxit, tol = sub.static, sub.maxit, sub.rtol
     for i in range(NQ):
-        wk.qr[i] = prm[b, 9 + i]
-    damp = 0.0 if static else prm[b, 7] / h
+        wk.qr[i] = j.rest[i]
+    damp = 0.0 if static else j.beta / sub.h
     ftol = tol * max(kq[0], kq[1], kq[2], kq[3])
     dq = wk.dq
     escapes = 0
     small = False  # the last step was below tol
     stalls = 0  # modified Newton steps cut below 1 % by the line search
-    smax = _evaluate(b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk)
+    held = False  # the last step was held back from leaving a contact
+    smax = _evaluate(b, q, qn, damp, pose, ctx)
+    best = np.inf
     for it in range(1, maxit + 1):
         if not np.isfinite(smax):
             return -1
+        if smax < best:
+            best = smax
+            for i in range(NQ):
+                wk.qb[i] = q[i]
         converged = smax <= ftol or small
         # a converged, straight bristle whose tip is pressed toward its root may sit on a saddle
         check = (
@@ -499,7 +666,10 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
             and escapes < MAX_ESCAPES
             and wk.Fl[0] < 0.0
             and max(
-                abs(q[0] - wk.qr[0]), abs(q[1] - wk.qr[1]), abs(q[2] - wk.qr[2]), abs(q[3] - wk.qr[3])
+                abs(q[0] - wk.qr[0]),
+                abs(q[1] - wk.qr[1]),
+                abs(q[2] - wk.qr[2]),
+                abs(q[3] - wk.qr[3]),
             )
             < STRAIGHT
         )
@@ -521,39 +691,57 @@ def solve_bristle(b, q, qn, prm, rw, B, h, static, sub, con, gtip, wk, maxit, to
         if converged and not modified:
             return it
         escapes += int(modified and push)
-        alpha, dmax = _step_limit(b, B, dq, static, sub, con, wk)
-        alpha, smax = _line_search(
-            b, q, qn, geo, kq, c3, damp, rw, B, sub, con, gtip, wk, dq, alpha, smax, modified
-        )
+        alpha, dmax, held = _step_limit(b, B, dq, static, sub, con, wk, held)
+        alpha, smax = _line_search(b, q, qn, damp, pose, ctx, dq, alpha, smax, modified)
         for i in range(NQ):
             q[i] = wk.qt2[i]
         small = dmax * alpha < tol and not modified
         # the energy's descent stalls where friction, not an energy, shapes the tangent (a
         # sliding tip on a bent bristle): plain Newton from then on
         stalls += int(modified and alpha < 1e-2)
+    if smax < best:
+        best = smax
+        for i in range(NQ):
+            wk.qb[i] = q[i]
+    if loose > 0.0 and best <= loose * max(kq[0], kq[1], kq[2], kq[3]):
+        for i in range(NQ):
+            q[i] = wk.qb[i]
+        _evaluate(b, q, qn, damp, pose, ctx)
+        return maxit + LOOSE
     return -1
 
 
 @njit(**PRB)
-def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
-    """The step of a bristle that touches nothing: its joints relax toward their unloaded angles
-    (K q + (C/h)(q - q_n) = 0, C = beta K: q = q_n beta / (beta + h)) and sag under the weight
-    lumped at the tip (one linear step from there: the weight is ~1e-4 N, the sag ~0.03 mm).  The
-    tip's load is evaluated there; if anything touches it (a surface, a partner tip, a dead load)
-    nothing is kept and False is returned (the bristle is solved by Newton).  Costs one tip
-    position and one contact evaluation instead of Newton's three or more."""
-    geo = prm[b, 0:3]
-    damp = prm[b, 7] / h
-    c3 = prm[b, 8]
-    for i in range(NQ):
-        wk.qr[i] = prm[b, 9 + i]
-    for i in range(NQ):  # e + c3 e^3 + damp (q - q_n) = 0, e = q - q_rest, by Newton
-        qn = wk.qn[i] - wk.qr[i]
-        ei = damp / (1.0 + damp) * qn
-        for _ in range(3):
-            ei -= (ei * (1.0 + c3 * ei * ei) + damp * (ei - qn)) / (1.0 + 3.0 * c3 * ei * ei + damp)
-        wk.qt[i] = ei + wk.qr[i]
+def _free_step(b, pose, ctx):
+    """The step of a bristle that touches nothing: every joint on its own, e + c3 e^3 +
+    damp (q - q_n) = g / k (e = q - q_rest, g the torque of the weight lumped at the tip), solved
+    by scalar Newton with g from the last pass (FREE_PASSES passes: the weight is ~1e-4 N, its
+    coupling between the joints ~1e-3 of their springs).  The tip's load is evaluated at the
+    result; if anything touches it (a surface, a partner tip, a dead load) nothing is kept and
+    False is returned (the bristle is solved by Newton).  Costs a few tip positions and one
+    contact evaluation instead of Newton's tangents; tests/engine/test_prb.py checks it against
+    Newton."""
+    j = ctx.prm[b]
+    geo, c3 = j.geo, j.c3
+    rw, B, gtip = pose.rw, pose.B, pose.gtip
+    sub, con, wk = ctx.sub, ctx.con, ctx.wk
+    damp = j.beta / sub.h
     x, xw, J, F = wk.x, wk.xw, wk.J, wk.F
+    for a in range(3):
+        wk.Fl[a] = B[0, a] * gtip[0] + B[1, a] * gtip[1] + B[2, a] * gtip[2]
+    for i in range(NQ):
+        wk.qr[i] = j.rest[i]
+        wk.qt[i] = wk.qn[i]
+    for _ in range(FREE_PASSES):
+        kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
+        for i in range(NQ):
+            g = (J[0, i] * wk.Fl[0] + J[1, i] * wk.Fl[1] + J[2, i] * wk.Fl[2]) / j.k[i]
+            en = wk.qn[i] - wk.qr[i]
+            ei = wk.qt[i] - wk.qr[i]
+            for _ in range(3):
+                t, dt = _spring(ei, c3)
+                ei -= (t + damp * (ei - en) - g) / (dt + damp)
+            wk.qt[i] = ei + wk.qr[i]
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
     _to_world(B, x, rw, xw)
     tip_load(b, xw, sub, con, F, wk.Kt, wk.tw)
@@ -562,13 +750,6 @@ def _free_step(b, prm, rw, B, h, sub, con, gtip, wk):
         return False
     for a in range(3):
         F[a] = gtip[a]
-        wk.Fl[a] = B[0, a] * F[0] + B[1, a] * F[1] + B[2, a] * F[2]
-    for i in range(NQ):
-        g = J[0, i] * wk.Fl[0] + J[1, i] * wk.Fl[1] + J[2, i] * wk.Fl[2]
-        ei = wk.qt[i] - wk.qr[i]
-        wk.qt[i] += g / (prm[b, 3 + i] * (1.0 + 3.0 * c3 * ei * ei + damp))
-    kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
-    _to_world(B, x, rw, xw)
     return True
 
 
@@ -591,18 +772,23 @@ def _frame_at(b, s, rw0, B0, rw1, B1, rw, B):
 
 
 @njit(**PRB)
-def _halved(b, prm, sub, con, gtip, wk, x0, rw0, B0, rw1, B1):
+def _halved(b, ctx, gtip, x0, frames):
     """Bristle b's step as 2, 4, ... 2**MAX_HALVINGS equal sub-steps (the root moving linearly
     through them) after the whole step failed: the joints' damping (C / h) grows as the step
     shrinks, which carries the bristle through a snap (a tip torn off its stiction and slipping
     far, a bristle springing back) that has no equilibrium near the last one.  Each sub-step
     commits its stiction state, as a shorter step would.  Leaves the result in wk.qt (and the
-    tip and load as ``solve_bristle``); returns the iterations, or -1."""
-    st = con.tip_state[b]
+    tip and load as ``solve_bristle``); returns the iterations, or -1.  The root moves from
+    (ctx.wk.rp0, ctx.wk.B0) to (frames.rootpos, frames.Bw); x0 the tip at the step's start."""
+    sub, wk = ctx.sub, ctx.wk
+    st = ctx.con.tip_state[b]
+    rw0, B0, rw1, B1 = wk.rp0, wk.B0, frames.rootpos, frames.Bw
+    pose = Pose(wk.rws, wk.Bs, gtip)
     for lev in range(1, MAX_HALVINGS + 1):
         m = 1 << lev
         hs = sub.h / m
         subk = Substep(1.0, -1.0, 0.0, hs, 1.0 / hs, False, sub.g, sub.rtol, sub.maxit, sub.jage)
+        ctxk = Ctx(ctx.prm, subk, ctx.con, wk, ctx.out)
         for a in range(3):  # back to the step's start
             st.delta[a] = wk.d0[a]
             wk.xs[a] = x0[a]
@@ -617,22 +803,8 @@ def _halved(b, prm, sub, con, gtip, wk, x0, rw0, B0, rw1, B1):
                 st.hist[a] = -wk.xs[a]
             for i in range(NQ):
                 wk.qt[i] = wk.qs[i]
-            n = solve_bristle(
-                b,
-                wk.qt,
-                wk.qs,
-                prm,
-                wk.rws,
-                wk.Bs,
-                hs,
-                False,
-                subk,
-                con,
-                gtip,
-                wk,
-                sub.maxit,
-                sub.rtol,
-            )
+            loose = LOOSE_TOL if lev < MAX_HALVINGS else ROUGH_TOL
+            n = solve_bristle(b, wk.qt, wk.qs, pose, ctxk, loose)
             if n < 0:
                 iters = -1
                 break
@@ -649,38 +821,75 @@ def _halved(b, prm, sub, con, gtip, wk, x0, rw0, B0, rw1, B1):
 
 
 @njit(**PRB)
-def step_all(
-    tcp_p0,
-    tcp_R0,
-    tcp_p,
-    tcp_R,
-    root_p,
-    root_R,
-    prm,
-    q,
-    qp,
-    sub,
-    con,
-    gtip,
-    rootw,
-    Bw,
-    rootpos,
-    wk,
-    out,
-):
-    """One solver step of every bristle from the TCP pose (tcp_p0, tcp_R0) to (tcp_p [mm], tcp_R)
-    at the step's end: each bristle's equilibrium (``solve_bristle``; ``_halved`` if it fails) in
-    turn, its stiction state committed (eq 7-10) and its tip (con.tips: position [mm], velocity
-    [mm/s]) moved on, so that the next bristle sees it (one Gauss-Seidel sweep of the tip-tip
-    contacts).  out.rootw (nb, 6): the force [N] and moment [N mm] about the root with which
-    each bristle pushes on the head (its tip load and its weight, gtip being half of it).  A
-    bristle that fails even halved leaves its state untouched and sets out.status[b] = 1 (the
-    caller rolls the whole step back)."""
-    frames(tcp_p, tcp_R, root_p, root_R, rootpos, Bw)
-    frames(tcp_p0, tcp_R0, root_p, root_R, wk.rp0, wk.B0)
-    h = sub.h
+def _solve_one(b, joints, frames, ctx, gtip):
+    """Bristle b's step (``step_all``): the free shortcut, else Newton from its first guess, else
+    halved; returns the iterations (or -1), the result in ctx.wk.qt."""
+    q, qp = joints.q, joints.qp
+    sub, wk = ctx.sub, ctx.wk
+    st = ctx.con.tip_state[b]
+    pose = Pose(frames.rootpos[b], frames.Bw[b], gtip)
+    touching = st.fn > 0.0 or st.ftt > 0.0  # at the end of the last step
+    # the shortcut only for a bristle that touched nothing either: one that did may spring back
+    # off its contact only through Newton (its relaxed pose may lie past the surface)
+    if not sub.static and not touching and _free_step(b, pose, ctx):
+        return 1
+    # first guess: the joints' last motion carried on (a tip held or dragged along moves its
+    # joints smoothly); from rest or after a snap (whose motion does not go on), the last angles
+    ex = 1.0 if touching and not sub.static else 0.0
+    for i in range(NQ):
+        if abs(q[b, i] - qp[b, i]) > MAX_DQ:
+            ex = 0.0
+    for i in range(NQ):
+        wk.qt[i] = q[b, i] + ex * (q[b, i] - qp[b, i])
+    n = solve_bristle(b, wk.qt, wk.qn, pose, ctx, LOOSE_TOL)
+    if n < 0 and not sub.static:
+        n = _halved(b, ctx, gtip, ctx.con.tips[b], frames)
+    return n
+
+
+@njit(**PRB)
+def _accept(b, joints, frames, ctx, gtip, rootw):
+    """Bristle b's solved step taken: its angles, stiction state (eq 7-10), tip (position,
+    velocity) and root wrench (its tip load and weight, force [N] and moment [N mm] about the
+    root with which it pushes on the head)."""
+    q, qp = joints.q, joints.qp
+    sub, wk, tips = ctx.sub, ctx.wk, ctx.con.tips
+    st = ctx.con.tip_state[b]
+    rootpos = frames.rootpos
+    for i in range(NQ):
+        qp[b, i] = q[b, i]
+        q[b, i] = wk.qt[i]
+    for a in range(3):
+        st.delta[a] = st.dnew[a]
+    st.beta = st.bnew
+    xw, F = wk.xw, wk.F
+    for a in range(3):
+        tips[b, 3 + a] = 0.0 if sub.static else (xw[a] - tips[b, a]) * sub.inv_h
+        tips[b, a] = xw[a]
+        rootw[b, a] = F[a] + gtip[a]
+    d0 = xw[0] - rootpos[b, 0]
+    d1 = xw[1] - rootpos[b, 1]
+    d2 = xw[2] - rootpos[b, 2]
+    rootw[b, 3] = d1 * F[2] - d2 * F[1]
+    rootw[b, 4] = d2 * F[0] - d0 * F[2]
+    rootw[b, 5] = d0 * F[1] - d1 * F[0]
+
+
+@njit(**PRB)
+def step_all(p0, R0, p, R, geo, joints, frames, ctx, gtip, rootw):
+    """One solver step of every bristle from the TCP pose (p0, R0) to (p [mm], R) at the step's
+    end (``geo``: the brush; ``joints``: the angles, updated; ``frames``: filled with the roots
+    and frames at the end; ``gtip`` (nb, 3) [N] the weights lumped at the tips): each bristle's
+    equilibrium (``_solve_one``) in turn, its stiction state committed and its tip moved on
+    (``_accept``), so that the next bristle sees it (one Gauss-Seidel sweep of the tip-tip
+    contacts).  rootw (nb, 6): each bristle's push on the head.  A bristle that fails even
+    halved leaves its state untouched and sets ctx.out.status[b] = 1 (the caller rolls the
+    whole step back)."""
+    wk, out, con = ctx.wk, ctx.out, ctx.con
+    root_frames(p, R, geo.root_p, geo.root_R, frames.rootpos, frames.Bw)
+    root_frames(p0, R0, geo.root_p, geo.root_R, wk.rp0, wk.B0)
     tips = con.tips
-    for b in range(q.shape[0]):
+    for b in range(joints.q.shape[0]):
         st = con.tip_state[b]
         for a in range(3):
             st.pn[a] = tips[b, a]
@@ -688,39 +897,12 @@ def step_all(
             wk.d0[a] = st.delta[a]
         wk.d0[3] = st.beta
         for i in range(NQ):
-            wk.qn[i] = q[b, i]
-            wk.qt[i] = q[b, i]
-        touching = st.fn > 0.0 or st.ftt > 0.0  # at the end of the last step
-        if not sub.static and _free_step(b, prm, rootpos[b], Bw[b], h, sub, con, gtip[b], wk):
-            n = 1
-        else:
-            # first guess: the joints' last motion carried on (a tip held or dragged along
-            # moves its joints smoothly); from rest, the last angles
-            ex = 1.0 if touching and not sub.static else 0.0
-            for i in range(NQ):
-                if abs(q[b, i] - qp[b, i]) > MAX_DQ:
-                    ex = 0.0  # not after a snap: its motion does not go on
-            for i in range(NQ):
-                wk.qt[i] = q[b, i] + ex * (q[b, i] - qp[b, i])
-            n = solve_bristle(
-                b,
-                wk.qt,
-                wk.qn,
-                prm,
-                rootpos[b],
-                Bw[b],
-                h,
-                sub.static,
-                sub,
-                con,
-                gtip[b],
-                wk,
-                sub.maxit,
-                sub.rtol,
-            )
-            if n < 0 and not sub.static:
-                n = _halved(b, prm, sub, con, gtip[b], wk, tips[b], wk.rp0, wk.B0, rootpos, Bw)
+            wk.qn[i] = joints.q[b, i]
+            wk.qt[i] = joints.q[b, i]
+        n = _solve_one(b, joints, frames, ctx, gtip[b])
         out.iters[b] = max(n, 0)
+        if n >= LOOSE:
+            out.loose[b] += 1
         if n < 0:
             out.status[b] = 1
             for a in range(3):
@@ -728,23 +910,7 @@ def step_all(
             st.beta = wk.d0[3]
             continue
         out.status[b] = 0
-        for i in range(NQ):
-            qp[b, i] = q[b, i]
-            q[b, i] = wk.qt[i]
-        for a in range(3):
-            st.delta[a] = st.dnew[a]
-        st.beta = st.bnew
-        xw, F = wk.xw, wk.F
-        for a in range(3):
-            tips[b, 3 + a] = 0.0 if sub.static else (xw[a] - tips[b, a]) * sub.inv_h
-            tips[b, a] = xw[a]
-            rootw[b, a] = F[a] + gtip[b, a]
-        d0 = xw[0] - rootpos[b, 0]
-        d1 = xw[1] - rootpos[b, 1]
-        d2 = xw[2] - rootpos[b, 2]
-        rootw[b, 3] = d1 * F[2] - d2 * F[1]
-        rootw[b, 4] = d2 * F[0] - d0 * F[2]
-        rootw[b, 5] = d0 * F[1] - d1 * F[0]
+        _accept(b, joints, frames, ctx, gtip[b], rootw)
 
 
 @njit(**PRB)
@@ -752,7 +918,8 @@ def link_poses(q, prm, rootpos, Bw, pos, rot, wk):
     """The two links of every bristle as bodies (for drawing and ``State.pos``): centre [mm] and
     frame (x along the link) in the world, bodies 2 b and 2 b + 1."""
     for b in range(q.shape[0]):
-        s0, l1, l2 = prm[b, 0], prm[b, 1], prm[b, 2]
+        geo = prm[b].geo
+        s0, l1, l2 = geo[0], geo[1], geo[2]
         c = wk.cs
         for k in range(NQ):
             c[k, 0] = np.cos(q[b, k])

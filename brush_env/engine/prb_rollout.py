@@ -60,12 +60,11 @@ Drive = namedtuple(
         "ps",
         "pp",
         "Rp",
+        "k",
     ],
 )
 Limits = namedtuple("Limits", ["force", "penetration", "warn_fraction"])
 Backup = namedtuple("Backup", ["q", "qp", "tips", "tip_state"])
-#: the brush as the kernel reads it: roots [mm] and frames in the TCP frame, joints (prb.py)
-Geometry = namedtuple("Geometry", ["root_p", "root_R", "prm"])
 
 
 def make_record(n: int, nb: int) -> Record:
@@ -133,35 +132,18 @@ def _head_clearance(drv, p, R, con):
 
 
 @njit(**PRB)
-def _solver_step(
-    geo, q, qp, sub, con, gtip, rootw, Bw, rootpos, wk, out, p0, R0, p, R, lim, k, rec
-):
-    """One solver step at the TCP pose (p, R); records its penetration peak; False if a bristle
-    failed."""
-    step_all(
-        p0,
-        R0,
-        p,
-        R,
-        geo.root_p,
-        geo.root_R,
-        geo.prm,
-        q,
-        qp,
-        sub,
-        con,
-        gtip,
-        rootw,
-        Bw,
-        rootpos,
-        wk,
-        out,
-    )
-    for b in range(q.shape[0]):
+def _solver_step(drv, Rs, geo, joints, frames, ctx, gtip, rootw, lim, rec):
+    """One solver step from the pose (drv.pp, drv.Rp) to (drv.ps, Rs); records its penetration
+    peak in row drv.k[0] of ``rec``; False if a bristle failed."""
+    step_all(drv.pp, drv.Rp, drv.ps, Rs, geo, joints, frames, ctx, gtip, rootw)
+    con, out = ctx.con, ctx.out
+    nb = joints.q.shape[0]
+    for b in range(nb):
         if out.status[b] != 0:
             return False
+    k = drv.k[0]
     beyond = False
-    for b in range(q.shape[0]):
+    for b in range(nb):
         st = con.tip_state[b]
         if st.fn > 0.0 and st.pen > 0.0:
             if st.pen > rec.pen_max[k]:
@@ -173,14 +155,31 @@ def _solver_step(
 
 
 @njit(**PRB)
-def rollout(geo, q, qp, sub, con, gtip, rootw, Bw, rootpos, wk, out, drv, lim, bk, rec):
+def _record_step(k, con, rec):
+    """Row k of the record: the tips' normal forces, contact points and surfaces; returns the
+    total normal force [N]."""
+    total = 0.0
+    for b in range(rec.fn.shape[1]):
+        st = con.tip_state[b]
+        fn = st.fn
+        rec.fn[k, b] = fn
+        rec.surf[k, b] = st.surf if fn > 0.0 else -1
+        for a in range(3):
+            rec.cpt[k, b, a] = st.cpt[a]
+        total += fn
+    return total
+
+
+@njit(**PRB)
+def rollout(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec):
     """Up to rec.p.shape[0] engine steps (module docstring); returns (steps done, STOP_*, the
     failed bristle or -1).  drv.p, drv.R: the TCP pose now, moved along in place; each engine step
     is drv.substeps solver steps (position linear, rotation by drv.dR_sub each)."""
     n = rec.p.shape[0]
-    nb = q.shape[0]
+    q, qp, con, out = joints.q, joints.qp, ctx.con, ctx.out
     p, R, Rn, ps = drv.p, drv.R, drv.Rn, drv.ps
     for k in range(n):
+        drv.k[0] = k
         _save(q, qp, con.tips, con.tip_state, bk, False)
         rec.pen_max[k] = 0.0
         rec.beyond[k] = 0
@@ -191,42 +190,17 @@ def rollout(geo, q, qp, sub, con, gtip, rootw, Bw, rootpos, wk, out, drv, lim, b
         for a in range(3):
             drv.pp[a] = p[a]
         for s in range(1, drv.substeps + 1):
-            frac = s / drv.substeps
             for a in range(3):
-                ps[a] = p[a] + frac * drv.v[a] * drv.dt
-            if s == drv.substeps:
-                _left(drv.dR, R, Rn)
-            else:
-                _left(drv.dR_sub, Rs, Rn)
+                ps[a] = p[a] + (s / drv.substeps) * drv.v[a] * drv.dt
+            _left(drv.dR if s == drv.substeps else drv.dR_sub, R if s == drv.substeps else Rs, Rn)
             _copy2(Rn, Rs)
-            if not _solver_step(
-                geo,
-                q,
-                qp,
-                sub,
-                con,
-                gtip,
-                rootw,
-                Bw,
-                rootpos,
-                wk,
-                out,
-                drv.pp,
-                drv.Rp,
-                ps,
-                Rs,
-                lim,
-                k,
-                rec,
-            ):
+            if not _solver_step(drv, Rs, geo, joints, frames, ctx, gtip, rootw, lim, rec):
                 _save(q, qp, con.tips, con.tip_state, bk, True)
-                for b in range(nb):
+                for b in range(q.shape[0]):
                     if out.status[b] != 0:
-                        return k, 1, b
+                        return k, STOP_DIVERGENCE, b
             if drv.head.shape[0] > 0:
-                hc = _head_clearance(drv, ps, Rs, con)
-                if hc < rec.head[k]:
-                    rec.head[k] = hc
+                rec.head[k] = min(rec.head[k], _head_clearance(drv, ps, Rs, con))
             _copy2(Rs, drv.Rp)
             for a in range(3):
                 drv.pp[a] = ps[a]
@@ -234,19 +208,10 @@ def rollout(geo, q, qp, sub, con, gtip, rootw, Bw, rootpos, wk, out, drv, lim, b
             p[a] = ps[a]
             rec.p[k, a] = ps[a]
         _copy2(Rs, R)
-        total = 0.0
-        for b in range(nb):
-            st = con.tip_state[b]
-            fn = st.fn
-            rec.fn[k, b] = fn
-            rec.surf[k, b] = st.surf if fn > 0.0 else -1
-            for a in range(3):
-                rec.cpt[k, b, a] = st.cpt[a]
-            total += fn
-        if total > lim.force:
-            return k + 1, 2, -1
+        if _record_step(k, con, rec) > lim.force:
+            return k + 1, STOP_FORCE, -1
         if rec.head[k] <= 0.0:
-            return k + 1, 3, -1
+            return k + 1, STOP_HEAD, -1
         if rec.pen_max[k] > lim.penetration:
-            return k + 1, 4, -1
-    return n, 0, -1
+            return k + 1, STOP_PENETRATION, -1
+    return n, STOP_NONE, -1

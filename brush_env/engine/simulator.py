@@ -23,6 +23,7 @@ import sys
 import warnings
 from dataclasses import dataclass, field
 from types import FrameType
+from typing import Any
 
 import numpy as np
 
@@ -481,7 +482,7 @@ class Rollout:
     done: int
     stop: str | None
     message: str | None
-    record: object
+    record: Any  # prb_rollout.Record (a namedtuple of arrays)
     last: StepResult
 
 

@@ -165,11 +165,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from brush_env.calibration import ensure_calibrated
 from brush_env.coverage import CoverageMap, EffectiveSweep
 from brush_env.engine import (
     ConfigError,
     Plane,
-    SimulationDivergence,
     Simulator,
     load_brush,
     load_scene,
@@ -233,6 +233,7 @@ class BrushEnv(gym.Env):
         # surfaces whose contact force has a limit of its own (the gum of a tooth row)
         self._gum = np.array([s == "gum" for s in surface_labels(scene)], bool)
         # the level's settings as one value, passed on unchanged (EnvConfig.sim_settings)
+        ensure_calibrated(scene.brush, cfg.sim_settings())  # the reduced model of `fast`
         self.sim = Simulator(scene, cfg.sim_settings())
         self.scene = self.sim.scene  # with the level's bodies per bristle
         model = self.sim.model
@@ -427,7 +428,7 @@ class BrushEnv(gym.Env):
         termination = ro.stop
         if termination is None and not self._in_workspace():
             termination = "workspace"
-        pk = (lambda x, empty: float(x.max()) if n else empty)  # noqa: E731
+        pk = lambda x, empty: float(x.max()) if n else empty  # noqa: E731
         return dict(
             new_cells=new_cells,
             total_int=dte * float(np.maximum(fn - cfg.total_force_limit, 0.0).sum()),

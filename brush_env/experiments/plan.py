@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..calibration import ensure_calibrated
 from ..engine import Simulator, load_brush, load_scene
 from ..engine.checks import ConfigError, Limit, check_choice, check_real
 from ..engine.config import BrushConfig
@@ -273,6 +274,7 @@ def make_plan(scene_obj, settings, args: Mapping) -> Plan:
     """Simulator, touch height, the baseline (and pitched) motion sampled on the time grid; the
     run stops when θ reaches 2π·turns (§4: four turns).  ``args``: ``run_reference``'s arguments
     by name (``MOTION_ARGS``, turns, pitch_error_deg, pitch_window, tips_dt, shapes_dt)."""
+    ensure_calibrated(scene_obj.brush, settings)  # the reduced model of `fast`
     sim = Simulator(scene_obj, settings)
     dt = settings.dt
     plate_z = plate_height(scene_obj)

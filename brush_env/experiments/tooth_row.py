@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibration import ensure_calibrated
 from ..coverage import EffectiveSweep, crown_samples, gum_force
 from ..engine import SimulationDivergence, Simulator
 from ..engine.fidelity import level_settings
@@ -163,6 +164,7 @@ def run_tooth_row(
     check_press_depth(a["press_depth"], scene_obj.brush)
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
+    ensure_calibrated(scene_obj.brush, settings)  # the reduced model of `fast`
     sim = Simulator(scene_obj, settings)
     teeth = tooth_surfaces(scene_obj)
     traj, phases = scrub_motion(sim, a)

@@ -17,15 +17,20 @@ CIRCLE_TOL_MM = 0.01
 
 
 def _record_engine_poses(env):
+    """Every engine step's (time, TCP position, TCP rotation): the env drives the engine through
+    ``Simulator.rollout``, whose record holds each step's pose."""
     sim = env.unwrapped.sim
-    step, poses = sim.step, []
+    rollout, poses = sim.rollout, []
 
-    def rec(p, R):
-        out = step(p, R)
-        poses.append((sim.state.time, np.array(p), np.array(R)))
-        return out
+    def rec(*args, **kwargs):
+        t0 = sim.state.time
+        ro = rollout(*args, **kwargs)
+        for k in range(ro.done):
+            t = t0 + (k + 1) * sim.settings.dt
+            poses.append((t, ro.record.p[k].copy(), ro.record.R[k].copy()))
+        return ro
 
-    sim.step = rec
+    sim.rollout = rec
     return poses
 
 

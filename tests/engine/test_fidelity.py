@@ -69,7 +69,7 @@ def test_bad_level_file_names_the_key_and_the_value(tmp_path, text, needle):
 
 
 def test_unknown_level_lists_the_known_ones():
-    known = "known: balanced, fast, paper, reference"
+    known = "known: balanced, fast, paper, reduced, reference"
     with pytest.raises(ConfigError, match=f"balansed.*did you mean balanced.*{known}"):
         load_fidelity("balansed")
 

@@ -1,0 +1,219 @@
+"""The reduced bristle model (``engine/prb.py``, the ``fast`` level) against references others
+wrote down: the Timoshenko cantilever (small deflection), the geometrically exact rod pressed
+onto a plate (``validation.rod``, what ``validate buckling`` checks the full chain against) and
+the full chain itself for the side a pressed brush buckles to; and its own consistency: a
+rollout is the same steps as ``Simulator.step``, a free bristle's shortcut is Newton's answer.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from brush_env.calibration import fit, press_reduced
+from brush_env.engine import SimSettings, Simulator, load_scene
+from brush_env.engine import prb_calibration as pc
+from brush_env.engine.fidelity import level_settings
+from brush_env.motion import R0
+from brush_env.validation.buckling import BucklingCase
+from brush_env.validation.references import timoshenko_cantilever_tip
+from brush_env.validation.rod import buckled_bristle
+
+
+@pytest.fixture
+def user_cache(tmp_path, monkeypatch):
+    """Calibrations made by a test go to a fresh user cache."""
+    monkeypatch.setenv("BRUSH_ENV_CACHE", str(tmp_path))
+    monkeypatch.setattr(pc, "_memory", {})
+    return tmp_path
+
+
+def _one_bristle(lean_deg=1.0, length=10.0, width=1.3, tip="free"):
+    case = BucklingCase(tip=tip, lean_deg=lean_deg, length=length, width=width)
+    return case, case.scene()
+
+
+@pytest.mark.parametrize("side", ["thin", "wide"])
+def test_small_tip_load_deflects_as_the_timoshenko_cantilever(side):
+    """A 1 mN side load on the tip of the default outer bristle (calibration shipped): the tip
+    moves as the Timoshenko cantilever's (bending + shear), within 3 % (the fit's own error on
+    the press is ~2 %; the wide side is matched by construction of its scale)."""
+    sc = load_scene("flat_plate")
+    sim = Simulator(sc.brush, SimSettings(model="prb", bodies_per_bristle=2, gravity=(0, 0, 0)))
+    sim.reset(np.zeros(3), np.eye(3))
+    b = 20  # an outer bristle
+    br = sc.brush.bristles[b]
+    frame = sim.model.root_R[b]  # columns: axis, width, thickness (TCP frame = world here)
+    d = frame[:, 2] if side == "thin" else frame[:, 1]
+    P = 1e-3
+    f = np.zeros((sim.model.n_bristles, 3))
+    f[b] = P * d
+    rest = sim.tip_positions()[b].copy()
+    sim.set_tip_forces(f)
+    sim.solve_static(increments=1)
+    moved = float((sim.tip_positions()[b] - rest) @ d)
+    sec, mat = br.section, br.material
+    inertia = sec.I_y if side == "thin" else sec.I_z
+    ref = timoshenko_cantilever_tip(
+        P, br.length, mat.E, mat.G, inertia, sec.area, sec.shear_coeff(mat.nu)
+    )["v"]
+    assert moved == pytest.approx(ref, rel=0.03)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lean", [0.0, 1.0, 3.0])
+@pytest.mark.parametrize("tip", ["free", "pinned"])
+def test_pressed_bristle_force_is_the_rods(user_cache, lean, tip):
+    """Issue 29: one bristle pressed 1-4 mm at leans 0, 1 and 3 deg with a sliding and a sticking
+    tip: the plate force within 5 % of the rod's (Reissner, validation.rod), after the bristle
+    type calibrates itself; the straight bristle (lean 0) buckles -- its force stays on the
+    rod's post-buckled plateau, two orders below the straight column's EA delta / L."""
+    case, _ = _one_bristle(lean_deg=lean, tip=tip)
+    br = case.scene().brush.bristles[0]
+    eff = case.scene().brush.effective_lean
+    rec = fit(br, eff)
+    press = (1.0, 2.0, 3.0, 4.0)
+    got = press_reduced(case, rec["constants"], press)[:, 0]
+    ref = buckled_bristle(
+        press,
+        length=case.length,
+        width=case.width,
+        thickness=case.thickness,
+        E=case.E,
+        nu=case.nu,
+        lean_deg=math.degrees(eff),
+        tip=tip,
+        radius=case.radius,
+    )["force_N"]
+    np.testing.assert_allclose(got, ref, rtol=0.05)
+    if lean == 0.0:
+        axial = case.E * case.width * case.thickness * 1.0 / case.length  # [N] at 1 mm, straight
+        assert got[0] < 0.05 * axial
+
+
+def test_fit_error_is_stored_with_the_shipped_calibration():
+    """The shipped calibrations carry their fit errors (the calibration prints and stores them),
+    and every one is within the 5 % the press acceptance asks."""
+    import json
+
+    data = json.loads(pc.SHIPPED.read_text())
+    assert data, "no shipped calibration"
+    for rec in data.values():
+        assert rec["max_abs_force_error"] < 0.05
+        assert len(rec["constants"]) == 6
+
+
+@pytest.mark.slow
+def test_shipped_calibration_is_reproduced(user_cache):
+    """A fresh calibration of the default brush's inner bristle matches the shipped one (same
+    constants within the fit's tolerance: the same forces within 0.5 %)."""
+    sc = load_scene("flat_plate")
+    (key, (br, lean)), *_ = pc.bristle_types(sc.brush).items()
+    shipped = pc.lookup(key)
+    rec = fit(br, lean)
+    case = BucklingCase(
+        length=br.length, width=br.section.width, thickness=br.section.thickness, tip="pinned"
+    )
+    a = press_reduced(case, shipped["constants"])[:, 0]
+    b = press_reduced(case, rec["constants"])[:, 0]
+    np.testing.assert_allclose(a, b, rtol=5e-3)
+
+
+def _mj_press(level: str, dt: float):
+    """The paper's press (3 mm, minimum jerk, 0.5 s) of the default brush from touching."""
+    sim = Simulator(load_scene("flat_plate"), level_settings(level, dt=dt))
+    z = sim.touch_height(R0)
+    sim.reset(np.array([0.0, 0.0, z]), R0)
+    n = int(round(0.5 / dt))
+    for k in range(1, n + 1):
+        s = k / n
+        out = sim.step(np.array([0.0, 0.0, z - 3.0 * (10 * s**3 - 15 * s**4 + 6 * s**5)]), R0)
+    return out
+
+
+@pytest.mark.slow
+def test_pressed_brush_buckles_to_the_full_chains_side():
+    """Every bristle of the default brush pressed 3 mm buckles to the side the full chain's do
+    (the sign of its tip's friction across the lean), and the TCP force agrees (normal within
+    3 %, the side force within 15 %).  A faster level on another buckling branch is a wrong
+    answer, not a larger error (the brief)."""
+    fast = _mj_press("reduced", 4e-3)
+    full = _mj_press("balanced", 1e-3)
+    np.testing.assert_array_equal(
+        np.sign(fast.tip_tangential_force[:, 1]), np.sign(full.tip_tangential_force[:, 1])
+    )
+    assert fast.tcp_force[2] == pytest.approx(full.tcp_force[2], rel=0.03)
+    assert fast.tcp_force[1] == pytest.approx(full.tcp_force[1], rel=0.15)
+
+
+def test_rollout_is_the_same_steps_as_step():
+    """``Simulator.rollout`` (one compiled call) and ``Simulator.step`` on the same poses give the
+    same tips and forces (to round-off: the pose products are formed in numba vs numpy)."""
+    sc = load_scene("flat_plate")
+    a = Simulator(sc, level_settings("reduced", dt=4e-3))
+    b = Simulator(sc, level_settings("reduced", dt=4e-3))
+    z = a.touch_height(R0) + 0.3
+    for s in (a, b):
+        s.reset(np.array([0.0, 0.0, z]), R0)
+    v, w = np.array([15.0, -5.0, -12.0]), np.array([0.0, 0.0, 0.3])
+    p, R = np.array([0.0, 0.0, z]), R0.copy()
+    from brush_env.engine.rotation import expmap
+
+    dR = expmap(w * 4e-3)
+    for _ in range(6):
+        ro = a.rollout(v, w, 10)
+        for _ in range(10):
+            p, R = p + v * 4e-3, dR @ R
+            out = b.step(p, R)
+    assert ro.done == 10 and ro.stop is None
+    assert out.tip_in_contact.sum() > 10  # pressed: Newton, friction and tip-tip at work
+    np.testing.assert_allclose(ro.last.tip_pos, out.tip_pos, atol=1e-7)
+    np.testing.assert_allclose(ro.last.tip_normal_force, out.tip_normal_force, atol=1e-7)
+    np.testing.assert_allclose(ro.last.tcp_force, out.tcp_force, atol=1e-6)
+    assert ro.last.time == pytest.approx(out.time, abs=1e-12)
+
+
+def test_rollout_is_deterministic():
+    """Same start and twist: the same result bit for bit."""
+    sc = load_scene("flat_plate")
+    outs = []
+    for _ in range(2):
+        s = Simulator(sc, level_settings("reduced", dt=4e-3))
+        s.reset(np.array([0.0, 0.0, s.touch_height(R0) + 0.2]), R0)
+        for _ in range(4):
+            ro = s.rollout(np.array([20.0, 0.0, -15.0]), np.zeros(3), 10)
+        outs.append(ro.last)
+    assert np.array_equal(outs[0].tip_pos, outs[1].tip_pos)
+    assert np.array_equal(outs[0].tcp_force, outs[1].tcp_force)
+
+
+def test_free_bristle_shortcut_is_newtons_answer():
+    """A bristle that touches nothing takes a shortcut (its joints relax, one contact
+    evaluation); a dead load of 1e-12 N sends it through Newton instead: the same tip."""
+    sc = dataclasses.replace(load_scene("flat_plate"), surfaces=())
+    res = []
+    for load in (0.0, 1e-12):
+        s = Simulator(sc, level_settings("reduced", dt=4e-3))
+        s.reset(np.zeros(3), R0)
+        s.set_state(s.get_state())
+        st = s.get_state()
+        st.q[:, 0] += 0.2  # bent: it springs back over the steps
+        s.set_state(st)
+        f = np.zeros((s.model.n_bristles, 3))
+        f[:, 0] = load
+        s.set_tip_forces(f)
+        for k in range(5):
+            out = s.step(np.array([0.1 * k, 0.0, 0.0]), R0)
+        res.append(out.tip_pos)
+    np.testing.assert_allclose(res[0], res[1], atol=1e-6)
+
+
+def test_uncalibrated_type_warns_once_naming_the_bristle(user_cache):
+    """A bristle type with no calibration is never used silently: one warning naming its
+    section, length and the command that fits it."""
+    case, scene = _one_bristle(lean_deg=2.5, length=8.5, width=1.1)
+    with pytest.warns(RuntimeWarning, match=r"no calibration for a rect 1\.1 x 0\.8 mm.*calibrate"):
+        Simulator(scene, SimSettings(model="prb", bodies_per_bristle=2))
