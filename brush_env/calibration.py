@@ -257,7 +257,9 @@ def run(args) -> int:
         brush = load_brush(name)
         n = calibrate_brush(brush, ship=args.ship)
         where = pc.SHIPPED if args.ship else pc.user_cache()
-        print(f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}")
+        print(
+            f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}"
+        )
     return 0
 
 

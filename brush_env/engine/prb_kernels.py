@@ -81,6 +81,9 @@ LOOSE_TOL = 1e-2
 #: tip -- a bristle caught between its plate and a neighbour's tip, both contacts coming and
 #: going between Newton's iterates (one bristle-step in ~10^4 under random actions)
 ROUGH_TOL = 1e-1
+#: ... and only with the tip at most this fraction of its radius inside a surface (the penalty
+#: law's range, the simulator's PENETRATION_WARN_FRACTION)
+LOOSE_PEN = 0.1
 #: the iteration count's offset that marks such a step
 LOOSE = 1000
 #: halvings of a Newton step whose residual rose (``_line_search``)
@@ -707,7 +710,11 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
         for i in range(NQ):
             q[i] = wk.qb[i]
         _evaluate(b, q, qn, damp, pose, ctx)
-        return maxit + LOOSE
+        # ... and only a shallow contact: a force along the links turns no joint, so a tip
+        # deep in a surface can leave a small residual
+        st = con.tip_state[b]
+        if st.pen <= LOOSE_PEN * con.tip_args[b].radius:
+            return maxit + LOOSE
     return -1
 
 
