@@ -151,7 +151,8 @@ MISTAKES = {
             "--out",
             "OUT",
         ],
-        "press_depth = 15.0 is out of range: must be >= 0 and < 10 (mm), below the bristles' "
+        # issue 31: under the flag's name, the value in the flag's unit
+        "--press-depth = 15 mm is out of range: must be >= 0 and < 10 (mm), below the bristles' "
         "free length 10 mm",
     ),  # fmt: skip
     "missing policy": (

@@ -28,7 +28,7 @@ from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled
 from ..motion import R0, Approach, Hold, Press, Sequence
-from .plan import check_press_depth, resolve_scene
+from .plan import check_press_depth, resolve_scene, say
 
 #: effective tip force window [N] and cleaning radius [mm] of the coverage (configs/envs/
 #: tooth_row.toml's tip_force_window and clean_radius)
@@ -138,20 +138,25 @@ def run_tooth_row(
     bodies=None,
     progress: bool = True,
     plots: bool = True,
+    labels: dict | None = None,
     **motion,
 ) -> dict:
     """Run the press-and-scrub experiment; returns the summary dict (also in summary.json).
     ``motion``: any key of DEFAULTS (press_depth, press_time, hold_time, speed, strokes,
-    x_range, y, dt, tips_dt)."""
+    x_range, y, dt, tips_dt); ``labels``: how the caller names them in error messages (the CLI:
+    its flags)."""
     unknown = set(motion) - set(DEFAULTS)
     if unknown:
         raise ValueError(f"unknown motion keys {sorted(unknown)}: allowed {sorted(DEFAULTS)}")
     a = {**DEFAULTS, **motion}
-    for k in ("press_time", "speed", "dt", "tips_dt"):
+    for k, unit in (("press_time", "s"), ("speed", "mm/s"), ("dt", "s"), ("tips_dt", "s")):
         if not (math.isfinite(a[k]) and a[k] > 0):
-            raise ValueError(f"{k} = {a[k]!r} is out of range: must be > 0")
+            raise ValueError(f"{say(k, a[k], unit, labels)} is out of range: must be > 0 ({unit})")
     if not (0.0 <= a["press_depth"] <= 6.0):
-        raise ValueError(f"press_depth = {a['press_depth']!r} mm is out of range: [0, 6]")
+        raise ValueError(
+            f"{say('press_depth', a['press_depth'], 'mm', labels)} is out of range: "
+            "must be >= 0 and <= 6 (mm)"
+        )
     t0 = time.perf_counter()
     # one SimSettings from the level (fidelity.level_settings); ``bodies`` wins over it
     over = {} if bodies is None else {"bodies_per_bristle": int(bodies)}
@@ -160,7 +165,7 @@ def run_tooth_row(
     scene_obj = resolve_scene(brush, scene, bodies)
     if mesh is not None:
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)
-    check_press_depth(a["press_depth"], scene_obj.brush)
+    check_press_depth(a["press_depth"], scene_obj.brush, labels)
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     sim = Simulator(scene_obj, settings)

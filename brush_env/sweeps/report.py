@@ -43,6 +43,14 @@ def sweep_report(out) -> Path:
     import matplotlib.pyplot as plt
 
     out = Path(out)
+    if not (out / "results.csv").is_file():
+        from ..user_errors import UserError
+
+        where = "does not exist" if not out.exists() else "has no results.csv"
+        raise UserError(
+            f"sweep-report {out}: the folder {where}: not a sweep's output (run "
+            f"`brush-env sweep SPEC --out {out}` first)"
+        )
     cols, units, rows = read_table(out / "results.csv")
     info = json.loads((out / "sweep.json").read_text()) if (out / "sweep.json").is_file() else {}
     params = [c for c in cols[3:] if c.split(".")[0] in ("brush", "material", "scene", "motion")]
