@@ -230,6 +230,7 @@ def run(args) -> int:
     jam = summary["analysis"]["baseline"].get("jamming")
     if jam:
         from .plots import mean_angle_text  # the figures quote the same text
+
         for name, ev in jam["events"].items():
             if ev.get("count"):
                 print(

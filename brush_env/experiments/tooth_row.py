@@ -285,37 +285,58 @@ def run_tooth_row(
 
 def _plot_coverage(path, sim, out, teeth, cov) -> None:
     """coverage.png: the crowns coloured by what the tips scrubbed, with the bristles."""
-    from ..viz.tooth_row import render_tooth_row
+    import matplotlib.pyplot as plt
+
+    from ..viz.tooth_row import tooth_row_figure
 
     m = sim.model
     pos = sim.state.pos
     chains = np.stack([pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)])
     chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
-    img = render_tooth_row(
-        teeth, cov, chains, out.tip_normal_force, 480, title=f"coverage {cov.fraction:.1%}"
+    fig = tooth_row_figure(
+        teeth,
+        cov,
+        chains,
+        out.tip_normal_force,
+        480,
+        title=f"coverage {cov.fraction:.1%} at the end of the run (t = {out.time:.2f} s)",
+        legend=True,
     )
-    import matplotlib.pyplot as plt
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
-    plt.imsave(path, img)
+
+#: what starts at each phase boundary after the first (``scrub_motion``'s phases)
+PHASE_STARTS = ("hold", "strokes")
 
 
 def _plot_forces(path, rows, phases):
+    """forces_vs_time.png: TCP force, total normal and gum force; the phase boundaries dashed
+    and named."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=110)
+    fig, ax = plt.subplots(figsize=(8, 4.2), dpi=110)
     t = rows[:, 0]
     for j, lab in ((2, "Fx"), (3, "Fy"), (4, "Fz")):
         ax.plot(t, rows[:, j], lw=0.8, label=f"TCP {lab}")
     ax.plot(t, rows[:, 8], "k", lw=0.9, label="normal force (all tips)")
     ax.plot(t, rows[:, 9], "m", lw=0.9, label="gum force")
-    for ts in phases[1:]:
+    for ts, name in zip(phases[1:], PHASE_STARTS):
         ax.axvline(ts, color="0.6", lw=0.6, ls="--")
+        # named where it stands: what starts at this dashed line
+        ax.annotate(
+            f"{name} starts", (ts, 1.0), xycoords=("data", "axes fraction"), xytext=(2, -2),
+            textcoords="offset points", ha="left", va="top", fontsize=7, color="0.35",
+        )  # fmt: skip
+    ax.plot([], [], color="0.6", lw=0.6, ls="--", label="phase change (press, hold, strokes)")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("force [N] (TCP frame)")
-    ax.legend(fontsize=7, ncol=3)
+    ax.set_title("Forces on the brush: press, hold, then strokes along the row", fontsize=9)
+    # below the axes: a legend inside would hide part of the curves
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
