@@ -70,6 +70,8 @@ def test_empty_range_and_a_variant_that_cannot_be_built_fail_before_any_run(tmp_
     assert not list((tmp_path / "out2").glob("runs/*/summary.json"))
 
 
+# ~5 s: two real sweeps and a report (the quick tier resumes through the CLI test below)
+@pytest.mark.slow
 def test_sweep_resumes_without_redoing_finished_runs(tmp_path):
     p = _spec(tmp_path, TINY)
     out = tmp_path / "out"
@@ -92,6 +94,7 @@ def test_sweep_resumes_without_redoing_finished_runs(tmp_path):
     assert (out / "effect_material_E_MPa.png").is_file()
 
 
+@pytest.mark.slow  # Ray (~18 s: a local Ray instance)
 def test_local_pool_and_ray_give_byte_identical_summaries(tmp_path):
     ray = pytest.importorskip("ray")  # the [cluster] extra; CI installs it (.ci/run)
     p = _spec(tmp_path, TINY)
