@@ -60,6 +60,15 @@ def tooth_row_figures(tmp_path_factory) -> dict:
         return save(self, fname, *args, **kwargs)
 
     mp.setattr(Figure, "savefig", savefig)
+    import brush_env.viz.tooth_row as viz
+
+    make = viz.tooth_row_figure
+
+    def tooth_row_figure(*args, **kwargs):
+        figures["tooth_row_figure args"] = (args, kwargs)  # to draw it again at other sizes
+        return make(*args, **kwargs)
+
+    mp.setattr(viz, "tooth_row_figure", tooth_row_figure)
     try:
         out = tmp_path_factory.mktemp("teeth")
         s = run_tooth_row(brush="tiny", out_dir=out, progress=False, **TEETH_QUICK)
@@ -82,12 +91,20 @@ def test_coverage_png_has_a_legend_for_every_colour_and_marker(tooth_row_figures
         assert any(lab.startswith(words) for lab in labels), (words, labels)
 
 
-def test_coverage_png_labels_do_not_overlap(tooth_row_figures):
-    """The 3-D view's y and z labels and the map's labels were drawn over each other."""
+@pytest.mark.parametrize("height, legend", [(480, True), (360, False), (256, False)])
+def test_tooth_row_labels_do_not_overlap(tooth_row_figures, height, legend):
+    """The 3-D view's y and z labels and the map's labels were drawn over each other: in
+    coverage.png (480 px, with its legend) and in ToothRow-v0's frames (256 px by default)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    fig = tooth_row_figures["coverage.png"]
-    canvas = FigureCanvasAgg(fig)  # the saved figure was closed: draw it again, as saved
+    from brush_env.viz.tooth_row import tooth_row_figure
+
+    if height == 480:
+        fig = tooth_row_figures["coverage.png"]  # the file as written
+    else:
+        args, kwargs = tooth_row_figures["tooth_row_figure args"]
+        fig = tooth_row_figure(*args[:4], height, kwargs.get("title", ""), legend=legend)
+    canvas = FigureCanvasAgg(fig)  # (the saved figure was closed: draw it again, as saved)
     canvas.draw()
     renderer = canvas.get_renderer()
     ax3d, ax2 = fig.axes
@@ -100,12 +117,14 @@ def test_coverage_png_labels_do_not_overlap(tooth_row_figures):
         "map title": ax2.title,
     }
     boxes = {name: t.get_window_extent(renderer) for name, t in texts.items()}
-    boxes["legend"] = fig.legends[0].get_window_extent(renderer)
+    if legend:
+        boxes["legend"] = fig.legends[0].get_window_extent(renderer)
     for (a, ba), (b, bb) in itertools.combinations(boxes.items(), 2):
         assert not ba.overlaps(bb), f"{a} overlaps {b}"
     page = fig.bbox
     for name, box in boxes.items():  # and each lies on the page
         assert page.x0 <= box.x0 and box.x1 <= page.x1 and page.y0 <= box.y0, name
+    assert boxes["map title"].y1 <= page.y1
 
 
 def test_forces_vs_time_names_its_phase_lines(tooth_row_figures):
@@ -119,6 +138,23 @@ def test_forces_vs_time_names_its_phase_lines(tooth_row_figures):
     named = {round(t.xy[0], 6): t.get_text() for t in ax.texts}
     assert named == {round(press, 6): "hold starts", round(press + hold, 6): "strokes starts"}
     assert any(lab.startswith("phase change") for lab in _legend_labels(fig))
+
+
+def test_phase_labels_do_not_overlap_on_a_long_run(saved, tmp_path):
+    """The default run: phases 0.25 s apart on a 6.6 s axis; their names must stay apart."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from brush_env.experiments.tooth_row import _plot_forces
+
+    t = np.arange(1, 6601) * 1e-3
+    rows = np.zeros((t.size, 12))
+    rows[:, 0], rows[:, 4] = t, np.sin(t)
+    _plot_forces(tmp_path / "forces_vs_time.png", rows, (0.0, 0.5, 0.75))
+    fig = saved["forces_vs_time.png"]
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    a, b = (x.get_window_extent(canvas.get_renderer()) for x in fig.axes[0].texts)
+    assert not a.overlaps(b)
 
 
 def test_the_figures_quote_the_jamming_angle_the_run_prints():

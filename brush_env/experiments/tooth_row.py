@@ -326,10 +326,12 @@ def _plot_forces(path, rows, phases):
     ax.plot(t, rows[:, 9], "m", lw=0.9, label="gum force")
     for ts, name in zip(phases[1:], PHASE_STARTS):
         ax.axvline(ts, color="0.6", lw=0.6, ls="--")
-        # named where it stands: what starts at this dashed line
+        # named where it stands, along the line (phases a fraction of a second apart on a
+        # many-second axis would overlap written across)
         ax.annotate(
-            f"{name} starts", (ts, 1.0), xycoords=("data", "axes fraction"), xytext=(2, -2),
-            textcoords="offset points", ha="left", va="top", fontsize=7, color="0.35",
+            f"{name} starts", (ts, 1.0), xycoords=("data", "axes fraction"), xytext=(2, -3),
+            textcoords="offset points", ha="left", va="top", rotation=90, fontsize=7,
+            color="0.35",
         )  # fmt: skip
     ax.plot([], [], color="0.6", lw=0.6, ls="--", label="phase change (press, hold, strokes)")
     ax.set_xlabel("t [s]")

@@ -41,6 +41,10 @@ def tooth_row_figure(
 
     dpi = 100
     fig = plt.figure(figsize=(2 * height / dpi, height / dpi), dpi=dpi)
+    # text in proportion to the frame (sizes in points are fixed, frames are not): the labels
+    # keep their places at 256 px as at 480
+    k = min(1.0, height / 480.0)
+    big, small, tick = max(5.0, 10 * k), max(4.5, 7 * k), max(4.0, 6 * k)
     lift = LEGEND_ROOM if legend else 0.0
     l3, b3, w3, h3 = PANEL_3D
     ax = fig.add_axes((l3, b3 + lift, w3, h3 - lift), projection="3d")
@@ -65,10 +69,10 @@ def tooth_row_figure(
     ax.set_zlim(*box[2])
     ax.set_box_aspect([b[1] - b[0] for b in box])  # equal scales: the bristles' real length
     ax.view_init(elev=20, azim=-75)
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_zlabel("z [mm]")
-    ax.tick_params(labelsize=6)
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
+        axis.set_label_text(f"{name} [mm]", fontsize=big)
+        axis.labelpad = 2 + 6 * k
+    ax.tick_params(labelsize=tick, pad=k)
     lm, bm, wm, hm = PANEL_MAP
     ax2 = fig.add_axes((lm, bm + 0.6 * lift, wm, hm - 0.6 * lift))
     pts = coverage.points
@@ -84,16 +88,18 @@ def tooth_row_figure(
     tips = chains[:, -1]
     ax2.scatter(tips[f > 0, 0], tips[f > 0, 1], s=6, c=LOADED)
     ax2.set_aspect("equal")
-    ax2.set_xlabel("x [mm] (along the row)", fontsize=7)
-    ax2.set_ylabel("y [mm] (CEJ = 0)", fontsize=7)
-    ax2.tick_params(labelsize=6)
+    ax2.set_xlabel("x [mm] (along the row)", fontsize=small)
+    ax2.set_ylabel("y [mm] (CEJ = 0)", fontsize=small)
+    ax2.tick_params(labelsize=tick)
     reg = coverage.by_region()
     ax2.set_title(
-        title + "\nbuccal view; " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in reg.items()),
-        fontsize=7,
+        title + "\nbuccal view; " + ", ".join(f"{r} {100 * v:.0f} %" for r, v in reg.items()),
+        fontsize=small,
     )
     if legend:
-        fig.legend(handles=legend_handles(), loc="lower center", ncol=3, fontsize=7, frameon=False)
+        fig.legend(
+            handles=legend_handles(), loc="lower center", ncol=3, fontsize=small, frameon=False
+        )
     return fig
 
 
