@@ -27,6 +27,7 @@ Metrics per episode: ``return``, ``coverage`` (final fraction), ``steps``, ``ter
 
 from __future__ import annotations
 
+import difflib
 import json
 import subprocess
 import sys
@@ -96,6 +97,21 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
         vn.training = False
         transform = vn.normalize_obs
     return model, transform
+
+
+def check_env_id(env_id: str, where: str = "--env") -> None:
+    """``env_id`` is one of brush_env's registered ids (``brush_env:`` prefix allowed);
+    ConfigError with a did-you-mean otherwise (``where``: how the user gave it)."""
+    short = env_id.split(":", 1)[-1]
+    if short not in brush_env.ENV_IDS:
+        # compared without the common "brush_env/" (with it, every id looks close to any typo)
+        names = {i.split("/", 1)[-1]: i for i in brush_env.ENV_IDS}
+        close = difflib.get_close_matches(short.split("/", 1)[-1], list(names), n=3)
+        hint = f"; did you mean {', '.join(names[c] for c in close)}?" if close else ""
+        raise ConfigError(
+            f"{where} = {env_id!r} is not a registered env{hint}"
+            f" (registered: {', '.join(sorted(brush_env.ENV_IDS))})"
+        )
 
 
 def run_episode(
@@ -255,10 +271,7 @@ def evaluate(
         trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))
         config = trained.pop("config", config)
         env_kwargs = {**trained, **env_kwargs}
-    if env_id not in brush_env.ENV_IDS:
-        raise ConfigError(
-            f"--env {env_id!r} is not registered: allowed {sorted(brush_env.ENV_IDS)}"
-        )
+    check_env_id(env_id)
     if config is not None:
         env_kwargs["config"] = config
     env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs)

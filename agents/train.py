@@ -172,13 +172,21 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dic
 
     if algo not in ALGOS:
         raise ConfigError(f"--algo {algo!r} is not allowed: must be one of {ALGOS}")
-    if timesteps < 1 or n_envs < 1:
-        raise ConfigError(f"--timesteps = {timesteps!r} and --n-envs = {n_envs!r} must be >= 1")
+    for flag, value, unit in (
+        ("--timesteps", timesteps, "env steps"),
+        ("--n-envs", n_envs, "envs"),
+    ):
+        if value < 1:  # each flag on its own: a good value is never blamed with a bad one
+            raise ConfigError(f"{flag} = {value!r} is out of range: must be >= 1 ({unit})")
     cfg = load_agent_config(config)
     if cfg["algo"] != algo:
         raise ConfigError(f"--algo {algo!r} does not match algo = {cfg['algo']!r} in {config}")
     envc = cfg.get("env", {})
     env_id = envc.get("id", "brush_env:brush_env/FlatPlate-v0")
+    if env_id.split(":", 1)[-1].startswith("brush_env/"):  # ours: a misspelt id gets a hint
+        from agents.evaluate import check_env_id
+
+        check_env_id(env_id, f"{config}: [env] id")
     if _is_brush_env(env_id):
         kwargs = {
             "config": envc.get("config", "flat_plate"),

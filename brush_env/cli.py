@@ -55,13 +55,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    """``brush-env warmup``: compile (or load) every kernel set and report the time."""
-    from .kernel_cache import announce
+    """``brush-env warmup``: compile (or load) every kernel group and report the time; while it
+    compiles, a progress line every 10 s on stderr (group k of n, elapsed, estimate)."""
+    from .kernel_cache import announce, to_stderr
 
     announce()
     from .engine.warmup import warm_up
 
-    print(f"kernels ready in {warm_up():.1f} s")
+    print(f"kernels ready in {warm_up(notice=to_stderr):.1f} s")
     return 0
 
 

@@ -5,17 +5,18 @@ else.)  ``brush_env.engine.warmup`` compiles and writes the stamp this module re
 from __future__ import annotations
 
 import hashlib
+import json
 import sys
+from collections.abc import Iterable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 ENGINE = Path(__file__).resolve().parent / "engine"
 STAMP = ENGINE / "__pycache__" / "brush_env_kernels.stamp"
-
-#: Shown before the first compile; the figure is the measured first start (docs/benchmarks.md).
-COMPILE_NOTICE = (
-    "compiling numba kernels, first run only (~1.5 min; `brush-env warmup` does it ahead)"
-)
+#: The compile profile this machine measured (``engine.compile_progress``), beside numba's cache
+MACHINE_PROFILE = ENGINE / "__pycache__" / "brush_env_compile_profile.json"
+#: ... and the one measured on the project's machine, shipped, until this machine has its own
+SHIPPED_PROFILE = ENGINE / "compile_profile.json"
 
 _announced = False
 
@@ -37,32 +38,81 @@ def sources_key() -> str:
     return h.hexdigest()
 
 
-def kernels_compiled() -> bool:
-    """True if the warm-up ran on these exact sources (the numba cache is then warm)."""
+def _stamp() -> tuple[str, set[str]]:
+    """(sources key, names of the kernel groups compiled for it) of the stamp; ("", set())."""
     try:
-        return STAMP.read_text().strip() == sources_key()
-    except OSError:
-        return False
+        key, *groups = STAMP.read_text().splitlines()
+    except (OSError, ValueError):
+        return "", set()
+    return key.strip(), {g for g in groups if g}
 
 
-def _to_stderr(text: str) -> None:
+def kernels_compiled(groups: Iterable[str] | None = None) -> bool:
+    """True if a warm-up ran on these exact sources (the numba cache is then warm) and, when
+    ``groups`` (names of ``engine.warmup`` kernel groups) are given, compiled every one of them."""
+    key, done = _stamp()
+    return key == sources_key() and (groups is None or set(groups) <= done)
+
+
+def read_profile() -> tuple[dict, str]:
+    """(profile, where it was measured: "this machine" or "the project's machine"); ({}, "")
+    when neither file can be read."""
+    for path, where in (
+        (MACHINE_PROFILE, "this machine"),
+        (SHIPPED_PROFILE, "the project's machine"),
+    ):
+        try:
+            prof = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(prof, dict) and isinstance(prof.get("groups"), dict):
+            return prof, where
+    return {}, ""
+
+
+def compile_notice() -> str:
+    """The line shown before a compile: the last compile's time when this machine measured one;
+    otherwise a promise of the progress lines (whose estimate is measured as they go)."""
+    prof, where = read_profile()
+    total = sum(float(g.get("seconds", 0.0)) for g in prof.get("groups", {}).values())
+    if where == "this machine" and total > 0:
+        took = (
+            f"{total:.0f} s here last time"
+            if total < 120
+            else f"{total / 60:.1f} min here last time"
+        )
+        what = f"{took}; progress every 10 s"
+    else:
+        what = "progress and an estimate from this machine's speed every 10 s"
+    return f"compiling numba kernels, first run only ({what}; `brush-env warmup` does it ahead)"
+
+
+def to_stderr(text: str) -> None:
+    """Print ``text`` on stderr at once (a command's --json stdout stays parseable)."""
     print(text, file=sys.stderr, flush=True)
 
 
-def announce(notice=_to_stderr) -> None:
-    """Print the compile notice once per process if the kernels are not compiled yet (to stderr
-    by default, so that a command's --json output on stdout stays parseable)."""
+def announce(notice=to_stderr, groups: Iterable[str] | None = None) -> None:
+    """Print the compile notice once per process if the kernels (of ``groups``) are not compiled
+    yet (to stderr by default, so that a command's --json output on stdout stays parseable)."""
     global _announced
-    if not _announced and notice is not None and not kernels_compiled():
-        notice(COMPILE_NOTICE)
+    if not _announced and notice is not None and not kernels_compiled(groups):
+        notice(compile_notice())
         sys.stdout.flush()
         _announced = True
 
 
-def write_stamp() -> None:
-    """Record that the kernels are compiled for the current sources."""
+def write_stamp(groups: Iterable[str] = (), profile: dict | None = None) -> None:
+    """Record that the kernel ``groups`` are compiled for the current sources (with those the
+    stamp already holds for them), and the compile's ``profile`` (``engine.compile_progress``:
+    the next compile's estimate on this machine)."""
+    key, done = _stamp()
+    key_now = sources_key()
+    names = (done if key == key_now else set()) | set(groups)
     try:
         STAMP.parent.mkdir(exist_ok=True)
-        STAMP.write_text(sources_key())
+        STAMP.write_text("\n".join([key_now, *sorted(names)]) + "\n")
+        if profile:
+            MACHINE_PROFILE.write_text(json.dumps(profile, indent=1))
     except OSError:  # a read-only install still works, it only compiles again next time
         pass

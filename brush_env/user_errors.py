@@ -11,8 +11,11 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
-from collections.abc import Callable, Sequence
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 
 __all__ = [
     "UserError",
@@ -22,6 +25,10 @@ __all__ = [
     "one_line",
     "add_flag",
     "add_env_kw",
+    "did_you_mean",
+    "one_line_show",
+    "one_line_warnings",
+    "write_line",
 ]
 
 
@@ -48,11 +55,29 @@ def one_line(exc: BaseException) -> str:
     return " ".join(part.strip() for part in msg.splitlines() if part.strip())
 
 
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """'; did you mean a, b?' for the closest known names, or '' when none is close (as
+    ``engine.checks.did_you_mean``; here without importing the engine, so a usage error costs
+    no numba import)."""
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=3)
+    return f"; did you mean {', '.join(close)}?" if close else ""
+
+
 class OneLineParser(argparse.ArgumentParser):
-    """argparse that reports a usage error in one line (exit 2) instead of usage + error."""
+    """argparse that reports a usage error in one line (exit 2) instead of usage + error, with a
+    did-you-mean for a misspelt choice (subcommands, targets, --integrator, ...)."""
 
     def error(self, message: str):  # noqa: D401 - argparse's hook
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def _check_value(self, action, value):  # argparse's hook for `choices`
+        if action.choices is not None and value not in action.choices:
+            choices = ", ".join(map(repr, action.choices))
+            raise argparse.ArgumentError(
+                action,
+                f"invalid choice: {value!r}{did_you_mean(value, action.choices)} "
+                f"(choose from {choices})",
+            )
 
 
 def add_flag(parser: argparse.ArgumentParser, name: str, help: str) -> None:
@@ -85,7 +110,8 @@ def run_main(
     args = [a for a in args if a != "--debug"]
     prog = prog or "brush-env"
     try:
-        return int(main(args) or 0)
+        with one_line_warnings():
+            return int(main(args) or 0)
     except USER_ERRORS as exc:
         if debug:
             raise
@@ -94,3 +120,37 @@ def run_main(
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+
+
+@contextmanager
+def one_line_warnings() -> Iterator[None]:
+    """Inside: a warning shown to the user is one line, ``<Category>: <message>``, written above
+    any progress bar (``tqdm.write``) -- never the default two lines whose second is the source
+    line of the ``warnings.warn`` call, which broke the bar in the middle of a run."""
+    shown = warnings.showwarning
+    warnings.showwarning = one_line_show(write_line)
+    try:
+        yield
+    finally:
+        warnings.showwarning = shown
+
+
+def one_line_show(write: Callable[[str, object], None]):
+    """A ``warnings.showwarning`` that hands ``write(text, file)`` one line,
+    ``<Category>: <message>`` (no source line; inner newlines folded)."""
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        text = " ".join(str(message).split())
+        write(f"{category.__name__}: {text}", file or sys.stderr)
+
+    return show
+
+
+def write_line(text: str, file=None) -> None:
+    """One line on ``file`` (stderr), above any tqdm progress bar if tqdm is in use."""
+    file = file or sys.stderr
+    tqdm = sys.modules.get("tqdm")
+    if tqdm is not None:  # only if a bar may be on screen: no import for a plain message
+        tqdm.tqdm.write(text, file=file)
+    else:
+        print(text, file=file, flush=True)

@@ -151,7 +151,8 @@ MISTAKES = {
             "--out",
             "OUT",
         ],
-        "press_depth = 15.0 is out of range: must be >= 0 and < 10 (mm), below the bristles' "
+        # issue 31: under the flag's name, the value in the flag's unit
+        "--press-depth = 15 mm is out of range: must be >= 0 and < 10 (mm), below the bristles' "
         "free length 10 mm",
     ),  # fmt: skip
     "missing policy": (
@@ -194,6 +195,8 @@ FILES = {
 }
 
 
+# ~35 s: a fresh `python -m ...` per mistake (full CLI runs); quick tier: test_cli_messages.py
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(MISTAKES))
 def test_user_mistake_gives_one_line_and_exit_code_2(name, tmp_path):
     args, expected = MISTAKES[name]
@@ -215,6 +218,7 @@ def test_user_mistake_gives_one_line_and_exit_code_2(name, tmp_path):
     assert not (tmp_path / "out").exists()  # nothing written before the inputs are valid
 
 
+@pytest.mark.slow  # a full CLI run in a fresh interpreter
 def test_debug_shows_the_traceback(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "brush_env.cli", "reference", "--brush", "defualt", "--debug"],

@@ -27,6 +27,7 @@ def test_there_are_snippets():
     assert len(SNIPPETS) >= 2
 
 
+@pytest.mark.slow  # a fresh interpreter per snippet (~7 s in all)
 @pytest.mark.parametrize("code", SNIPPETS)
 def test_snippet_runs(code):
     r = subprocess.run(

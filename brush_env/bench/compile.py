@@ -41,8 +41,8 @@ _WARMUP = """
 import json, resource, time
 t0 = time.perf_counter()
 from brush_env.engine import warmup
-warmup.kernels_compiled = lambda: True  # no sweep of the package's own engine/__pycache__
-warmup.write_stamp = lambda: None  # ... and no stamp there: this run compiles elsewhere
+warmup.kernels_compiled = lambda *a: True  # no sweep of the package's own engine/__pycache__
+warmup.write_stamp = lambda *a: None  # ... and no stamp (nor profile): it compiles elsewhere
 t1 = time.perf_counter()
 seconds = warmup.warm_up()
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

@@ -1,61 +1,143 @@
 """First-start compilation of the numba kernels, made visible and done once.
 
-numba compiles every kernel on its first call (~40-60 s for the whole set on one core) and caches
+numba compiles every kernel on its first call (one to a few minutes for the whole set) and caches
 the machine code beside the sources (``cache=True``), so later starts load it in about a second.
-:func:`warm_up` runs a tiny brush through every kernel set (dynamic steps with both integrators,
-contact with stick-slip friction and tip-tip pairs, a static solve) and records a stamp of the
-sources it compiled; :func:`kernels_compiled` tells a command whether it is about to compile, so
-it can say so before any progress bar (``brush-env warmup`` calls it on purpose).
+:func:`warm_up` runs a tiny brush through a list of kernel groups (:data:`GROUPS`: the set-up's
+surface and pose kernels, dynamic steps with both integrators -- contact with stick-slip friction
+and tip-tip pairs --, a static solve) and records a stamp of the sources it compiled;
+:func:`kernels_compiled` tells a command whether it is about to compile, so it can say so before
+any progress bar (``brush-env warmup`` calls it on purpose).  While it compiles, a line every
+10 s names the group (k of n), the elapsed time and an estimate from this machine's speed
+(``engine.compile_progress``).  A caller may pass only the groups it needs.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from ..kernel_cache import COMPILE_NOTICE, announce, kernels_compiled, write_stamp
+from ..kernel_cache import announce, kernels_compiled, read_profile, write_stamp
+from .compile_progress import CompileProgress, KernelListener
 
 _HERE = Path(__file__).resolve().parent
 
-__all__ = ["COMPILE_NOTICE", "ensure_compiled", "kernels_compiled", "warm_up"]
+__all__ = ["GROUPS", "KernelGroup", "ensure_compiled", "kernels_compiled", "warm_up"]
+
+#: seconds between two progress lines while a group compiles
+TICK_S = 10.0
 
 
-def warm_up() -> float:
-    """Compile (or load from cache) every kernel set on a tiny brush; returns the seconds taken."""
-    from .config import load_brush
-    from .scene import load_scene
+@dataclass(frozen=True)
+class KernelGroup:
+    """One step of the warm-up: ``run(tiny)`` drives the engine so that numba compiles a set of
+    kernels; ``name`` says which, in words (the progress lines show it)."""
+
+    name: str
+    run: Callable[[_Tiny], None]
+
+
+class _Tiny:
+    """The tiny brush on the plate z = 0 that every group drives (bristles pointing down)."""
+
+    def __init__(self) -> None:
+        from .config import load_brush
+        from .scene import load_scene
+
+        brush = load_brush("tiny")
+        self.scene = load_scene("flat_plate", brush=brush)
+        self.R = np.diag([1.0, -1.0, -1.0])
+        self.top = max(b.length for b in brush.bristles) + brush.bristles[0].tip_radius
+
+
+def _setup(t: _Tiny) -> None:
+    """Simulator set-up and reset: pose checks, surface gaps, the TCP wrench."""
     from .simulator import SimSettings, Simulator
 
+    sim = Simulator(t.scene, SimSettings(dt=2e-3))
+    sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
+
+
+def _steps(integrator: str, t: _Tiny) -> None:
+    """Press 0.5 mm into the plate, then slide: contact, stick and slip, the Newton solve."""
+    from .simulator import SimSettings, Simulator
+
+    sim = Simulator(t.scene, SimSettings(dt=2e-3, integrator=integrator))
+    sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
+    for k in range(1, 26):
+        z = t.top + 0.05 - min(k, 10) * 0.05
+        sim.step(np.array([0.02 * max(k - 10, 0), 0.0, z]), t.R)
+
+
+def _static(t: _Tiny) -> None:
+    """The static solve of a small press (tips sticking)."""
+    from .simulator import SimSettings, Simulator
+
+    sim = Simulator(t.scene, SimSettings())
+    sim.reset(np.array([0.0, 0.0, t.top]), t.R)
+    sim.solve_static(np.array([0.0, 0.0, t.top - 0.1]), t.R, increments=2)
+
+
+#: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
+#: compiles the step kernel with every kernel it calls; the later groups reuse them.
+GROUPS: tuple[KernelGroup, ...] = (
+    KernelGroup("set-up (surface gaps, pose checks, TCP wrench)", _setup),
+    KernelGroup(
+        "bristle step, BDF2 (beam elements, contact and friction, Newton solve, tip-tip pairs)",
+        partial(_steps, "bdf2"),
+    ),
+    KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
+    KernelGroup("static solve", _static),
+)
+
+
+def warm_up(
+    groups: Sequence[KernelGroup] = GROUPS,
+    notice: Callable[[str], None] | None = None,
+    interval: float = TICK_S,
+) -> float:
+    """Compile (or load from cache) the kernels of ``groups`` on a tiny brush; returns the
+    seconds taken.  ``notice``: where the progress lines go (None: nowhere), one every
+    ``interval`` s while a compile runs and one per group that compiled."""
     t0 = time.perf_counter()
-    if not kernels_compiled():
+    if not kernels_compiled():  # the sources changed since the last warm-up (or there was none)
         # numba's cache checks only the timestamp of a kernel's own file: a kernel that inlines
         # code from another engine module would load stale machine code after that module changed
         for f in (_HERE / "__pycache__").glob("*.nb[ic]"):
             f.unlink(missing_ok=True)
-    brush = load_brush("tiny")
-    scene = load_scene("flat_plate", brush=brush)
-    R = np.diag([1.0, -1.0, -1.0])  # bristles pointing down onto the plate z = 0
-    top = max(b.length for b in brush.bristles) + brush.bristles[0].tip_radius
-    for integrator in ("bdf2", "euler"):
-        sim = Simulator(scene, SimSettings(dt=2e-3, integrator=integrator))
-        sim.reset(np.array([0.0, 0.0, top + 0.05]), R)
-        for k in range(1, 26):  # press 0.5 mm into the plate, then slide: stick and slip
-            z = top + 0.05 - min(k, 10) * 0.05
-            sim.step(np.array([0.02 * max(k - 10, 0), 0.0, z]), R)
-    sim = Simulator(scene, SimSettings())
-    sim.reset(np.array([0.0, 0.0, top]), R)  # static solve of a small press (tips sticking)
-    sim.solve_static(np.array([0.0, 0.0, top - 0.1]), R, increments=2)
+    old, where = read_profile()
+    progress = CompileProgress([g.name for g in groups], old, notice)
+    tiny = _Tiny()
+    with KernelListener(progress), progress.ticker(interval):
+        for k, g in enumerate(groups):
+            progress.start_group(k)
+            g.run(tiny)
+            progress.end_group()
     seconds = time.perf_counter() - t0
-    write_stamp()
+    mine = old if where == "this machine" else {}
+    write_stamp([g.name for g in groups], merged_profile(mine, progress.measured()))
     return seconds
 
 
-def ensure_compiled(notice=print) -> float:
-    """Warm the kernels if needed, announcing it first (once per process); returns the seconds
-    spent (0 if warm)."""
-    if kernels_compiled():
+def merged_profile(old: dict, new: dict) -> dict:
+    """``old`` with the groups that compiled in ``new`` replaced (a group loaded from the cache
+    measured nothing; one that a partial warm-up skipped keeps its old figures)."""
+    groups = dict((old or {}).get("groups", {}))
+    for name, g in new.get("groups", {}).items():
+        if g.get("kernels"):
+            groups[name] = g
+    return {"groups": groups} if groups else {}
+
+
+def ensure_compiled(notice=print, groups: Sequence[KernelGroup] = GROUPS) -> float:
+    """Warm the kernels if needed, announcing it first (once per process) and showing the
+    compile's progress through ``notice``; returns the seconds spent (0 if warm)."""
+    names = [g.name for g in groups]
+    if kernels_compiled(names):
         return 0.0
-    announce(notice)
-    return warm_up()
+    announce(notice, names)
+    return warm_up(groups, notice)

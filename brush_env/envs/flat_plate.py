@@ -576,6 +576,7 @@ class BrushEnv(gym.Env):
                 chains=chains,
                 root_pos=roots,
                 total_force=self._total_force,
+                time=out.time,
             )
         )
 

@@ -6,15 +6,19 @@ inside it (cleaning), red above the per-tip limit; the TCP as a black cross; a c
 the bottom edge.  Right half, a side view along +y (x right, z up) centred on the TCP: the plate,
 the head (black) and every bristle's chain root -> body centres -> tip (red when touching); a
 total-normal-force bar along the bottom (green below the safe limit, red above; tick at the safe
-limit; full width = hard limit).  No matplotlib is involved in ``rgb_array`` frames: drawing is
-index arithmetic on one preallocated array (well under a millisecond for the default brush).
+limit; full width = hard limit).  Text at the top (issue 31): the time and the coverage on the
+left, the total normal force against its safe limit on the right (``glyphs``: a 5 x 7 pixel
+font).  No matplotlib is involved in ``rgb_array`` frames: drawing is index arithmetic on one
+preallocated array (well under a millisecond for the default brush).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Renderer", "RenderInput"]
+from .glyphs import draw_text
+
+__all__ = ["Renderer", "RenderInput", "frame_texts"]
 
 GREY = np.array([232, 232, 232], np.uint8)
 TEAL = np.array([64, 160, 150], np.uint8)
@@ -41,11 +45,28 @@ class RenderInput:
         "chains",
         "root_pos",
         "total_force",
+        "time",
     )
 
     def __init__(self, **kw):
         for k in self.__slots__:
-            setattr(self, k, kw[k])
+            setattr(self, k, kw.get(k) if k == "time" else kw[k])  # time [s]: None, no label
+
+
+def frame_texts(
+    time, coverage: float, total_force: float, safe_force: float, compact: bool = False
+) -> tuple[str, str]:
+    """The two labels of a frame: (left: time [s] and coverage, right: total normal force [N]
+    and its safe limit); ``compact``: shorter, for frames too narrow for the full words."""
+    if compact:
+        left = f"cov {100 * coverage:.0f} %"
+        if time is not None:
+            left = f"t {time:.1f} s  " + left
+        return left, f"F {total_force:.1f}/{safe_force:g} N"
+    left = f"coverage {100 * coverage:.1f} %"
+    if time is not None:
+        left = f"t {time:.2f} s  " + left
+    return left, f"F {total_force:.2f} N  limit {safe_force:g} N"
 
 
 class FrameWindow:
@@ -206,4 +227,22 @@ class Renderer(FrameWindow):
         tick = int(round(self.safe_force / self.hard_force * (H - 1)))
         right[H - 3 * bar :, min(tick, H - 1)] = BLACK
         img[:, H - 1] = BLACK  # divider
+        scale = self.text_scale
+        left_text, right_text = self.texts(s)
+        draw_text(left, left_text, 2 * scale, 2 * scale, BLACK, WHITE, scale)
+        color = BLACK if s.total_force <= self.safe_force else DOT_HIGH
+        draw_text(right, right_text, 2 * scale, 2 * scale, color, WHITE, scale)
         return img.copy()
+
+    def texts(self, s: RenderInput) -> tuple[str, str]:
+        """The frame's two labels (``frame_texts``), compact if the full ones do not fit."""
+        full = frame_texts(s.time, s.coverage, s.total_force, self.safe_force)
+        width = 6 * self.text_scale * max(len(t) for t in full) + 4 * self.text_scale
+        if width <= self.H:
+            return full
+        return frame_texts(s.time, s.coverage, s.total_force, self.safe_force, compact=True)
+
+    @property
+    def text_scale(self) -> int:
+        """Pixels per font pixel: 1 up to 300 px frames, then one more per 200 px."""
+        return max(1, round(self.H / 200))

@@ -129,6 +129,6 @@ class ToothRowEnv(BrushEnv):
             self.config.render_height,
             title=(
                 f"t = {out.time:.2f} s   coverage {100 * self.coverage.fraction:.1f} %   "
-                f"F = {self._total_force:.2f} N"
+                f"F = {self._total_force:.2f} N (limit {self.config.total_force_limit:g} N)"
             ),
         )

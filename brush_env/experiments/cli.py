@@ -6,8 +6,22 @@ import argparse
 import math
 
 from ..user_errors import add_flag
-from .plan import DEFAULTS
+from .plan import DEFAULTS, pitch_window_cut
 from .run import run_reference
+
+#: how the messages name each argument: the flag the user typed (with the flag's unit)
+LABELS = {
+    "turns": "--turns",
+    "dt": "--dt",
+    "speed": "--speed",
+    "accel": "--accel",
+    "head_yaw_deg": "--head-yaw",
+    "p0_angle_deg": "--p0-angle",
+    "pitch_error_deg": "--pitch-error",
+    "press_depth": "--press-depth",
+}
+#: the largest --bodies (BristleConfig's own limit)
+MAX_BODIES = 200
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -147,6 +161,7 @@ def run_teeth(args) -> int:
         bodies=args.bodies,
         progress=not args.no_progress,
         dt=args.dt,
+        labels=LABELS,
         **extra,
     )
     perf, an = s["performance"], s["analysis"]
@@ -169,8 +184,20 @@ def run_teeth(args) -> int:
     return 0 if s["status"] == "ok" else 1
 
 
+def _check_bodies(bodies: int | None) -> None:
+    """--bodies, in the flag's terms (0 would silently mean "the brush's own")."""
+    from ..engine.checks import ConfigError
+
+    if bodies is not None and not 1 <= bodies <= MAX_BODIES:
+        raise ConfigError(
+            f"--bodies = {bodies} is out of range: must be >= 1 and <= {MAX_BODIES} "
+            "(bodies per bristle)"
+        )
+
+
 def run(args) -> int:
     """Run the experiment, print its status, real-time factor and jamming angles."""
+    _check_bodies(args.bodies)
     if _is_tooth_scene(args):
         return run_teeth(args)
     summary = run_reference(
@@ -191,6 +218,7 @@ def run(args) -> int:
         head_yaw_deg=args.head_yaw,
         p0_angle_deg=args.p0_angle,
         clockwise=args.clockwise,
+        labels=LABELS,
         **({} if args.press_depth is None else {"press_depth": args.press_depth}),
     )
     perf = summary["performance"]
@@ -201,14 +229,25 @@ def run(args) -> int:
     )
     jam = summary["analysis"]["baseline"].get("jamming")
     if jam:
+        from .plots import mean_angle_text  # the figures quote the same text
+
         for name, ev in jam["events"].items():
             if ev.get("count"):
                 print(
                     f"  jamming near {name}: {ev['count']} peak(s), mean angle "
-                    f"{ev['mean_angle_mod_2pi_deg']:.1f}° mod 360° (paper "
+                    f"{mean_angle_text(ev)} (paper "
                     f"{math.degrees(ev['paper_angle_mod_2pi_rad']):.0f}°), mean |F_h| "
                     f"{ev['mean_Fh_N']:.3f} N"
                 )
+    cut = pitch_window_cut(
+        dict(
+            turns=args.turns,
+            pitch_error_deg=args.pitch_error,
+            pitch_window=DEFAULTS["pitch_window"],
+        )
+    )
+    if cut:
+        print(f"  {cut}")
     if "pitch_asymmetry" in summary["analysis"]:
         ch = summary["analysis"]["pitch_asymmetry"].get("change", {})
         if "Fy_max_N" in ch:

@@ -138,30 +138,83 @@ def build_trajectory(
     return traj, phase_starts, circ
 
 
-def check_run_args(args: Mapping) -> None:
+#: The numeric arguments of a run and their allowed ranges (``check_run_args``)
+RUN_LIMITS = {
+    "turns": Limit("turns", gt=0),
+    "dt": Limit("s", gt=0, le=0.1),
+    "speed": Limit("mm/s", gt=0),
+    "accel": Limit("mm/s^2", gt=0),
+    "radius": Limit("mm", gt=0),
+    "press_time": Limit("s", gt=0),
+    "tips_dt": Limit("s", gt=0),
+    "shapes_dt": Limit("s", gt=0),
+    "hold_time": Limit("s", ge=0),
+    "press_depth": Limit("mm", ge=0),
+    "head_yaw_deg": Limit("deg", ge=-360.0, le=360.0),
+    "p0_angle_deg": Limit("deg", ge=-360.0, le=360.0),
+    # eq 12 tilts the head about its lateral axis: beyond a quarter turn it is no pitch error
+    "pitch_error_deg": Limit("deg", ge=-90.0, le=90.0),
+}
+
+
+def say(name: str, value, unit: str, labels: Mapping[str, str] | None) -> str:
+    """How a message shows argument ``name`` = ``value``: in the caller's own terms when
+    ``labels`` names it (the CLI: ``--pitch-error = 100 deg``), else by its Python name."""
+    if labels and name in labels:
+        shown = f"{value:g}" if isinstance(value, (int, float)) else repr(value)
+        return f"{labels[name]} = {shown}" + (f" {unit}" if unit else "")
+    return f"{name} = {value!r}"
+
+
+def check_run_args(args: Mapping, labels: Mapping[str, str] | None = None) -> None:
     """Every number of a run (``args``: ``run_reference``'s arguments by name), checked before
     anything is built or written (ConfigError names the argument, the value and the allowed
-    range)."""
-    check_real("turns", args["turns"], Limit("turns", gt=0))
-    for name, unit in (
-        ("dt", "s"),
-        ("speed", "mm/s"),
-        ("accel", "mm/s^2"),
-        ("radius", "mm"),
-        ("press_time", "s"),
-        ("tips_dt", "s"),
-        ("shapes_dt", "s"),
-    ):
-        check_real(name, args[name], Limit(unit, gt=0))
-    check_real("hold_time", args["hold_time"], Limit("s", ge=0))
-    check_real("press_depth", args["press_depth"], Limit("mm", ge=0))
-    for name in ("head_yaw_deg", "p0_angle_deg"):
-        check_real(name, args[name], Limit("deg", ge=-360.0, le=360.0))
+    range).  ``labels``: how the caller calls each argument (the CLI: its flags, whose values
+    the messages then show in the flag's unit)."""
+    for name, limit in RUN_LIMITS.items():
+        try:
+            check_real(name, args[name], limit)
+        except ConfigError:
+            if not (labels and name in labels):
+                raise
+            raise ConfigError(
+                f"{say(name, args[name], limit.unit, labels)} is out of range: {limit.describe()}"
+            ) from None
     if not isinstance(args["clockwise"], bool):
         raise ConfigError(f"clockwise = {args['clockwise']!r}: must be true or false")
     check_choice("path", args["path"], ("movel", "circle"), "path")
     check_choice("integrator", args["integrator"], ("bdf2", "euler"), "integrator")
     check_choice("element", args["element"], ("mid", "paper"), "beam element")
+    _check_pitch_window(args, labels)
+
+
+def _check_pitch_window(args: Mapping, labels: Mapping[str, str] | None) -> None:
+    """A pitch error needs a run that reaches its eq-12 window (else the 'pitch' run would be
+    the baseline again, reported as if it had been perturbed)."""
+    lo, hi = args["pitch_window"]
+    end = TWO_PI * float(args["turns"])
+    if args["pitch_error_deg"] and end <= lo:
+        raise ConfigError(
+            f"{say('pitch_error_deg', args['pitch_error_deg'], 'deg', labels)} has no effect "
+            f"with {say('turns', args['turns'], 'turns', labels)}: the eq-12 pitch window "
+            f"θ = {math.degrees(lo):g}-{math.degrees(hi):g}° starts after the run ends at "
+            f"θ = {math.degrees(end):g}°; needs {(labels or {}).get('turns', 'turns')} >= "
+            f"{hi / TWO_PI:g}"
+        )
+
+
+def pitch_window_cut(args: Mapping) -> str | None:
+    """A notice when the run ends inside the eq-12 pitch window (the perturbation is cut short),
+    else None."""
+    lo, hi = args["pitch_window"]
+    end = TWO_PI * float(args["turns"])
+    if args["pitch_error_deg"] and lo < end < hi:
+        return (
+            f"notice: the run ends at θ = {math.degrees(end):g}°, inside the eq-12 pitch window "
+            f"θ = {math.degrees(lo):g}-{math.degrees(hi):g}°: the pitch error is cut short "
+            f"(turns >= {hi / TWO_PI:g} runs it whole)"
+        )
+    return None
 
 
 def press_range(brush: BrushConfig) -> tuple[float, float]:
@@ -177,16 +230,20 @@ def press_range(brush: BrushConfig) -> tuple[float, float]:
     return float(lengths.max()), float(np.min(roots[:, 2]) - touch)
 
 
-def check_press_depth(depth: float, brush: BrushConfig) -> float:
+def check_press_depth(
+    depth: float, brush: BrushConfig, labels: Mapping[str, str] | None = None
+) -> float:
     """A press depth [mm] past the touch that stays below the bristles' free length and keeps
-    the head clear of the surface (``press_range``); ConfigError naming both otherwise."""
+    the head clear of the surface (``press_range``); ConfigError naming both otherwise
+    (``labels``: as in ``check_run_args``)."""
     free, clear = press_range(brush)
     top = min(free, clear)
     if not (math.isfinite(depth) and 0.0 <= depth < top):
         raise ConfigError(
-            f"press_depth = {depth!r} is out of range: must be >= 0 and < {top:.4g} (mm), below "
-            f"the bristles' free length {free:.4g} mm of brush {brush.name!r} (the head is "
-            f"{clear:.4g} mm above the surface when the tips touch; a deeper press drives it in)"
+            f"{say('press_depth', depth, 'mm', labels)} is out of range: must be >= 0 and < "
+            f"{top:.4g} (mm), below the bristles' free length {free:.4g} mm of brush "
+            f"{brush.name!r} (the head is {clear:.4g} mm above the surface when the tips touch; "
+            "a deeper press drives it in)"
         )
     return depth
 

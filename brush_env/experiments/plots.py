@@ -200,24 +200,38 @@ def _offset_note(analysis) -> str:
     return "jamming peaks mod 2π, " + "; ".join(parts)
 
 
+def mean_angle_text(ev: dict) -> str:
+    """The jamming event's mean angle as the run prints it (``brush-env reference``) and the
+    figures quote it, so that both read the same figure: ``54.0° mod 360°``."""
+    return f"{ev['mean_angle_mod_2pi_deg']:.1f}° mod 360°"
+
+
 def _shape_events(analysis, theta_lo, theta_hi):
     """The angles to show in deformed_shapes.png: the jamming peaks of the first turn that has
-    them (>= 2 if possible), else the paper's angles in range, else two evenly spaced angles."""
+    them (>= 2 if possible), else the paper's angles in range, else two evenly spaced angles.
+    A peak's label gives its own angle and the mean over every turn's peak of that event (the
+    figure the run prints)."""
     jam = analysis.get("jamming") if analysis else None
     peaks = jam["peaks"] if jam else []
     if peaks:
+        events = jam.get("events") or {}
         turns = sorted({p["turn"] for p in peaks})
         t = next((k for k in turns if k >= 2), turns[0])
-        sel = [p for p in peaks if p["turn"] == t][:2]
-        # the turn's first peak answers the paper's 9π/4, the second (half a turn later) 13π/4
-        return [
-            (
-                p["theta_rad"],
-                f"paper's {paper} jamming: our peak at θ = {p['theta_label']} "
-                f"({p['theta_mod_2pi_deg']:.0f}° mod 2π)",
+        out = []
+        for p in [p for p in peaks if p["turn"] == t][:2]:
+            name = p["nearest_paper_angle"]
+            ev = events.get(name) or {}
+            mean = (
+                f"; mean of {ev['count']} turn(s): {mean_angle_text(ev)}" if ev.get("count") else ""
             )
-            for p, paper in zip(sel, ("9π/4", "13π/4"))
-        ]
+            out.append(
+                (
+                    p["theta_rad"],
+                    f"paper's {name} jamming: our turn-{t} peak at θ = {p['theta_label']} "
+                    f"({p['theta_mod_2pi_deg']:.1f}° mod 360°){mean}",
+                )
+            )
+        return out
     out = []
     for a0 in PAPER_JAMMING_ANGLES:
         for a in (a0 - TWO_PI, a0, a0 + TWO_PI):
@@ -273,25 +287,30 @@ def plot_deformed_shapes(
     span = (np.ptp(m.root_p[:, 0]) / 2 + 0.7 * L, np.ptp(m.root_p[:, 1]) / 2 + 0.7 * L)
     colours = [gcol[g] for g in groups]
     th_s = theta[rows]
-    for e, (th0, _label) in enumerate(events):
-        for c, off in enumerate(offsets):
-            k = int(np.argmin(np.abs(th_s - (th0 + off))))
+    picks = [[int(np.argmin(np.abs(th_s - (th0 + off)))) for off in offsets] for th0, _ in events]
+    # one arrow scale for every panel: the fastest TCP speed shown is half the view's height
+    vmax = max((_tcp_speed(pose[0], times, int(rows[k])) for ks in picks for k in ks), default=0)
+    arrow = ArrowScale(0.5 * span[1], vmax)
+    for e, ks in enumerate(picks):
+        for c, (k, off) in enumerate(zip(ks, offsets)):
             ax_s, ax_t = axes[2 * e, c], axes[2 * e + 1, c]
-            _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span)
+            _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span, times, arrow)
             _title_panel(ax_s, ax_t, th_s[k], off, first_column=c == 0)
-    handles = [plt.Line2D([], [], color=gcol[g], label=g) for g in gnames]
+    handles = [plt.Line2D([], [], color=gcol[g], label=f"bristles: {g}") for g in gnames]
     handles += [
-        plt.Line2D([], [], ls="", marker="o", color="r", label="tip in contact"),
-        plt.Line2D([], [], color="C3", label="TCP velocity (top view)"),
+        plt.Line2D([], [], ls="", marker="o", color="r", ms=5, label="tip in contact"),
+        plt.Line2D([], [], ls="", marker="o", color="k", ms=5, label="tip not in contact"),
+        plt.Line2D([], [], ls="", marker="s", color="0.5", ms=5, label="bristle root (top view)"),
+        plt.Line2D([], [], color="C3", lw=1.5, label=arrow.legend()),
     ]
-    fig.legend(handles=handles, loc="lower center", fontsize=9, ncol=len(handles), frameon=False)
+    fig.legend(handles=handles, loc="lower center", fontsize=9, ncol=3, frameon=False)
     fig.suptitle(
         f"Deformed bristles around the two jamming points of a turn (paper Figure 9), brush "
         f"'{brush_cfg.name}'\nworld (robot base) axes relative to the TCP; plate at z = 0; "
         "columns: θ before, at and after the peak",
         fontsize=11,
     )
-    fig.tight_layout(rect=(0, 0.03, 1, 0.95), h_pad=3.0)
+    fig.tight_layout(rect=(0, 0.06, 1, 0.95), h_pad=3.0)
     for e, (_, label) in enumerate(events):  # row labels placed after the layout is fixed
         pos = axes[2 * e, 0].get_position()
         fig.text(pos.x0, pos.y1 + 0.025, label, fontsize=10, fontweight="bold", ha="left")
@@ -299,10 +318,36 @@ def plot_deformed_shapes(
     plt.close(fig)
 
 
-def _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span) -> None:
+class ArrowScale:
+    """Velocity arrows drawn to one scale: ``length`` [mm of the view] for ``vmax`` [mm/s]."""
+
+    def __init__(self, length: float, vmax: float) -> None:
+        self.length, self.vmax = float(length), float(vmax)
+
+    def mm(self, v: float) -> float:
+        return self.length * v / self.vmax if self.vmax > 0 else 0.0
+
+    def legend(self) -> str:
+        if self.vmax <= 0:
+            return "TCP velocity (top view; the TCP is at rest here)"
+        return (
+            f"TCP velocity (top view): {self.length:.1f} mm of arrow = {self.vmax:.0f} mm/s; "
+            "the speed is printed at each arrow"
+        )
+
+
+def _tcp_speed(P, times, i: int) -> float:
+    """Horizontal TCP speed [mm/s] at row ``i`` (central difference of the positions)."""
+    a, b = max(i - 1, 0), min(i + 1, len(P) - 1)
+    dt = float(times[b] - times[a]) if b < len(times) else 0.0
+    return float(np.linalg.norm((P[b] - P[a])[:2]) / dt) if dt > 0 else 0.0
+
+
+def _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span, times, arrow) -> None:
     """Stored shape ``k`` of ``rec``: every bristle's centre line (root, bodies, tip) in the side
     (``ax_s``) and top (``ax_t``) view relative to the TCP, the tips red where in contact, the
-    plate line, the view limits (``span`` = half-widths in x, y [mm]) and the TCP velocity."""
+    plate line, the view limits (``span`` = half-widths in x, y [mm]) and the TCP velocity (to
+    ``arrow``'s scale, its speed written beside it)."""
     P, R = pose
     i = int(rec.shapes["row"][k])
     p_tcp, R_tcp = P[i], R[i]
@@ -329,13 +374,22 @@ def _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span) -> None:
     if i + 1 < len(P):
         v = P[min(i + 1, len(P) - 1)] - P[max(i - 1, 0)]
         nv = np.linalg.norm(v[:2])
-        if nv > 0:
-            d = v[:2] / nv * 0.5 * spany
+        speed = _tcp_speed(P, times, i)
+        if nv > 0 and speed > 0:
+            d = v[:2] / nv * arrow.mm(speed)
             ax_t.annotate(
                 "",
                 xy=(d[0], d[1]),
                 xytext=(0, 0),
                 arrowprops=dict(arrowstyle="->", color="C3", lw=1.5),
+            )
+            ax_t.annotate(
+                f"{speed:.0f} mm/s",
+                xy=(d[0], d[1]),
+                xytext=(3, 3),
+                textcoords="offset points",
+                color="C3",
+                fontsize=7,
             )
 
 

@@ -63,6 +63,7 @@ def run_reference(
     tips_dt: float = DEFAULTS["tips_dt"],
     shapes_dt: float = DEFAULTS["shapes_dt"],
     plots: bool = True,
+    labels: dict | None = None,
 ) -> dict:
     """Run the experiment and write its outputs to ``out_dir``; returns the summary dict.
 
@@ -79,11 +80,12 @@ def run_reference(
     ``Fidelity``, ``brush_env.engine.fidelity``) that sets the bodies per bristle, element,
     integrator, solver step limit and tip-tip solve; ``bodies`` and ``max_substep``, if given,
     still override it, and so do ``integrator``/``element`` when they differ from DEFAULTS.
+    ``labels``: how the caller names the arguments in error messages (the CLI: its flags).
     Files: docs/reference_experiment.md.
     """
     args = dict(locals())
     t_wall0 = time.perf_counter()
-    check_run_args(args)
+    check_run_args(args, labels)
     # one SimSettings from the level (fidelity.level_settings); explicit arguments win over it
     over: dict = {"dt": float(dt)}
     if max_substep is not None:
@@ -100,7 +102,7 @@ def run_reference(
         args["bodies"] = bodies
         args["fidelity"] = fid.name
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)
-    check_press_depth(press_depth, scene_obj.brush)  # inputs valid past here
+    check_press_depth(press_depth, scene_obj.brush, labels)  # inputs valid past here
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     plan = make_plan(scene_obj, settings, args)

@@ -29,7 +29,7 @@ from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled
 from ..motion import R0, Approach, Hold, Press, Sequence
-from .plan import check_press_depth, resolve_scene
+from .plan import check_press_depth, resolve_scene, say
 
 #: effective tip force window [N] and cleaning radius [mm] of the coverage (configs/envs/
 #: tooth_row.toml's tip_force_window and clean_radius)
@@ -139,20 +139,25 @@ def run_tooth_row(
     bodies=None,
     progress: bool = True,
     plots: bool = True,
+    labels: dict | None = None,
     **motion,
 ) -> dict:
     """Run the press-and-scrub experiment; returns the summary dict (also in summary.json).
     ``motion``: any key of DEFAULTS (press_depth, press_time, hold_time, speed, strokes,
-    x_range, y, dt, tips_dt)."""
+    x_range, y, dt, tips_dt); ``labels``: how the caller names them in error messages (the CLI:
+    its flags)."""
     unknown = set(motion) - set(DEFAULTS)
     if unknown:
         raise ValueError(f"unknown motion keys {sorted(unknown)}: allowed {sorted(DEFAULTS)}")
     a = {**DEFAULTS, **motion}
-    for k in ("press_time", "speed", "dt", "tips_dt"):
+    for k, unit in (("press_time", "s"), ("speed", "mm/s"), ("dt", "s"), ("tips_dt", "s")):
         if not (math.isfinite(a[k]) and a[k] > 0):
-            raise ValueError(f"{k} = {a[k]!r} is out of range: must be > 0")
+            raise ValueError(f"{say(k, a[k], unit, labels)} is out of range: must be > 0 ({unit})")
     if not (0.0 <= a["press_depth"] <= 6.0):
-        raise ValueError(f"press_depth = {a['press_depth']!r} mm is out of range: [0, 6]")
+        raise ValueError(
+            f"{say('press_depth', a['press_depth'], 'mm', labels)} is out of range: "
+            "must be >= 0 and <= 6 (mm)"
+        )
     t0 = time.perf_counter()
     # one SimSettings from the level (fidelity.level_settings); ``bodies`` wins over it
     over = {} if bodies is None else {"bodies_per_bristle": int(bodies)}
@@ -161,7 +166,7 @@ def run_tooth_row(
     scene_obj = resolve_scene(brush, scene, bodies)
     if mesh is not None:
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)
-    check_press_depth(a["press_depth"], scene_obj.brush)
+    check_press_depth(a["press_depth"], scene_obj.brush, labels)
     compile_s = ensure_compiled(notice=print if progress else None)
     t_setup = time.perf_counter()
     ensure_calibrated(scene_obj.brush, settings)  # the reduced model of `fast`
@@ -282,37 +287,60 @@ def run_tooth_row(
 
 def _plot_coverage(path, sim, out, teeth, cov) -> None:
     """coverage.png: the crowns coloured by what the tips scrubbed, with the bristles."""
-    from ..viz.tooth_row import render_tooth_row
+    import matplotlib.pyplot as plt
+
+    from ..viz.tooth_row import tooth_row_figure
 
     m = sim.model
     pos = sim.state.pos
     chains = np.stack([pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)])
     chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
-    img = render_tooth_row(
-        teeth, cov, chains, out.tip_normal_force, 480, title=f"coverage {cov.fraction:.1%}"
+    fig = tooth_row_figure(
+        teeth,
+        cov,
+        chains,
+        out.tip_normal_force,
+        480,
+        title=f"coverage {cov.fraction:.1%} at the end of the run (t = {out.time:.2f} s)",
+        legend=True,
     )
-    import matplotlib.pyplot as plt
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
-    plt.imsave(path, img)
+
+#: what starts at each phase boundary after the first (``scrub_motion``'s phases)
+PHASE_STARTS = ("hold", "strokes")
 
 
 def _plot_forces(path, rows, phases):
+    """forces_vs_time.png: TCP force, total normal and gum force; the phase boundaries dashed
+    and named."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 3.5), dpi=110)
+    fig, ax = plt.subplots(figsize=(8, 4.2), dpi=110)
     t = rows[:, 0]
     for j, lab in ((2, "Fx"), (3, "Fy"), (4, "Fz")):
         ax.plot(t, rows[:, j], lw=0.8, label=f"TCP {lab}")
     ax.plot(t, rows[:, 8], "k", lw=0.9, label="normal force (all tips)")
     ax.plot(t, rows[:, 9], "m", lw=0.9, label="gum force")
-    for ts in phases[1:]:
+    for ts, name in zip(phases[1:], PHASE_STARTS):
         ax.axvline(ts, color="0.6", lw=0.6, ls="--")
+        # named where it stands, along the line (phases a fraction of a second apart on a
+        # many-second axis would overlap written across)
+        ax.annotate(
+            f"{name} starts", (ts, 1.0), xycoords=("data", "axes fraction"), xytext=(2, -3),
+            textcoords="offset points", ha="left", va="top", rotation=90, fontsize=7,
+            color="0.35",
+        )  # fmt: skip
+    ax.plot([], [], color="0.6", lw=0.6, ls="--", label="phase change (press, hold, strokes)")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("force [N] (TCP frame)")
-    ax.legend(fontsize=7, ncol=3)
+    ax.set_title("Forces on the brush: press, hold, then strokes along the row", fontsize=9)
+    # below the axes: a legend inside would hide part of the curves
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

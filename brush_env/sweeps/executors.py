@@ -31,9 +31,15 @@ def init_worker(sweep_pid: int | None = None) -> None:
     worker (``sweep_pid`` given), first arrange for the worker to stop when the sweep dies
     (``safety.watch_parent``: PR_SET_PDEATHSIG and a watchdog thread)."""
     if sweep_pid is not None:
+        import warnings
+
+        from ..user_errors import one_line_show
         from .safety import watch_parent
 
         watch_parent(sweep_pid)
+        # a warning in a worker is one plain line on the shared stderr: no source line, and no
+        # tqdm.write, which would redraw the copy of the sweep's bar this forked worker holds
+        warnings.showwarning = one_line_show(lambda text, file: print(text, file=file, flush=True))
     from ..engine.warmup import ensure_compiled
 
     ensure_compiled()
@@ -51,6 +57,11 @@ def run_local(jobs: list, workers: int | None, on_result: Callable, progress: bo
     workers = workers or os.cpu_count() or 1
     if not jobs:
         return
+    from ..engine.warmup import ensure_compiled
+
+    # a first compile here, once, with its progress lines, before the bar and the workers (which
+    # then load the kernels from the cache instead of each compiling them at once)
+    ensure_compiled(notice=print if progress else None)
     with _bar(len(jobs), progress) as bar:
         if workers == 1:
             init_worker()

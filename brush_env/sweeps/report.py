@@ -15,6 +15,7 @@ written to ``DIR/report.md`` with figures (issue 16).
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,53 @@ def src(X: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     return coef[:-1], float(1.0 - resid @ resid / (ys @ ys))
 
 
+#: words for the last part of a varied key (its unit suffix removed)
+_PARAM_WORDS = {
+    "E": "Young's modulus E",
+    "width": "section width",
+    "thickness": "section thickness",
+    "length": "bristle length",
+    "tip_radius": "tip sphere radius",
+    "density": "density",
+    "speed": "tool speed",
+    "accel": "tool acceleration",
+    "press_depth": "press depth",
+    "turns": "turns",
+}
+_UNIT_SUFFIXES = ("_mm", "_MPa", "_deg", "_s", "_N", "_t_mm3", "_kg_m3")
+
+
+def param_words(key: str) -> str:
+    """A varied key in words with its unit: ``brush.sections.*.width_mm`` -> ``section width
+    (every entry of brush.sections) [mm]``."""
+    parts = key.split(".")
+    last = parts[-1]
+    for suffix in _UNIT_SUFFIXES:
+        if last.endswith(suffix):
+            last = last[: -len(suffix)]
+            break
+    words = _PARAM_WORDS.get(last, last.replace("_", " "))
+    if "*" in parts:
+        words += f" (every entry of {'.'.join(parts[: parts.index('*')])})"
+    return f"{words} [{key_unit(key)}]"
+
+
+def metric_words(metric: str) -> str:
+    """A metric's description in words with its unit, wrapped for a panel title."""
+    unit, what = METRICS[metric]
+    return textwrap.fill(f"{what} [{unit}]", 42)
+
+
+def _fit_line(ax, x, y, color, slope_unit: str) -> None:
+    """The least-squares line through the dots (dashed) and its slope in the legend; none
+    with fewer than two distinct x."""
+    if len(np.unique(x)) < 2:
+        return
+    b, a = np.polyfit(x, y, 1)
+    xs = np.array([x.min(), x.max()])
+    ax.plot(xs, a + b * xs, "--", color=color, lw=1.0, label=f"fit: slope {b:.3g} {slope_unit}")
+
+
 def sweep_report(out) -> Path:
     import matplotlib
 
@@ -43,6 +91,14 @@ def sweep_report(out) -> Path:
     import matplotlib.pyplot as plt
 
     out = Path(out)
+    if not (out / "results.csv").is_file():
+        from ..user_errors import UserError
+
+        where = "does not exist" if not out.exists() else "has no results.csv"
+        raise UserError(
+            f"sweep-report {out}: the folder {where}: not a sweep's output (run "
+            f"`brush-env sweep SPEC --out {out}` first)"
+        )
     cols, units, rows = read_table(out / "results.csv")
     info = json.loads((out / "sweep.json").read_text()) if (out / "sweep.json").is_file() else {}
     params = [c for c in cols[3:] if c.split(".")[0] in ("brush", "material", "scene", "motion")]
@@ -70,16 +126,21 @@ def sweep_report(out) -> Path:
         for ax in axs.ravel()[len(metrics) :]:
             ax.set_visible(False)
         for ax, m in zip(axs.ravel(), metrics, strict=False):
-            for mot in motions:
+            for k, mot in enumerate(motions):
                 pts = [(r[p], r[m]) for r in ok if r["motion"] == mot and r[m] is not None]
                 if pts:
                     x, y = np.array(pts).T
-                    ax.plot(x, y, "o", ms=3, label=mot)
-            ax.set_xlabel(f"{p.split('.')[-1]} [{key_unit(p)}]", fontsize=7)
-            ax.set_title(f"{m} [{METRICS[m][0]}]", fontsize=7)
+                    ax.plot(x, y, "o", ms=3, color=f"C{k}", label=f"runs, motion {mot}")
+                    _fit_line(ax, x, y, f"C{k}", f"{METRICS[m][0]}/{key_unit(p)}")
+            ax.set_xlabel(param_words(p), fontsize=7)
+            ax.set_title(metric_words(m), fontsize=7)
             ax.tick_params(labelsize=6)
-        axs[0, 0].legend(fontsize=6)
-        fig.suptitle(f"effect of {p} [{key_unit(p)}]", fontsize=8)
+            ax.legend(fontsize=5, loc="best")
+        fig.suptitle(
+            f"Effect of {param_words(p)} on each metric (one dot per run; dashed: least-squares "
+            f"line)\n{p}",
+            fontsize=8,
+        )
         fig.tight_layout()
         name = f"effect_{p.replace('.', '_').replace('*', 'all')}.png"
         fig.savefig(out / name)

@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from ..engine.checks import Limit, check_int
 from .executors import run_local, run_ray
 from .run import DamagedFile, done, load_result, prepare, set_aside_damaged
 from .safety import OutLock, remove_stale_temps, write_bytes, write_text
@@ -47,10 +48,12 @@ def run_sweep(
     log: Callable[[str], None] | None = None,
 ) -> dict:
     """Run (or resume) a sweep; returns {runs, done_before, ran, failed, wall_s, table, damaged}.
-    ``limit``: stop after that many new runs (to test resuming).  ``log``: where the one-line
-    notes go (a damaged file set aside; default stderr).  Raises ``SweepLocked`` when another
-    sweep holds ``out``."""
+    ``limit``: only the spec's first ``limit`` variants (a small budget first; a later run
+    without it resumes into the full sweep).  ``log``: where the one-line notes go (a damaged
+    file set aside; default stderr).  Raises ``SweepLocked`` when another sweep holds ``out``."""
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    if limit is not None:
+        check_int("limit", limit, Limit("variants", ge=1))
     spec = load_spec(spec_path)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -72,9 +75,7 @@ def _run_locked(spec, out: Path, workers, ray_address, progress, limit, log) -> 
             moved = set_aside_damaged(j, e)
             damaged.append(str(e.path))
             log(f"sweep: damaged {e} -- moved aside to {moved[0].name}; run {j['id']} is redone")
-    todo = [j for j in jobs if j["id"] not in results]
-    if limit is not None:
-        todo = todo[:limit]
+    todo = [j for j in jobs[:limit] if j["id"] not in results]
     before = len(results)
     t0 = time.perf_counter()
 
@@ -91,6 +92,7 @@ def _run_locked(spec, out: Path, workers, ray_address, progress, limit, log) -> 
     info = dict(
         spec=str(spec.path),
         runs=len(jobs),
+        limit=limit,
         done_before=before,
         ran=len(todo),
         failed=sum(1 for r in results.values() if r.get("status") != "ok"),
@@ -101,6 +103,50 @@ def _run_locked(spec, out: Path, workers, ray_address, progress, limit, log) -> 
     )
     write_text(out / "sweep.json", json.dumps(info, indent=1))
     return info
+
+
+def plan_sweep(spec_path, out, workers: int | None = None, limit: int | None = None) -> dict:
+    """What ``run_sweep`` would do, nothing run and nothing written into ``out``: every variant
+    (the first ``limit``; each is prepared in a temporary folder, so a bad one fails here),
+    which ones ``out`` already holds, and the time the rest would take from the runs measured
+    there (their median run time, in waves of ``workers``; None before a first run is
+    measured).  Returns {spec, runs: [{id, motion, params, done}], units, todo, measured_s,
+    n_measured, workers, waves, estimate_s}."""
+    import os
+    import statistics
+    import tempfile
+
+    spec = load_spec(spec_path)
+    out = Path(out)
+    with tempfile.TemporaryDirectory(prefix="sweep_dry_run_") as tmp:
+        jobs = [prepare(spec, r, Path(tmp)) for r in spec.runs()[:limit]]
+    runs, times = [], []
+    for j in jobs:
+        job = {**j, "dir": str(out / "runs" / j["id"])}
+        finished = done(job)
+        if finished:
+            try:
+                t = load_result(job).get("run_time_s")
+            except DamagedFile:
+                finished, t = False, None  # the real run sets it aside and redoes it
+            if t is not None:
+                times.append(float(t))
+        runs.append(dict(id=j["id"], motion=j["motion"], params=j["params"], done=finished))
+    workers = workers or os.cpu_count() or 1
+    todo = sum(1 for r in runs if not r["done"])
+    measured = statistics.median(times) if times else None
+    waves = -(-todo // workers)  # runs go in waves of `workers` at a time
+    return dict(
+        spec=str(spec.path),
+        runs=runs,
+        units={p.key: p.unit for p in spec.params},
+        todo=todo,
+        measured_s=measured,
+        n_measured=len(times),
+        workers=workers,
+        waves=waves,
+        estimate_s=None if measured is None else waves * measured,
+    )
 
 
 def _explain(r: dict, metric_cols: list) -> str:

@@ -104,6 +104,7 @@ def _coverage(env, policy, seed):
             return info["coverage"], info["termination"]
 
 
+@pytest.mark.slow  # episodes of two policies (~3.5 s)
 def test_reference_cleans_more_than_random(make_env):
     env = make_env(max_episode_steps=150)
     ref = ReferencePolicy.for_env(env)

@@ -33,6 +33,7 @@ seed = 0
 """
 
 
+@pytest.mark.slow  # training (~7 s)
 def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
     cfg = tmp_path / "ppo.toml"
     cfg.write_text(PPO_TOML)
@@ -58,6 +59,7 @@ def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
     assert s["env_settings"]["brush"] == "tiny_env"
 
 
+@pytest.mark.slow  # training
 def test_short_sac_run(tmp_path):
     cfg = tmp_path / "sac.toml"
     cfg.write_text(
@@ -121,6 +123,7 @@ PLANAR_TOML = PPO_TOML.replace("FlatPlate-v0", "PlanarStroke-v0").replace(
 )
 
 
+@pytest.mark.slow  # training
 def test_planar_stroke_trains_with_agents_train(tmp_path):
     """PlanarStroke-v0 (pymunk) trains through the same script: a short PPO run saves a model
     that reloads and acts (no score asserted)."""

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from brush_env import cli
 from brush_env.bench.branch import _agrees, format_branch_table
 
 
+@pytest.mark.slow  # a bench CLI run (~4 s)
 def test_quick_row_keeps_the_small_step_branch(capsys):
     """A 4 ms step (split into 1 ms solver steps by default) against the 1 ms run: the same
     hold force direction, and no jamming event in a third of a turn in either."""

@@ -15,6 +15,7 @@ import pytest
 from brush_env import cli
 
 
+@pytest.mark.slow  # a bench CLI run (~3 s)
 def test_bench_planar_quick_rows(capsys):
     assert cli.main(["bench", "planar", "--quick", "--json", "--plot", ""]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
@@ -28,6 +29,7 @@ def test_bench_planar_quick_rows(capsys):
         assert any(t["ok"] for t in r["trials"]) and not all(t["ok"] for t in r["trials"])
 
 
+@pytest.mark.slow  # ~6 s: bakes and steps the tooth row
 def test_bench_teeth_quick_rows(capsys):
     assert cli.main(["bench", "teeth", "--quick", "--json"]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
@@ -71,6 +73,7 @@ def test_bench_teeth_ellipsoid_rows_are_one_surface_twice():
         assert np.abs(d_gr - d_ex)[near].max() <= bound, (e.label, bound)
 
 
+@pytest.mark.slow  # two bench CLI runs (~4 s)
 def test_bench_steps_is_deterministic(capsys):
     """``bench steps`` is for A/B comparisons by Newton iterations: the same run twice gives the
     same count (the engine's determinism), over the whole one-stroke motion."""

@@ -290,6 +290,7 @@ def test_tooth_row_scene_labels_and_bad_surface_keys(tmp_path):
         load_scene(f)
 
 
+@pytest.mark.slow  # a stroke along the gum line (~3.5 s)
 def test_stroke_along_the_gum_line_where_crown_and_gum_are_equally_deep(tooth_row):
     """A hard case: the default brush pressed 3 mm at the cervical third (TCP y = 3 mm) and
     dragged 15 mm along the row, where tips touch a crown and the gum within 0.1 um of the same

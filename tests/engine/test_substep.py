@@ -70,6 +70,7 @@ def test_split_step_with_rotation_runs_and_counts():
     assert out.time == pytest.approx(10 * 4e-3, abs=1e-15)
 
 
+@pytest.mark.slow  # two long press-and-hold runs (~6 s)
 @pytest.mark.parametrize("integrator", ["bdf2", "euler"])
 def test_large_steps_keep_the_small_step_hold_force(integrator):
     """The default brush (3 bodies), pressed 3 mm in 0.5 s and held 0.25 s: the hold force at

@@ -584,6 +584,7 @@ def _head_pose(sim, b, tcp_p, tcp_R):
     return tcp_p + tcp_R @ m.root_p[b], tcp_R @ m.root_R[b]
 
 
+@pytest.mark.slow  # ~14 s: presses a brush and compiles the twins (module fixture)
 @pytest.mark.parametrize("mode", ["euler", "bdf2", "static"])
 def test_residual_matches_the_twin(pressed_brush, mode):
     """res (n, 6), the root load, the tip force and the scaled norm of every bristle at a trial

@@ -87,6 +87,7 @@ def test_registration_is_idempotent():
     assert gym.spec(ENV_ID).entry_point == "brush_env.envs.flat_plate:BrushEnv"
 
 
+@pytest.mark.slow  # worker subprocesses (~4 s)
 def test_subproc_vec_env_steps():
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv

@@ -108,6 +108,7 @@ def _segment_distance(q, a, b):
     return np.linalg.norm(q - (a + t[:, None] * d), axis=1)
 
 
+@pytest.mark.slow  # a whole episode, recomputed (~4 s)
 def test_reward_terms_recomputed_from_the_engine_outputs(make_env):
     """Each reward term against its definition (docs/env.md "Reward"), recomputed here from the
     engine's per-step outputs (tip normal forces, contact flags, contact points): the force

@@ -36,6 +36,7 @@ def test_engine_import_loads_no_gymnasium():
     )
 
 
+@pytest.mark.slow  # a fresh interpreter
 def test_engine_runs_with_gymnasium_blocked():
     code = BLOCK_GYMNASIUM + (
         "try:\n"
@@ -56,6 +57,7 @@ def test_engine_runs_with_gymnasium_blocked():
     assert _run(code) == "False"
 
 
+@pytest.mark.slow  # a fresh interpreter per import order (~7 s in all)
 @pytest.mark.parametrize(
     "imports",
     [

@@ -150,6 +150,7 @@ def test_a_second_sweep_on_one_dir_stops_with_one_line_naming_the_holder(tmp_pat
     assert (info["done_before"], info["ran"]) == (1, 0)
 
 
+@pytest.mark.slow  # ~9 s for the three: a real sweep per damaged file
 @pytest.mark.parametrize("name", ["summary.json", "error.json", "timing.json"])
 def test_a_damaged_run_file_is_named_moved_aside_and_its_run_redone(tmp_path, capsys, name):
     spec = _spec(tmp_path)
@@ -193,6 +194,7 @@ for _ in range(n):
 """
 
 
+@pytest.mark.slow  # two processes rewriting one table 300 times each (~4 s)
 def test_two_processes_writing_the_table_never_leave_a_broken_one(tmp_path):
     spec = _spec(tmp_path)
     table = tmp_path / "results.csv"

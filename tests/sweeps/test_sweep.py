@@ -70,6 +70,8 @@ def test_empty_range_and_a_variant_that_cannot_be_built_fail_before_any_run(tmp_
     assert not list((tmp_path / "out2").glob("runs/*/summary.json"))
 
 
+# ~5 s: two real sweeps and a report (the quick tier resumes through the CLI test below)
+@pytest.mark.slow
 def test_sweep_resumes_without_redoing_finished_runs(tmp_path):
     p = _spec(tmp_path, TINY)
     out = tmp_path / "out"
@@ -92,6 +94,7 @@ def test_sweep_resumes_without_redoing_finished_runs(tmp_path):
     assert (out / "effect_material_E_MPa.png").is_file()
 
 
+@pytest.mark.slow  # Ray (~18 s: a local Ray instance)
 def test_local_pool_and_ray_give_byte_identical_summaries(tmp_path):
     ray = pytest.importorskip("ray")  # the [cluster] extra; CI installs it (.ci/run)
     p = _spec(tmp_path, TINY)
@@ -119,3 +122,48 @@ def test_src_ranks_a_known_linear_model():
     np.testing.assert_allclose(s, np.array([3.0, 0.5, 0.0]) * sd / y.std(), atol=1e-12)
     assert r2 == pytest.approx(1.0)
     assert np.argmax(np.abs(s)) == 0
+
+
+def test_cli_limit_runs_the_first_variants_and_the_full_sweep_resumes(tmp_path, capsys):
+    """``brush-env sweep SPEC --limit 2``: the spec's first two variants only; ``--dry-run`` then
+    lists all four (two done) with the time the rest should take from the two measured; the full
+    sweep afterwards runs the other two and leaves the first two as they were."""
+    from brush_env import cli
+
+    p = _spec(tmp_path, TINY)
+    out = tmp_path / "out"
+    base = ["sweep", str(p), "--out", str(out), "--workers", "1", "--no-progress"]
+    assert cli.main([*base, "--limit", "2"]) == 0
+    said = capsys.readouterr().out
+    assert "4 runs: 0 already done, 2 run now" in said and "2 more without --limit" in said
+    done = sorted(out.glob("runs/*/summary.json"))
+    assert [f.parent.name for f in done] == ["circle_0000", "circle_0001"]
+    stamps = {f: os.stat(f).st_mtime_ns for f in done}
+
+    assert cli.main(["sweep", str(p), "--out", str(out), "--workers", "1", "--dry-run"]) == 0
+    listing = capsys.readouterr().out.splitlines()
+    assert listing[0].split() == [
+        "id", "motion", "material.E_MPa", "[MPa]", "brush.sections.*.width_mm", "[mm]", "status"
+    ]  # fmt: skip
+    status = {ln.split()[0]: ln.split()[-1] for ln in listing[1:5]}
+    assert status == {"circle_0000": "done", "circle_0001": "done",
+                      "circle_0002": "run", "circle_0003": "run"}  # fmt: skip
+    assert "4 variants" in listing[-1] and "2 done in" in listing[-1]
+    assert "2 to run; estimated" in listing[-1] and "the median run time of 2 run(s)" in listing[-1]
+    assert sorted(out.glob("runs/*/summary.json")) == done  # the dry run ran nothing
+
+    assert cli.main(base) == 0
+    assert "4 runs: 2 already done, 2 run now" in capsys.readouterr().out
+    assert all(os.stat(f).st_mtime_ns == stamps[f] for f in done)
+    assert len(read_table(out / "results.csv")[2]) == 4
+
+
+def test_dry_run_before_any_run_says_how_to_measure_one(tmp_path, capsys):
+    from brush_env import cli
+
+    p = _spec(tmp_path, TINY)
+    assert cli.main(["sweep", str(p), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert "0 done in" in last and "4 to run" in last
+    assert "no run measured yet in --out: `--limit 1` runs the first and measures it" in last
+    assert not (tmp_path / "out").exists()  # nothing written

@@ -126,6 +126,7 @@ def test_elastica_small_alpha_limit():
         assert elastica_cantilever(a)["v_over_L"] == pytest.approx(a / 3.0, rel=1e-12)
 
 
+@pytest.mark.slow  # ~7 s: 42 elastica solves
 def test_elastica_monotone_and_bounded():
     alphas = np.linspace(0.0, 20.0, 41)
     res = [elastica_cantilever(a) for a in alphas]

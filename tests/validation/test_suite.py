@@ -307,6 +307,7 @@ def test_cli_validate_frequency_json(capsys):
     assert abs(res["rel_error"]) < 0.03
 
 
+@pytest.mark.slow  # `validate all` (~13 s)
 def test_cli_validate_all_passes(capsys):
     assert cli.main(["validate", "all", "--json"]) == 0
     res = json.loads(capsys.readouterr().out)
@@ -338,6 +339,7 @@ def test_cli_bench_engine_quick(capsys):
     assert all(np.isfinite(r["rms_force_error"]) and r["wall_s"] > 0 for r in rows)
 
 
+@pytest.mark.slow  # a full bench CLI run (~4 s)
 def test_cli_bench_contact_quick(capsys):
     keys = {
         "bodies",
@@ -368,6 +370,7 @@ def test_cli_bench_contact_quick(capsys):
     )
 
 
+@pytest.mark.slow  # a full bench CLI run (~6 s)
 def test_cli_bench_convergence_quick(capsys):
     """Self-convergence in dt: below 1 ms (where the 3 mm press stays on one buckling branch,
     docs/model.md) the error against the finest run shrinks as dt is refined; the body series

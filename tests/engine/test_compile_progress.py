@@ -1,0 +1,190 @@
+"""The first-start compile shows its progress (issue 31): group k of n, elapsed time, kernels
+done, and an estimate scaled from a profile by this machine's measured speed; a line at least
+every interval; the warm-up takes a list of kernel groups and stamps the ones it compiled."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numba
+import numpy as np
+import pytest
+
+from brush_env import kernel_cache
+from brush_env.engine import warmup
+from brush_env.engine.compile_progress import CompileProgress, format_seconds
+
+#: a made-up profile: group A takes 10 s (kernels f at 2 s, g at 8 s), group B 30 s
+PROFILE = {
+    "groups": {
+        "A": {"seconds": 10.0, "kernels": {"pkg.f#1": 2.0, "pkg.g#1": 8.0}},
+        "B": {"seconds": 30.0, "kernels": {"pkg.h#1": 20.0}},
+    }
+}
+
+
+class Clock:
+    """A clock the test sets (seconds)."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_the_estimate_is_the_profile_scaled_by_the_speed_measured_here():
+    clock = Clock()
+    lines: list[str] = []
+    p = CompileProgress(["A", "B"], PROFILE, lines.append, clock)
+    p.start_group(0)
+    assert p.estimate() is None  # nothing measured yet
+    clock.t = 4.0
+    p.kernel_done("pkg.f")  # the profile reached f at 2 s: this machine is 2x slower
+    assert p.estimate() == pytest.approx(80.0)  # 2 x (10 + 30) s
+    line = p.status()
+    assert line.startswith("  compile 1/2: A; 4 s elapsed, 1 of ~3 kernels")
+    assert line.endswith("about 76 s left of ~80 s")
+    clock.t = 5.0
+    p.kernel_done("numba.cpython.builtins.ol_max.<locals>.impl")  # numba's own: not counted
+    p.kernel_done("pkg.unknown")  # not in the profile: counted, but no milestone
+    assert "2 of ~3 kernels" in p.status()
+    assert p.estimate() == pytest.approx(80.0)
+    clock.t = 15.0
+    p.end_group()  # 15 s for the profile's 10: 1.5x
+    assert lines == ["  compile 1/2 done: A (2 kernels in 15 s)"]
+    assert p.estimate() == pytest.approx(60.0)
+    p.start_group(1)
+    clock.t = 35.0
+    p.kernel_done("pkg.h")  # (15 + 20) s for (10 + 20) s of the profile
+    assert p.estimate() == pytest.approx(40.0 * 35.0 / 30.0)
+    assert p.status().endswith("about 12 s left of ~47 s")
+    clock.t = 50.0
+    assert p.status().endswith("taking longer than the ~47 s estimated")
+
+
+def test_a_second_signature_of_a_kernel_is_its_own_milestone():
+    clock = Clock()
+    prof = {"groups": {"A": {"seconds": 10.0, "kernels": {"pkg.f#1": 1.0, "pkg.f#2": 5.0}}}}
+    p = CompileProgress(["A"], prof, None, clock)
+    p.start_group(0)
+    clock.t = 2.0
+    p.kernel_done("pkg.f")
+    clock.t = 20.0
+    p.kernel_done("pkg.f")  # the second compile of f: at 5 s of the profile, 4x slower
+    assert p.estimate() == pytest.approx(40.0)
+    assert set(p.measured()["groups"]["A"]["kernels"]) == {"pkg.f#1", "pkg.f#2"}
+
+
+def test_without_a_profile_the_line_says_when_an_estimate_comes():
+    p = CompileProgress(["A"], None, None, Clock())
+    p.start_group(0)
+    p.kernel_done("pkg.f")
+    assert p.estimate() is None
+    assert p.status().endswith("estimate after the first kernels")
+
+
+def test_format_seconds():
+    assert (format_seconds(45.4), format_seconds(150.0)) == ("45 s", "2.5 min")
+
+
+def test_the_ticker_prints_a_line_at_least_every_interval():
+    lines: list[str] = []
+    p = CompileProgress(["slow group"], None, lines.append)
+    p.start_group(0)
+    with p.ticker(0.02):
+        deadline = time.monotonic() + 5.0
+        while len(lines) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert len(lines) >= 3
+    assert all(ln.startswith("  compile 1/1: slow group; ") for ln in lines)
+
+
+def _fresh_kernel():
+    """A kernel numba has not compiled yet (a new function object each call, no cache)."""
+
+    @numba.njit(cache=False)
+    def tiny_sum(x):
+        s = 0.0
+        for v in x:
+            s += v
+        return s
+
+    return tiny_sum
+
+
+def test_warm_up_runs_its_groups_in_order_and_stamps_them(monkeypatch):
+    """The warm-up takes a list of groups; the numba compile events become the progress lines
+    and the profile it stores (the package's own stamp and cache are left alone)."""
+    stored: dict = {}
+    monkeypatch.setattr(warmup, "kernels_compiled", lambda *a: True)
+    monkeypatch.setattr(warmup, "read_profile", lambda: ({}, ""))
+    monkeypatch.setattr(
+        warmup, "write_stamp", lambda groups, profile: stored.update(g=groups, p=profile)
+    )
+    ran: list[str] = []
+
+    def compile_one(tiny) -> None:
+        ran.append("a")
+        _fresh_kernel()(np.ones(3))
+
+    groups = [
+        warmup.KernelGroup("compiles one kernel", compile_one),
+        warmup.KernelGroup("compiles nothing", lambda tiny: ran.append("b")),
+    ]
+    lines: list[str] = []
+    warmup.warm_up(groups, notice=lines.append, interval=60.0)
+    assert ran == ["a", "b"]
+    assert stored["g"] == ["compiles one kernel", "compiles nothing"]
+    assert [ln.split(" (")[0] for ln in lines] == ["  compile 1/2 done: compiles one kernel"]
+    kernels = stored["p"]["groups"]["compiles one kernel"]["kernels"]
+    assert list(kernels) == [f"{__name__}._fresh_kernel.<locals>.tiny_sum#1"]
+    assert "compiles nothing" not in stored["p"]["groups"]  # it measured nothing
+
+
+def test_the_stamp_names_the_groups_compiled_on_these_sources(tmp_path, monkeypatch):
+    monkeypatch.setattr(kernel_cache, "STAMP", tmp_path / "stamp")
+    monkeypatch.setattr(kernel_cache, "MACHINE_PROFILE", tmp_path / "profile.json")
+    assert not kernel_cache.kernels_compiled()
+    kernel_cache.write_stamp(["A"], {"groups": {"A": {"seconds": 80.0, "kernels": {"f#1": 1}}}})
+    kernel_cache.write_stamp(["B"])  # a later warm-up of another group keeps A
+    assert kernel_cache.kernels_compiled() and kernel_cache.kernels_compiled(["A", "B"])
+    assert not kernel_cache.kernels_compiled(["A", "C"])
+    assert json.loads((tmp_path / "profile.json").read_text())["groups"]["A"]["seconds"] == 80
+    monkeypatch.setattr(kernel_cache, "sources_key", lambda: "edited sources")
+    assert not kernel_cache.kernels_compiled(["A"])  # an edit invalidates every group
+
+
+def test_the_notice_gives_this_machines_last_compile_time(tmp_path, monkeypatch):
+    monkeypatch.setattr(kernel_cache, "MACHINE_PROFILE", tmp_path / "profile.json")
+    assert "estimate from this machine's speed every 10 s" in kernel_cache.compile_notice()
+    (tmp_path / "profile.json").write_text(json.dumps(PROFILE))
+    assert "(40 s here last time; progress every 10 s;" in kernel_cache.compile_notice()
+
+
+def test_the_shipped_profile_names_the_warm_up_groups():
+    """The shipped profile was measured with today's groups (else no estimate until a compile
+    on the user's machine has measured its own)."""
+    prof = json.loads(kernel_cache.SHIPPED_PROFILE.read_text())
+    names = {g.name for g in warmup.GROUPS}
+    assert set(prof["groups"]) <= names
+    assert any(len(g["kernels"]) > 10 for g in prof["groups"].values())
+
+
+def test_merged_profile_keeps_groups_a_partial_warm_up_did_not_measure():
+    old = {"groups": {"A": {"seconds": 10.0, "kernels": {"f#1": 1.0}}}}
+    new = {
+        "groups": {"A": {"seconds": 0.1, "kernels": {}}, "B": {"seconds": 5, "kernels": {"g#1": 5}}}
+    }
+    assert warmup.merged_profile(old, new) == {"groups": {**old["groups"], "B": new["groups"]["B"]}}
+
+
+def test_the_line_names_the_innermost_kernel_being_compiled():
+    p = CompileProgress(["A"], None, None, Clock())
+    p.start_group(0)
+    p.kernel_started("brush_env.engine.step.step_bristles")
+    p.kernel_started("brush_env.engine.contact.tip_load")
+    assert "; now engine.contact.tip_load;" in p.status()
+    p.kernel_done("brush_env.engine.contact.tip_load")
+    assert "; now engine.step.step_bristles;" in p.status()
