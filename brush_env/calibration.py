@@ -1,10 +1,12 @@
 """``brush-env calibrate``: the reduced bristle model (``engine/prb.py``) of every bristle type of a
 brush, fitted to the continuum and cached by content.
 
-For one bristle type (section, length, material, lean, tip radius) the constants (g0, g1, c1,
-c2, c3) of ``engine/prb_calibration.py`` are fitted by least squares so that the reduced model,
-pressed onto a plate 0.25-3 mm (``PRESS_MM``) with a sliding (frictionless) and with a sticking
-tip, gives the plate force of the planar geometrically exact rod with shear and extension
+For one bristle type (section, length, material, lean, tip radius) the constants (g0, g1,
+c1, c2, c31, c32) of ``engine/prb_calibration.py`` are fitted by least squares so that the
+reduced model, pressed onto a plate 0.5-3.5 mm (``press_points``: up to 0.4 L, the rod's range)
+with a sliding (frictionless) and with a sticking tip, gives the plate force, the sticking
+tip's side force and the sliding tip's travel of the planar geometrically exact rod with shear
+and extension
 (``validation.rod``: the limit of the full chain with many bodies, what ``validate buckling``
 checks the full model against).  The joints' stiffness toward the wide side (local y, which the
 planar rod does not see) is then scaled so that the small-deflection tip compliance of that side
@@ -32,19 +34,31 @@ from .validation.references import timoshenko_cantilever_tip
 from .validation.rod import buckled_bristle
 
 #: compressions of the fit [mm] (the acceptance range of ``validate buckling``, issue 11)
-PRESS_MM = (0.25, 0.5, 1.0, 2.0, 3.0)
+PRESS_MM = (0.5, 1.0, 2.0, 3.0, 3.5)
+
+
+def press_points(length: float) -> tuple:
+    """The fit's compressions [mm] for a bristle of ``length`` [mm]: PRESS_MM up to 0.4 L (the
+    rod reference's range), 0.4 L itself where that cuts one off."""
+    cap = 0.4 * length - 1e-6
+    pts = tuple(p for p in PRESS_MM if p <= cap)
+    return pts if len(pts) == len(PRESS_MM) else pts + (cap,)
+
+
 #: the reduced model's press: solver step [s] and clamp speed [mm/s] (quasi-static: the model
 #: has no inertia, the joints' damping time beta is ~0.3 ms)
 FIT_DT = 4e-3
 FIT_SPEED = 10.0
-#: the fit's second start (g0, g1, c1, c2, c3)
-STIFF_START = (0.05, 0.33, 5.0, 2.2, -0.1)
+#: the fit's second start (g0, g1, c1, c2, c31, c32)
+STIFF_START = (0.05, 0.33, 5.0, 2.2, -0.1, 0.0)
 
 
-def press_reduced(case: BucklingCase, constants, targets=PRESS_MM) -> np.ndarray:
+def press_reduced(case: BucklingCase, constants, targets=None) -> np.ndarray:
     """(n, 3): the plate's normal force [N], its force along the plate [N] and the tip's shift
     along the plate from its touch point [mm] of the reduced model with ``constants``, pressed
     to each compression of ``targets`` [mm] (the protocol of ``validation.buckling.press``)."""
+    if targets is None:
+        targets = press_points(case.length)
     pc.set_override(constants)
     try:
         sim = Simulator(case.scene(), SimSettings(dt=FIT_DT, model="prb", gravity=(0.0, 0.0, 0.0)))
@@ -100,7 +114,7 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
     for tip, case in cases.items():
         lean = math.degrees(case.scene().brush.effective_lean)
         r = buckled_bristle(
-            PRESS_MM,
+            press_points(case.length),
             length=case.length,
             width=case.width,
             thickness=case.thickness,
@@ -139,7 +153,7 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
         sol = least_squares(
             residual,
             np.array(x0, float),
-            bounds=([0.0, 0.15, 0.5, 0.5, -0.3], [0.3, 0.6, 10.0, 10.0, 1.0]),
+            bounds=([0.0, 0.15, 0.5, 0.5, -0.3, -0.3], [0.3, 0.6, 10.0, 10.0, 1.0, 1.0]),
             diff_step=1e-3,
             xtol=1e-6,
             ftol=1e-6,
@@ -148,13 +162,13 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
         if best is None or sol.cost < best.cost:
             best = sol
     sol = best
-    g0, g1, c1, c2, c3 = (float(v) for v in sol.x)
+    g0, g1, c1, c2, c31, c32 = (float(v) for v in sol.x)
     scale_z = _strong_scale(br, (g0, g1, c1, c2))
     err = residual(sol.x)
-    n = len(PRESS_MM)
+    n = len(press_points(br.length))
     rec = {
-        "constants": [g0, g1, c1, c2, c3, scale_z],
-        "press_mm": list(PRESS_MM),
+        "constants": [g0, g1, c1, c2, c31, c32, scale_z],
+        "press_mm": list(press_points(br.length)),
         "force_error_free": [float(e) for e in err[:n]],
         "force_error_pinned": [float(e) for e in err[n : 2 * n]],
         "side_force_error_pinned": [float(e) for e in err[2 * n : 3 * n]],
@@ -168,7 +182,8 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
     }
     if verbose:
         print(
-            f"  fit: g0 = {g0:.4f}, g1 = {g1:.4f}, c1 = {c1:.4f}, c2 = {c2:.4f}, c3 = {c3:.4f}, "
+            f"  fit: g0 = {g0:.4f}, g1 = {g1:.4f}, c1 = {c1:.4f}, c2 = {c2:.4f}, "
+            f"c3 = {c31:.4f}, {c32:.4f}, "
             f"wide-side scale = {scale_z:.4f}; force error free "
             + ", ".join(f"{100 * e:+.1f}%" for e in err[:n])
             + "; pinned "

@@ -10,9 +10,10 @@ and joint damping c = beta k with beta = max(2 zeta, 1) / omega_1 [s] (the full 
 stiffness-proportional damping, eq 4-5, or the first mode's time scale standing in for the
 inertia the model leaves out, whichever is longer).
 
-and the springs' torque is k (q + c3 q^3) (a stiffening the rod shows at large turns).
+and the springs' torque is k (e + c3 e^3), c3 one per joint (the rod's change of stiffness at
+large turns).
 
-The dimensionless constants (g0, g1, c1, c2, c3) are fitted to the continuum: the planar
+The dimensionless constants (g0, g1, c1, c2, c31, c32) are fitted to the continuum: the planar
 geometrically exact rod with shear and extension (``validation.rod``, what the full chain converges
 to with many bodies), pressed onto a plate with a sliding and with a sticking tip
 (``brush-env calibrate``, ``prb_fit.py``).  A fit depends on the bristle's slenderness (shear),
@@ -27,16 +28,16 @@ import math
 
 from .beam import first_bending_omega
 
-#: (g0, g1, c1, c2, c3): stub and first link as fractions of L, joint spring coefficients, the
-#: springs' cubic stiffening [1/rad^2]
-DEFAULT = (0.1, 0.36, 3.8, 2.5, 0.0)
+#: (g0, g1, c1, c2, c31, c32): stub and first link as fractions of L, joint spring
+#: coefficients, the two joints' cubic stiffening [1/rad^2]
+DEFAULT = (0.07, 0.32, 4.2, 2.9, -0.13, -0.13)
 
 
 def joint_parameters(br, lean: float) -> tuple:
-    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c3 [1/rad^2], and the four
+    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c31, c32 [1/rad^2], the four
     rest angles [rad], ``rest_angles``) of ``br`` (``BristleConfig``) on a brush of effective
     lean ``lean`` [rad], with its type's fitted constants (``constants_for``)."""
-    g0, g1, c1, c2, c3, sz = constants_for(br, lean)
+    g0, g1, c1, c2, c31, c32, sz = constants_for(br, lean)
     L = br.length
     E = br.material.E
     sec = br.section
@@ -58,7 +59,8 @@ def joint_parameters(br, lean: float) -> tuple:
         c2 * E * Iy / L,
         sz * c2 * E * Iz / L,
         beta,
-        c3,
+        c31,
+        c32,
         *rest_angles(l1, l2, lean),
     )
 
@@ -92,7 +94,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 6
+VERSION = 10
 
 _override: tuple | None = None
 _memory: dict = {}
@@ -171,7 +173,8 @@ def store(key: str, rec: dict, ship: bool = False) -> None:
 
 
 def set_override(constants) -> None:
-    """Use ``constants`` (g0, g1, c1, c2, c3, wide-side scale) for every bristle built until reset
+    """Use ``constants`` (g0, g1, c1, c2, c31, c32, wide-side scale) for every bristle built until
+    reset
     with None (the fit evaluates candidates this way)."""
     global _override
     _override = None if constants is None else tuple(float(c) for c in constants)

@@ -42,10 +42,10 @@ PRB = dict(HOT, fastmath=True)
 NQ = 4
 #: one bristle's joints (``prb.build_geometry`` fills them from ``prb_calibration``): geo = (s0,
 #: l1, l2) [mm] the stub and the links, k (4,) [N mm/rad] the springs (joint 1 about y, about z,
-#: joint 2 about y, about z), beta [s] their damping time, c3 [1/rad^2] the cubic of the springs'
-#: torque k (e + c3 e^3), rest (4,) [rad] their rest angles (e = q - rest)
+#: joint 2 about y, about z), beta [s] their damping time, c3 (2,) [1/rad^2] the cubic of the
+#: springs' torque k (e + c3 e^3), one per joint, rest (4,) [rad] their rest angles (e = q - rest)
 JOINT = np.dtype(
-    [("geo", "f8", 3), ("k", "f8", 4), ("beta", "f8"), ("c3", "f8"), ("rest", "f8", 4)]
+    [("geo", "f8", 3), ("k", "f8", 4), ("beta", "f8"), ("c3", "f8", 2), ("rest", "f8", 4)]
 )
 #: what every kernel of a solver step reads: the joints (JOINT, nb), the step (records.Substep),
 #: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
@@ -297,7 +297,7 @@ def _evaluate(b, q, qn, damp, pose, ctx):
     for i in range(NQ):
         qi = q[i]
         ei = qi - wk.qr[i]  # the spring's turn from its rest angle
-        si = kq[i] * (_spring(ei, c3)[0] + damp * (qi - qn[i]))
+        si = kq[i] * (_spring(ei, c3[i // 2])[0] + damp * (qi - qn[i]))
         for a in range(3):
             si -= J[a, i] * Fl[a]
         wk.s[i] = si
@@ -332,7 +332,7 @@ def _tangent(q, geo, kq, c3, damp, B, wk):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
         ei = q[i] - wk.qr[i]
-        A[i, i] += kq[i] * (_spring(ei, c3)[1] + damp)
+        A[i, i] += kq[i] * (_spring(ei, c3[i // 2])[1] + damp)
 
 
 @njit(**PRB)
@@ -706,16 +706,24 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
         best = smax
         for i in range(NQ):
             wk.qb[i] = q[i]
-    if loose > 0.0 and best <= loose * max(kq[0], kq[1], kq[2], kq[3]):
-        for i in range(NQ):
-            q[i] = wk.qb[i]
-        _evaluate(b, q, qn, damp, pose, ctx)
-        # ... and only a shallow contact: a force along the links turns no joint, so a tip
-        # deep in a surface can leave a small residual
-        st = con.tip_state[b]
-        if st.pen <= LOOSE_PEN * con.tip_args[b].radius:
-            return maxit + LOOSE
+    kmax = max(kq[0], kq[1], kq[2], kq[3])
+    if loose > 0.0 and _take_best(b, q, qn, damp, pose, ctx, best <= loose * kmax):
+        return maxit + LOOSE
     return -1
+
+
+@njit(**PRB)
+def _take_best(b, q, qn, damp, pose, ctx, small):
+    """After Newton ran out: q <- the best iterate (ctx.wk.qb) if its residual was ``small`` and
+    its contact shallow (a force along the links turns no joint, so a tip deep in a surface can
+    leave a small residual); True if taken."""
+    if not small:
+        return False
+    for i in range(NQ):
+        q[i] = ctx.wk.qb[i]
+    _evaluate(b, q, qn, damp, pose, ctx)
+    con = ctx.con
+    return con.tip_state[b].pen <= LOOSE_PEN * con.tip_args[b].radius
 
 
 @njit(**PRB)
@@ -746,7 +754,7 @@ def _free_step(b, pose, ctx):
             en = wk.qn[i] - wk.qr[i]
             ei = wk.qt[i] - wk.qr[i]
             for _ in range(3):
-                t, dt = _spring(ei, c3)
+                t, dt = _spring(ei, c3[i // 2])
                 ei -= (t + damp * (ei - en) - g) / (dt + damp)
             wk.qt[i] = ei + wk.qr[i]
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
