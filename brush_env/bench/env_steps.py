@@ -10,7 +10,7 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 ``wall_s``, ``steps_per_s`` (all envs together), ``steps_per_s_per_env``,
 ``real_time_factor`` (simulated seconds per wall-clock second, all envs together),
 ``engine_steps_per_s``, ``cold_start_s``, ``terminations``, and the settings (``brush``,
-``n_bristles``, ``bodies_per_bristle``, ``engine_dt``, ``max_substep``, ``frame_skip``,
+``n_bristles``, ``bodies_per_bristle``, ``model``, ``engine_dt``, ``max_substep``, ``frame_skip``,
 ``control_hz``).
 
     brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]

