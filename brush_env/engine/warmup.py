@@ -82,6 +82,18 @@ def _static(t: _Tiny) -> None:
     sim.solve_static(np.array([0.0, 0.0, t.top - 0.1]), t.R, increments=2)
 
 
+def _reduced(t: _Tiny) -> None:
+    """The reduced model (level ``reduced``): a press and a slide through ``Simulator.rollout``
+    and through ``Simulator.step`` (its kernels, the rollout's, the static solve)."""
+    from .simulator import SimSettings, Simulator
+
+    sim = Simulator(t.scene, SimSettings(dt=4e-3, model="prb", bodies_per_bristle=2))
+    sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
+    sim.rollout(np.array([5.0, 0.0, -20.0]), np.zeros(3), 10)
+    sim.step(sim.state.tcp_p[1] + np.array([0.02, 0.0, 0.0]), t.R)
+    sim.solve_static()
+
+
 #: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
 #: compiles the step kernel with every kernel it calls; the later groups reuse them.
 GROUPS: tuple[KernelGroup, ...] = (
@@ -92,6 +104,7 @@ GROUPS: tuple[KernelGroup, ...] = (
     ),
     KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
     KernelGroup("static solve", _static),
+    KernelGroup("reduced model (fidelity level 'reduced': quasi-static joints, rollout)", _reduced),
 )
 
 
