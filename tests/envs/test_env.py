@@ -91,11 +91,13 @@ class _Recorder:
 
     def __call__(self, p, R):
         out = self.step(p, R)
+        shaft = out.extra.get("shaft_normal_force")
         self.rows.append(
             (
                 out.tip_normal_force.copy(),
                 out.tip_in_contact.copy(),
                 out.tip_contact_point[:, :2].copy(),
+                0.0 if shaft is None else float(shaft.sum()),
             )
         )
         return out
@@ -147,8 +149,9 @@ def test_reward_terms_recomputed_from_the_engine_outputs(make_env):
             k0 = len(rec.rows)
             _, reward, term, trunc, info = env.step(a)
             total_int = tip_int = 0.0
-            for f, touching, pt in rec.rows[k0:]:
-                total_int += dte * max(0.0, f.sum() - cfg.total_force_limit)
+            for f, touching, pt, shaft in rec.rows[k0:]:
+                # the total normal force is every eq 6 contact's: the tips' and the shafts'
+                total_int += dte * max(0.0, f.sum() + shaft - cfg.total_force_limit)
                 tip_int += dte * np.maximum(f - cfg.tip_force_limit, 0.0).sum()
                 eff = touching & (f >= lo) & (f <= hi)
                 for i in np.flatnonzero(eff):
