@@ -1,13 +1,21 @@
 """``bench fidelity``: every fidelity level (configs/fidelity) against ``reference``, in speed and
-error (issue 12).
+error (issues 12 and 29).
 
 (a) **The paper's turn**: the ``bench contact`` motion (default brush on the flat plate, 3 mm
     press in 0.5 s, 0.25 s hold, one turn of the 20 mm circle at 20 mm/s; 7.234 s) at each
     level (its bodies, element, integrator, solver step and tip-tip solve; the step is the
-    level's ``max_substep``; ``reference`` from the stored converged turn of ``bench element``
-    unless ``--rerun-reference``).  RMS TCP-force error ``RMS_t |F - F_ref| / RMS_t |F_ref|`` and
-    per-tip normal-force error ``RMS_{t,i} |f_i - f_i,ref| / RMS_{t,i} f_i,ref`` on a 5 ms grid,
-    against the ``reference`` level run the same way; wall time per simulated second.
+    level's ``max_substep``).  Each run records, at every solver step, the TCP force, the tips'
+    normal forces and their contact and sliding flags, and the tip nodes at the end of the hold;
+    forces are compared on a 5 ms grid (a run stepped at a step that does not divide 5 ms is
+    interpolated linearly onto it).  ``reference`` comes from its stored turn
+    (``REFERENCE_TURN_FILE``, ``--write-reference turn`` remakes it; without it, bench element's
+    TCP-force-only file, and the tip measures are "—") unless ``--rerun-reference``.
+    Measures against ``reference`` (definitions: ``fidelity_metrics``): RMS TCP-force error,
+    the same outside +-10 ms of the reference's stick->slip events, phase means of |F| (press,
+    hold, sliding) and their relative errors, the event-time error (median and largest |dt| of
+    each reference event to the same bristle's nearest event, unmatched beyond 100 ms), the
+    bristles on the reference's buckling side at the end of the hold, the per-tip normal-force
+    error; wall time per simulated second.
 (b) **Random-policy episodes** of FlatPlate-v0 at each level (``gym.make(..., fidelity=level)``,
     every other env setting the default): ``--episodes`` episodes (seeds 0, 1, ...), each up to
     ``--steps`` env steps of actions uniform in [-1, 1]^6 from ``numpy.random.default_rng(seed)``
@@ -15,50 +23,109 @@ error (issue 12).
     Errors over the steps both runs reached (TCP force and tip normal forces of the last engine
     step of each env step, pooled over episodes as in (a)); coverage difference = mean |final
     coverage - reference's| in points of the patch; env steps per second (one env, stepping
-    only).
+    only, observation and reward included).  The reference level's episodes are read from
+    ``REFERENCE_EPISODES_FILE`` when it holds that level, those seeds and at least those steps
+    (``--write-reference episodes`` remakes it; its env steps/s is the stored run's).
+(c) **Batched env steps per second**: ``gym.make_vec(ENV_ID, num_envs=N,
+    vectorization_mode="vector_entry_point", fidelity=level)`` for N in ``--vec-sizes`` (16,
+    64), reset with seed 0, one untimed step, then steps of random actions from
+    ``default_rng(0)`` until ``--vec-seconds`` of wall have passed (at most ``--vec-steps``);
+    rate = N x steps / wall.  "n/a" (NaN in JSON and [measured]) where ``make_vec`` raises
+    (no vector entry point yet), with the reason in ``vec_note``.
 
-The table goes to stdout (``--json``: one object per level), the Pareto plot (x: wall per
-simulated second of (a), log; y: RMS TCP-force error of (a) and (b)) to ``--plot`` (default
+The tables go to stdout (``--json``: one object per level), the Pareto plot (x: wall per
+simulated second of (a), log; y: the error measures) to ``--plot`` (default
 docs/figures/fidelity_pareto.png); ``--write`` stores each level's figures in the ``[measured]``
-table of its configs/fidelity file.  The vectorised env (N = 16) of issue 12 is not built: no
-column for it.
+table of its configs/fidelity file.
 
-    brush-env bench fidelity [--episodes 20] [--steps 50] [--write] [--json] [--quick]
+    brush-env bench fidelity [--episodes 20] [--steps 100] [--write] [--json] [--quick]
+    brush-env bench fidelity --write-reference turn|episodes|all [--levels reference]
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from . import fidelity_metrics as fm
 from .contact import CONTACT_GRID_FULL, arc_seconds, simulate_contact, warm_kernels
 from .harness import emit, machine_info, markdown_table, open_log
 
 SAMPLE = 5e-3  # [s] comparison grid of (a)
 ENV_ID = "brush_env/FlatPlate-v0"
-PLOT = Path(__file__).resolve().parents[2] / "docs" / "figures" / "fidelity_pareto.png"
+ROOT = Path(__file__).resolve().parents[2]
+PLOT = ROOT / "docs" / "figures" / "fidelity_pareto.png"
+#: the reference level's turn with its tips (5 ms grid; bench element's file has the TCP only)
+REFERENCE_TURN_FILE = ROOT / "tests" / "data" / "flat_plate_turn_reference_tips.npz"
+#: the reference level's random-policy episodes (seeds 0.., per env step)
+REFERENCE_EPISODES_FILE = ROOT / "tests" / "data" / "flat_plate_random_episodes_reference.npz"
+#: (a)'s phases: name -> (start, end) [s] of the full turn (the end is the run's last sample)
+PHASE_NAMES = ("press", "hold", "sliding")
+VEC_SIZES = (16, 64)
+
+
+def _turn_motion(quick: bool) -> tuple[float, float, float]:
+    """(press, hold, arc) [s] of (a): the paper's turn, or a 0.1 s press and 0.06 s of circle."""
+    g = dict(CONTACT_GRID_FULL)
+    return (0.1, 0.0, 0.06) if quick else (g["press"], g["hold"], arc_seconds(g))
+
+
+def _hold_geometry(settings, press: float, hold: float, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """(rest tip nodes [mm] (nb, 3), thickness directions (nb, 3)) in the world at time ``t``
+    [s] of the turn: where the straight unloaded bristles' tips would be at the TCP's pose then,
+    and each root frame's local z turned by the TCP rotation (scene and trajectory built as
+    ``contact.simulate_contact`` builds them)."""
+    from ..engine import Simulator, load_scene
+    from ..experiments.plan import DEFAULTS, build_trajectory, plate_height
+    from ..motion import R0
+
+    scene = load_scene("flat_plate")
+    scene = replace(scene, brush=scene.brush.with_bodies(settings.bodies_per_bristle))
+    sim = Simulator(scene, settings)
+    traj, _, _ = build_trajectory(
+        start_xy=(0.0, 0.0),
+        touch_z=sim.touch_height(R0, plate_height(scene)),
+        radius=DEFAULTS["radius"],
+        speed=DEFAULTS["speed"],
+        accel=DEFAULTS["accel"],
+        turns=1.0,
+        press_depth=DEFAULTS["press_depth"],
+        press_time=press,
+        hold_time=hold,
+        path="circle",
+    )
+    P, R, _, _ = traj.sample(np.array([t]))
+    rest = P[0] + sim.rest_tips() @ R[0].T
+    lateral = sim.model.root_R[:, :, 2] @ R[0].T
+    return rest, lateral
 
 
 def turn_run(level, quick: bool = False) -> dict:
-    """(a) for one level: times, TCP force and tip normal forces on the 5 ms grid, wall [s]."""
+    """(a) for one level (``turn_summary`` of its run): the 5 ms grid's times [s], TCP force
+    [N], tip normal forces [N], sliding and contact flags; the stick->slip events at the solver
+    step; the tips' lateral offsets [mm] at the end of the hold; phases; wall [s]."""
     from ..engine.fidelity import level_settings, load_fidelity
 
     fid = load_fidelity(level)
     # the level's own SimSettings, stepped at its solver step (no split)
     settings = level_settings(fid, dt=fid.max_substep)
-    g = dict(CONTACT_GRID_FULL)
-    press, hold, arc = (0.1, 0.0, 0.06) if quick else (g["press"], g["hold"], arc_seconds(g))
-    ts, F, fn = [], [], []
+    press, hold, arc = _turn_motion(quick)
+    t_hold = press + hold
+    rec: dict = {"t": [], "F": [], "fn": [], "slide": [], "contact": [], "tips": None}
 
     def observe(t, out):
-        k = t / SAMPLE
-        if abs(k - round(k)) < 1e-6:
-            ts.append(t)
-            F.append(out.tcp_force.copy())
-            fn.append(out.tip_normal_force.copy())
+        rec["t"].append(t)
+        rec["F"].append(out.tcp_force.copy())
+        rec["fn"].append(out.tip_normal_force.copy())
+        rec["slide"].append(out.tip_sliding.copy())
+        rec["contact"].append(out.tip_in_contact.copy())
+        if t <= t_hold + 1e-9:
+            rec["tips"] = (t, out.tip_pos.copy(), out.tip_tangential_force.copy())
 
     run = simulate_contact(
         settings.bodies_per_bristle,
@@ -71,36 +138,154 @@ def turn_run(level, quick: bool = False) -> dict:
         observe=observe,
         sim_settings=settings,
     )
+    offsets = lateral_force = None
+    if rec["tips"] is not None:
+        t_tips, tips, tangential = rec["tips"]
+        rest, lateral = _hold_geometry(settings, press, hold, t_tips)
+        offsets = fm.lateral_offsets(tips, rest, lateral)
+        lateral_force = fm.components_along(tangential, lateral)
+    return turn_summary(
+        np.array(rec["t"]),
+        np.array(rec["F"]).reshape(-1, 3),
+        np.array(rec["fn"]),
+        np.array(rec["slide"], bool),
+        np.array(rec["contact"], bool),
+        offsets,
+        lateral_force,
+        phases=_phases(press, hold, press + hold + arc),
+        wall_s=run.wall,
+        status=run.status,
+    )
+
+
+def _phases(press: float, hold: float, end: float) -> dict:
+    return {"press": (0.0, press), "hold": (press, press + hold), "sliding": (press + hold, end)}
+
+
+def turn_summary(
+    t, F, fn, sliding, contact, offsets, lateral_force, phases, wall_s, status
+) -> dict:
+    """A turn run's record reduced to what (a) compares: every solver step's flags become the
+    stick->slip events (``fidelity_metrics.stick_slip_events``), forces and flags go onto the
+    5 ms grid (multiples of SAMPLE from the first step to the last), the phase means of |F|
+    on it."""
+    grid = np.arange(1, int(math.floor(t[-1] / SAMPLE + 1e-6)) + 1) * SAMPLE if len(t) else t
+    grid = grid[grid >= t[0] - 1e-9] if len(t) else grid
+    idx = np.clip(np.searchsorted(t, grid - 1e-9), 0, max(len(t) - 1, 0))
+    ev_b, ev_t = fm.stick_slip_events(t, sliding, contact)
+    Fg = fm.on_grid(grid, t, F)
     return {
-        "t": np.array(ts),
-        "F": np.array(F),
-        "fn": np.array(fn),
-        "wall_s": run.wall,
-        "sim_s": float(run.t[-1]),
-        "status": run.status,
+        "t": grid,
+        "F": Fg,
+        "fn": fm.on_grid(grid, t, fn),
+        "sliding": sliding[idx],
+        "in_contact": contact[idx],
+        "events": (ev_b, ev_t),
+        "offsets": offsets,
+        "lateral_force": lateral_force,
+        "phases": phases,
+        "phase_means": fm.phase_means(grid, Fg, phases),
+        "wall_s": wall_s,
+        "sim_s": float(t[-1]) if len(t) else 0.0,
+        "status": status,
     }
 
 
-def stored_reference_turn() -> dict:
-    """(a) for ``reference`` from the stored converged turn (bench element's file: the same
-    settings, TCP force every 1 ms; no tip forces, so no tip-force error against it)."""
+def write_reference_turn(level: str = "reference", path: Path = REFERENCE_TURN_FILE) -> dict:
+    """Run (a) at ``level`` (the full turn) and store it (``save_turn``)."""
+    from ..engine.fidelity import load_fidelity
+
+    run = turn_run(level)
+    if run["status"] != "ok":
+        raise RuntimeError(f"the {level} turn did not finish: {run['status']}")
+    save_turn(path, run, level, load_fidelity(level).describe())
+    return load_reference_turn(path)
+
+
+def save_turn(path: Path, run: dict, level: str, settings: str) -> None:
+    """Store a ``turn_run`` record, compressed: the 5 ms grid's t [s], F [N], fn [N] (float32),
+    sliding and contact flags, the events (bristle, t [s]) at the solver step, the lateral
+    offsets [mm] at the end of the hold, the phases [s], wall [s] and the level, its settings,
+    machine and commit."""
+    motion = "bench contact (full): press 0.5 s, hold 0.25 s, one turn"
+    meta = dict(level=level, settings=settings, motion=motion, **machine_info())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        t=run["t"],
+        F=run["F"],
+        fn=run["fn"].astype(np.float32),
+        sliding=run["sliding"],
+        in_contact=run["in_contact"],
+        event_bristle=run["events"][0],
+        event_t=run["events"][1],
+        offsets=run["offsets"],
+        lateral_force=run["lateral_force"],
+        phases=np.array([run["phases"][k] for k in PHASE_NAMES]),
+        wall_s=run["wall_s"],
+        meta=json.dumps(meta),
+    )
+
+
+def load_reference_turn(path: Path = REFERENCE_TURN_FILE) -> dict:
+    """The stored turn of ``write_reference_turn`` in ``turn_run``'s form (``meta``: its level,
+    settings, machine, commit)."""
+    d = np.load(path, allow_pickle=False)
+    phases = {k: (float(a), float(b)) for k, (a, b) in zip(PHASE_NAMES, d["phases"])}
+    meta = json.loads(str(d["meta"]))
+    return {
+        "t": d["t"],
+        "F": d["F"],
+        "fn": d["fn"].astype(float),
+        "sliding": d["sliding"],
+        "in_contact": d["in_contact"],
+        "events": (d["event_bristle"], d["event_t"]),
+        "offsets": d["offsets"],
+        "lateral_force": d["lateral_force"],
+        "phases": phases,
+        "phase_means": fm.phase_means(d["t"], d["F"], phases),
+        "wall_s": float(d["wall_s"]),
+        "sim_s": float(d["t"][-1]),
+        "status": f"ok (stored {meta.get('date', '')})",
+        "meta": meta,
+    }
+
+
+def stored_reference_turn(level: str = "reference") -> dict:
+    """(a) for ``level`` from storage: ``REFERENCE_TURN_FILE`` if it holds that level, else (for
+    ``reference``) bench element's converged turn (the same settings, TCP force every 1 ms; no
+    tips: the tip measures are NaN against it)."""
+    if REFERENCE_TURN_FILE.exists():
+        ref = load_reference_turn()
+        if ref["meta"].get("level") == level:
+            return ref
+    if level != "reference":
+        raise FileNotFoundError(f"no stored turn of level {level!r}")
     from .element import load_reference
 
     ref = load_reference()
     keep = np.abs(ref["t"] / SAMPLE - np.round(ref["t"] / SAMPLE)) < 1e-6
+    phases = _phases(*_turn_motion(False)[:2], float(ref["t"][-1]))
     return {
         "t": ref["t"][keep],
         "F": ref["F"][keep],
         "fn": None,
+        "sliding": None,
+        "in_contact": None,
+        "events": None,
+        "offsets": None,
+        "lateral_force": None,
+        "phases": phases,
+        "phase_means": fm.phase_means(ref["t"][keep], ref["F"][keep], phases),
         "wall_s": float(ref.get("wall_s", math.nan)),
         "sim_s": float(ref["t"][-1]),
-        "status": "ok (stored)",
+        "status": "ok (stored, TCP force only)",
     }
 
 
 def episode_run(level, seed: int, steps: int, brush: str | None = None) -> dict:
-    """(b) one random-policy episode at one level: per env step the TCP force, tip normal forces
-    (last engine step), coverage; wall of the stepping [s]; how it ended."""
+    """(b) one random-policy episode at one level: per env step the TCP force [N], tip normal
+    forces [N] (last engine step), coverage [0-1]; wall of the stepping [s]; how it ended."""
     import gymnasium as gym
 
     import brush_env  # noqa: F401  (registers the env ids)
@@ -133,36 +318,190 @@ def episode_run(level, seed: int, steps: int, brush: str | None = None) -> dict:
     }
 
 
-def _pooled_error(pairs) -> float:
-    """sqrt(sum |x - x_ref|^2 / sum |x_ref|^2) over (x, x_ref) pairs of equal shape."""
-    num = sum(float(np.sum((x - r) ** 2)) for x, r in pairs)
-    den = sum(float(np.sum(r**2)) for _, r in pairs)
-    return math.sqrt(num / den) if den > 0 else math.nan
+def write_reference_episodes(
+    level: str, episodes: int, steps: int, path: Path = REFERENCE_EPISODES_FILE, log=None
+) -> list:
+    """Run (b) at ``level`` (seeds 0 .. episodes-1, up to ``steps`` env steps) and store it
+    (``save_episodes``).  Returns the episodes."""
+    from ..engine.fidelity import load_fidelity
+
+    eps = []
+    for s in range(episodes):
+        eps.append(episode_run(level, s, steps))
+        if log is not None:
+            e = eps[-1]
+            print(f"    seed {s}: {len(e['F'])} steps in {e['wall_s']:.1f} s", file=log, flush=True)
+    save_episodes(path, eps, level, load_fidelity(level).describe(), steps)
+    return eps
+
+
+def save_episodes(path: Path, eps: list, level: str, settings: str, steps: int) -> None:
+    """Store ``episode_run`` records (seeds 0, 1, ...), compressed: per episode its length, F
+    [N], fn [N] (float32), coverage [0-1] (NaN beyond its end), wall [s] and end; the level, its
+    settings, the steps asked, machine and commit."""
+    nb = eps[0]["fn"].shape[1]
+    F = np.full((len(eps), steps, 3), np.nan)
+    fn = np.full((len(eps), steps, nb), np.nan, np.float32)
+    cov = np.full((len(eps), steps), np.nan)
+    for k, e in enumerate(eps):
+        n = len(e["F"])
+        F[k, :n], fn[k, :n], cov[k, :n] = e["F"], e["fn"], e["coverage"]
+    meta = dict(
+        level=level,
+        settings=settings,
+        episodes=len(eps),
+        steps=steps,
+        env=ENV_ID,
+        ends=[e["end"] for e in eps],
+        **machine_info(),
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        n=np.array([len(e["F"]) for e in eps]),
+        F=F,
+        fn=fn,
+        coverage=cov,
+        wall_s=np.array([e["wall_s"] for e in eps]),
+        meta=json.dumps(meta),
+    )
+
+
+def load_reference_episodes(
+    level: str, episodes: int, steps: int, path: Path = REFERENCE_EPISODES_FILE
+) -> list | None:
+    """The stored episodes of ``level`` (seeds 0 .. episodes-1, cut to ``steps``), or None if
+    the file is missing or holds another level, fewer episodes or shorter unfinished ones.  Each
+    episode's wall is the stored one, scaled by the share of its steps kept."""
+    if not path.exists():
+        return None
+    d = np.load(path, allow_pickle=False)
+    meta = json.loads(str(d["meta"]))
+    if meta.get("level") != level or meta["episodes"] < episodes or meta["steps"] < steps:
+        return None
+    eps = []
+    for k in range(episodes):
+        n_all = int(d["n"][k])
+        n = min(n_all, steps)
+        eps.append(
+            {
+                "F": d["F"][k, :n],
+                "fn": d["fn"][k, :n].astype(float),
+                "coverage": d["coverage"][k, :n],
+                "wall_s": float(d["wall_s"][k]) * n / max(n_all, 1),
+                "end": meta["ends"][k] if n == n_all else "steps",
+                "stored": f"{meta.get('commit', '')}, {meta.get('date', '')}",
+            }
+        )
+    return eps
+
+
+def vector_steps_per_s(
+    level, n: int, seconds: float = 10.0, max_steps: int = 200, seed: int = 0
+) -> tuple[float, str]:
+    """(c): (env steps per second of the batched env [1/s], note) -- NaN and the error's first
+    line if ``gym.make_vec`` (or its first step) raises."""
+    import gymnasium as gym
+
+    import brush_env  # noqa: F401  (registers the env ids)
+
+    try:
+        envs = gym.make_vec(
+            ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", fidelity=level
+        )
+    except Exception as e:  # noqa: BLE001  (anything: the batched env is not there)
+        return math.nan, f"n/a: {type(e).__name__}: {str(e).splitlines()[0][:120]}"
+    try:
+        rng = np.random.default_rng(seed)
+        shape = envs.action_space.shape
+        envs.reset(seed=seed)
+        envs.step(rng.uniform(-1.0, 1.0, shape).astype(np.float32))  # compile / warm
+        k = 0
+        t0 = time.perf_counter()
+        while k < max_steps:
+            envs.step(rng.uniform(-1.0, 1.0, shape).astype(np.float32))
+            k += 1
+            if time.perf_counter() - t0 >= seconds:
+                break
+        wall = time.perf_counter() - t0
+    except Exception as e:  # noqa: BLE001
+        return math.nan, f"n/a: step raised {type(e).__name__}: {str(e).splitlines()[0][:120]}"
+    finally:
+        envs.close()
+    return n * k / wall, f"{k} steps of {n} envs in {wall:.1f} s"
 
 
 def compare_turn(run: dict, ref: dict) -> tuple[float, float]:
-    """(TCP-force error, tip normal-force error) of (a) over the common samples."""
-    common, i, j = np.intersect1d(
-        np.round(run["t"] / SAMPLE).astype(int),
-        np.round(ref["t"] / SAMPLE).astype(int),
-        return_indices=True,
-    )  # the same sample times (the stored reference starts at t = 0, a run at one step)
-    force = _pooled_error([(run["F"][i], ref["F"][j])])
-    tip = math.nan if ref["fn"] is None else _pooled_error([(run["fn"][i], ref["fn"][j])])
+    """(TCP-force error, tip normal-force error) [-] of (a) over the common 5 ms samples."""
+    i, j = _common(run, ref)
+    force = fm.pooled_rms_error([(run["F"][i], ref["F"][j])])
+    tip = math.nan if ref["fn"] is None else fm.pooled_rms_error([(run["fn"][i], ref["fn"][j])])
     return force, tip
 
 
-def compare_episodes(eps: list, refs: list) -> tuple[float, float, float]:
-    """(TCP-force error, tip normal-force error, mean |coverage difference| [points]) of (b)."""
-    pf, pt, dc = [], [], []
-    for e, r in zip(eps, refs):
-        n = min(len(e["F"]), len(r["F"]))
-        if n == 0:
-            continue
-        pf.append((e["F"][:n], r["F"][:n]))
-        pt.append((e["fn"][:n], r["fn"][:n]))
-        dc.append(100.0 * abs(e["coverage"][n - 1] - r["coverage"][n - 1]))
-    return _pooled_error(pf), _pooled_error(pt), float(np.mean(dc)) if dc else math.nan
+def _common(run: dict, ref: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the grid samples both runs have (the same times)."""
+    _, i, j = np.intersect1d(
+        np.round(run["t"] / SAMPLE).astype(int),
+        np.round(ref["t"] / SAMPLE).astype(int),
+        return_indices=True,
+    )
+    return i, j
+
+
+def turn_metrics(run: dict, ref: dict) -> dict:
+    """Every measure of (a) of ``run`` against ``ref`` (module docstring; definitions in
+    ``fidelity_metrics``), as row keys."""
+    force, tip = compare_turn(run, ref)
+    out: dict = {"turn_rms_force_error": force, "turn_tip_force_error": tip}
+    pm = run["phase_means"]
+    perr = fm.phase_mean_errors(pm, ref["phase_means"])
+    for k in PHASE_NAMES:
+        out[f"turn_phase_mean_{k}_N"] = pm[k]
+        out[f"turn_phase_err_{k}"] = perr[k]
+    nan = math.nan
+    out.update(
+        turn_rms_error_outside_events=nan,
+        turn_masked_fraction=nan,
+        event_dt_median_ms=nan,
+        event_dt_max_ms=nan,
+        events_ref=0,
+        events_matched=0,
+        events_unmatched=0,
+        events_run=0,
+        buckling_same_side=-1,
+        lateral_force_same_side=-1,
+        bristles=0,
+    )
+    if ref["events"] is not None:
+        i, j = _common(run, ref)
+        mask = fm.event_mask(ref["t"][j], ref["events"][1], fm.EVENT_HALF_WIDTH)
+        out["turn_rms_error_outside_events"] = fm.rms_error_outside(run["F"][i], ref["F"][j], mask)
+        out["turn_masked_fraction"] = float(mask.mean()) if mask.size else nan
+        # only the reference's events up to where the run got
+        rb, rt = ref["events"]
+        reached = rt <= run["sim_s"] + 1e-9
+        m = fm.match_events((rb[reached], rt[reached]), run["events"])
+        out.update(
+            event_dt_median_ms=m["median_abs_ms"],
+            event_dt_max_ms=m["max_abs_ms"],
+            event_dt_signed_median_ms=m["median_ms"],
+            events_ref=m["n_ref"],
+            events_matched=m["n_matched"],
+            events_unmatched=m["n_unmatched"],
+            events_run=m["n_run"],
+        )
+    if ref["offsets"] is not None and run["offsets"] is not None:
+        out["buckling_same_side"] = fm.same_side_count(
+            fm.buckling_sides(run["offsets"]), fm.buckling_sides(ref["offsets"])
+        )
+        out["bristles"] = int(len(ref["offsets"]))
+    if ref["lateral_force"] is not None and run["lateral_force"] is not None:
+        out["lateral_force_same_side"] = fm.same_side_count(
+            fm.buckling_sides(run["lateral_force"], fm.SIDE_FORCE_TOL),
+            fm.buckling_sides(ref["lateral_force"], fm.SIDE_FORCE_TOL),
+        )
+    return out
 
 
 def bench_fidelity(args) -> int:
@@ -172,6 +511,8 @@ def bench_fidelity(args) -> int:
     log = open_log(args)
     levels = list(args.levels or (("balanced", "fast") if args.quick else LEVELS))
     against = args.against or ("balanced" if args.quick else "reference")
+    if args.write_reference:
+        return _write_references(args, against, log)
     if against not in levels:
         levels.insert(0, against)
     episodes = 1 if args.quick else args.episodes
@@ -179,48 +520,37 @@ def bench_fidelity(args) -> int:
     brush = "tiny_env" if args.quick else None
     print("warming up the kernels ...", file=log, flush=True)
     warm_kernels()
-    turns, eps = {}, {}
+    turns: dict = {}
+    eps: dict = {}
+    vec: dict = {}
     for name in levels:
         print(f"  {name}: the paper's turn ...", file=log, flush=True)
         if name == "reference" and not args.quick and not args.rerun_reference:
             turns[name] = stored_reference_turn()
         else:
             turns[name] = turn_run(name, args.quick)
-        print(f"  {name}: {episodes} random episodes ...", file=log, flush=True)
-        eps[name] = [episode_run(name, s, steps, brush) for s in range(episodes)]
+        stored = None
+        if not args.quick and not args.rerun_reference and name == against:
+            stored = load_reference_episodes(name, episodes, steps)
+        print(
+            f"  {name}: {episodes} random episodes" + (" (stored)" if stored else "") + " ...",
+            file=log,
+            flush=True,
+        )
+        eps[name] = stored or [episode_run(name, s, steps, brush) for s in range(episodes)]
+        vec[name] = {}
+        for n in [] if args.quick else args.vec_sizes:
+            print(f"  {name}: batched env, N = {n} ...", file=log, flush=True)
+            vec[name][n] = vector_steps_per_s(name, n, args.vec_seconds, args.vec_steps)
     rows = []
     for name in levels:
-        fid = load_fidelity(name)
-        tr = turns[name]
-        ef, et = compare_turn(tr, turns[against]) if name != against else (0.0, 0.0)
-        rf, rt, dc = (
-            compare_episodes(eps[name], eps[against]) if name != against else (0.0, 0.0, 0.0)
-        )
-        n_steps = sum(len(e["F"]) for e in eps[name])
-        wall = sum(e["wall_s"] for e in eps[name])
-        rows.append(
-            emit(
-                args,
-                {
-                    "level": name,
-                    "settings": fid.describe(),
-                    "against": against,
-                    "turn_rms_force_error": ef,
-                    "turn_tip_force_error": et,
-                    "turn_wall_per_sim_s": tr["wall_s"] / tr["sim_s"],
-                    "turn_status": tr["status"],
-                    "random_rms_force_error": rf,
-                    "random_tip_force_error": rt,
-                    "random_coverage_diff_points": dc,
-                    "env_steps_per_s": n_steps / wall if wall > 0 else math.nan,
-                    "episodes": len(eps[name]),
-                    "env_steps": n_steps,
-                    "episode_ends": [e["end"] for e in eps[name]],
-                },
-            )
-        )
+        row = level_row(name, load_fidelity(name).describe(), against, turns, eps, vec[name])
+        rows.append(emit(args, row))
     if not args.json:
         print(format_table(rows))
+        for r in rows:
+            if r.get("vec_note"):
+                print(f"batched env, {r['level']}: {r['vec_note']}", file=log)
     if args.plot and not args.quick:
         pareto_plot(rows, Path(args.plot))
         print(f"plot: {args.plot}", file=log)
@@ -232,82 +562,266 @@ def bench_fidelity(args) -> int:
     return 0
 
 
+def level_row(name: str, settings: str, against: str, turns: dict, eps: dict, vec: dict) -> dict:
+    """One level's row: (a) against ``against`` (``turn_metrics``), (b) and (c)."""
+    tr = turns[name]
+    row: dict = {"level": name, "settings": settings, "against": against}
+    row.update(turn_metrics(tr, turns[against]))
+    row["turn_wall_per_sim_s"] = tr["wall_s"] / tr["sim_s"] if tr["sim_s"] > 0 else math.nan
+    row["turn_status"] = tr["status"]
+    if name == against:
+        rf, rt, dc = 0.0, 0.0, 0.0
+    else:
+        rf, rt, dc = fm.compare_episodes(eps[name], eps[against])
+    n_steps = sum(len(e["F"]) for e in eps[name])
+    wall = sum(e["wall_s"] for e in eps[name])
+    row.update(
+        random_rms_force_error=rf,
+        random_tip_force_error=rt,
+        random_coverage_diff_points=dc,
+        env_steps_per_s=n_steps / wall if wall > 0 else math.nan,
+        episodes=len(eps[name]),
+        env_steps=n_steps,
+        episode_ends=[e["end"] for e in eps[name]],
+        episodes_stored=eps[name][0].get("stored", "") if eps[name] else "",
+    )
+    notes = []
+    for n in VEC_SIZES:
+        rate, note = vec.get(n, (math.nan, "not measured"))
+        row[f"env_steps_per_s_vec{n}"] = rate
+        notes.append(f"N={n}: {note}")
+    row["vec_note"] = "; ".join(notes)
+    return row
+
+
+def _write_references(args, level: str, log) -> int:
+    """``--write-reference turn|episodes|all``: store (a) and/or (b) of ``level`` (the
+    ``--against`` level, default ``reference``), then stop."""
+    warm_kernels()
+    what = args.write_reference
+    if what in ("turn", "all"):
+        print(f"writing the {level} turn to {REFERENCE_TURN_FILE} ...", file=log, flush=True)
+        t0 = time.perf_counter()
+        ref = write_reference_turn(level)
+        print(
+            f"  done in {time.perf_counter() - t0:.0f} s (stepping {ref['wall_s']:.0f} s); "
+            f"{len(ref['events'][0])} stick-slip events",
+            file=log,
+            flush=True,
+        )
+    if what in ("episodes", "all"):
+        print(
+            f"writing {args.episodes} {level} episodes of up to {args.steps} steps to "
+            f"{REFERENCE_EPISODES_FILE} ...",
+            file=log,
+            flush=True,
+        )
+        t0 = time.perf_counter()
+        write_reference_episodes(level, args.episodes, args.steps, log=log)
+        print(f"  done in {time.perf_counter() - t0:.0f} s", file=log, flush=True)
+    return 0
+
+
+def _pct(x: float) -> str:
+    return "—" if not math.isfinite(x) else f"{100 * x:.1f} %"
+
+
+def _signed_pct(x: float) -> str:
+    return "—" if not math.isfinite(x) else f"{100 * x:+.1f} %"
+
+
+def _num(x: float, fmt: str = ".1f") -> str:
+    return "n/a" if not math.isfinite(x) else format(x, fmt)
+
+
 def format_table(rows) -> str:
-    pct = lambda x: "—" if not math.isfinite(x) else f"{100 * x:.1f} %"  # noqa: E731
-    return markdown_table(
+    """Two Markdown tables: (a) the paper's turn; (b) random episodes and (c) speed."""
+
+    def events(r):
+        if r["events_ref"] == 0:
+            return "—"
+        return (
+            f"{_num(r['event_dt_median_ms'])} / {_num(r['event_dt_max_ms'])} "
+            f"({r['events_unmatched']} of {r['events_ref']} unmatched)"
+        )
+
+    def side(r):
+        def one(k):
+            return "—" if r[k] < 0 else str(r[k])
+
+        if r["bristles"] == 0:
+            return "—"
+        pair = f"{one('buckling_same_side')} / {one('lateral_force_same_side')}"
+        return f"{pair} of {r['bristles']}"
+
+    def phase(k):
+        return lambda r: (
+            f"{_num(r[f'turn_phase_mean_{k}_N'], '.2f')} ({_signed_pct(r[f'turn_phase_err_{k}'])})"
+        )
+
+    turn = markdown_table(
         rows,
         [
             ("level", lambda r: r["level"]),
-            ("turn: TCP force err", lambda r: pct(r["turn_rms_force_error"])),
-            ("turn: tip force err", lambda r: pct(r["turn_tip_force_error"])),
-            ("wall / sim s", lambda r: f"{r['turn_wall_per_sim_s']:.2f}"),
-            ("random: TCP force err", lambda r: pct(r["random_rms_force_error"])),
-            ("random: tip force err", lambda r: pct(r["random_tip_force_error"])),
-            ("coverage diff [points]", lambda r: f"{r['random_coverage_diff_points']:.2f}"),
-            ("env steps/s (1 env)", lambda r: f"{r['env_steps_per_s']:.1f}"),
-            ("settings", lambda r: r["settings"].split(": ", 1)[1]),
+            ("TCP force err", lambda r: _pct(r["turn_rms_force_error"])),
+            ("outside ±10 ms of events", lambda r: _pct(r["turn_rms_error_outside_events"])),
+            ("press mean |F| [N]", phase("press")),
+            ("hold mean |F| [N]", phase("hold")),
+            ("sliding mean |F| [N]", phase("sliding")),
+            ("event Δt median / max [ms]", events),
+            ("same side at hold: tip offset / tip force", side),
+            ("tip force err", lambda r: _pct(r["turn_tip_force_error"])),
+            ("wall / sim s", lambda r: _num(r["turn_wall_per_sim_s"], ".2f")),
+            ("status", lambda r: r["turn_status"]),
         ],
+    )
+    rand = markdown_table(
+        rows,
+        [
+            ("level", lambda r: r["level"]),
+            ("random: TCP force err", lambda r: _pct(r["random_rms_force_error"])),
+            ("random: tip force err", lambda r: _pct(r["random_tip_force_error"])),
+            ("coverage diff [points]", lambda r: _num(r["random_coverage_diff_points"], ".2f")),
+            (
+                "episodes × steps",
+                lambda r: (
+                    f"{r['episodes']} × ≤{max(1, r['env_steps'] // max(r['episodes'], 1))}"
+                    + (" (stored)" if r.get("episodes_stored") else "")
+                ),
+            ),
+            ("env steps/s (1 env)", lambda r: _num(r["env_steps_per_s"])),
+            ("N = 16", lambda r: _num(r["env_steps_per_s_vec16"], ".0f")),
+            ("N = 64", lambda r: _num(r["env_steps_per_s_vec64"], ".0f")),
+            ("settings", lambda r: r["settings"].split(": ", 1)[-1]),
+        ],
+    )
+    return (
+        "(a) the paper's turn\n\n" + turn + "\n\n(b) random-policy episodes, (c) speed\n\n" + rand
     )
 
 
 def pareto_plot(rows, path: Path) -> None:
-    """Force error [%] against wall per simulated second (log), both measures, one point per
-    level and measure."""
+    """Three panels against wall time per simulated second of the turn (log x), one point per
+    level and measure: relative force errors [%]; event-time error [ms]; bristles off the
+    reference's buckling side and coverage difference [points]."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for key, mark, label in (
-        ("turn_rms_force_error", "o", "paper turn"),
-        ("random_rms_force_error", "s", "random episodes"),
-    ):
-        xs = [r["turn_wall_per_sim_s"] for r in rows]
-        ys = [100 * r[key] for r in rows]
-        ax.scatter(xs, ys, marker=mark, label=label)
-        for r, x, y in zip(rows, xs, ys):
-            ax.annotate(r["level"], (x, y), textcoords="offset points", xytext=(5, 4), fontsize=8)
-    ax.axhline(1.0, color="grey", lw=0.5, ls=":")
-    ax.set_xscale("log")
-    ax.set_xlabel("wall time per simulated second [s] (one core)")
-    ax.set_ylabel(f"RMS TCP-force error vs {rows[0]['against']} [%]")
-    ax.set_title("brush_env fidelity levels (brush-env bench fidelity)")
-    ax.legend()
+    fig, axes = plt.subplots(1, 3, figsize=(14.0, 4.4))
+    xs = [r["turn_wall_per_sim_s"] for r in rows]
+    panels = [
+        (
+            axes[0],
+            f"error vs {rows[0]['against']} [%]",
+            [
+                ("turn_rms_force_error", "o", "turn: TCP force RMS", 100),
+                (
+                    "turn_rms_error_outside_events",
+                    "D",
+                    "turn: TCP RMS outside ±10 ms of events",
+                    100,
+                ),
+                ("turn_phase_err_max", "^", "turn: largest |phase-mean error|", 100),
+                ("turn_tip_force_error", "v", "turn: per-tip normal force RMS", 100),
+                ("random_rms_force_error", "s", "random episodes: TCP force RMS", 100),
+            ],
+        ),
+        (
+            axes[1],
+            "stick→slip event-time error |Δt| [ms]",
+            [
+                ("event_dt_median_ms", "o", "median", 1),
+                ("event_dt_max_ms", "^", "largest", 1),
+            ],
+        ),
+        (
+            axes[2],
+            "bristles [count] / coverage [points]",
+            [
+                ("buckling_other_side", "o", "bristles not on the reference's buckling side", 1),
+                ("random_coverage_diff_points", "s", "coverage difference [points]", 1),
+            ],
+        ),
+    ]
+    for r in rows:
+        errs = [abs(r[f"turn_phase_err_{k}"]) for k in PHASE_NAMES]
+        r_max = max((e for e in errs if math.isfinite(e)), default=math.nan)
+        r.setdefault("turn_phase_err_max", r_max)
+        other = r["bristles"] - r["buckling_same_side"] if r["buckling_same_side"] >= 0 else None
+        r.setdefault("buckling_other_side", math.nan if other is None else float(other))
+    for ax, ylabel, series in panels:
+        for key, mark, label, scale in series:
+            ys = [scale * r[key] for r in rows]
+            ax.scatter(xs, ys, marker=mark, label=label)
+            for r, x, y in zip(rows, xs, ys):
+                if math.isfinite(x) and math.isfinite(y):
+                    ax.annotate(
+                        r["level"], (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7
+                    )
+        ax.set_xscale("log")
+        ax.set_xlabel("wall time per simulated second of the turn [s/s] (one core)")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7)
+    for r in rows:
+        r.pop("turn_phase_err_max", None)
+        r.pop("buckling_other_side", None)
+    fig.suptitle("brush_env fidelity levels against reference (brush-env bench fidelity)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
+#: the [measured] keys ``--write`` stores, with their unit comments
+MEASURED_KEYS = (
+    ("turn_rms_force_error", "[-] paper turn, RMS |F - F_ref| / RMS |F_ref|"),
+    ("turn_rms_error_outside_events", "[-] the same, outside +-10 ms of the stick-slip events"),
+    ("turn_phase_mean_press_N", "[N] mean |F| over the press"),
+    ("turn_phase_mean_hold_N", "[N] mean |F| over the hold"),
+    ("turn_phase_mean_sliding_N", "[N] mean |F| over the circle"),
+    ("turn_phase_err_press", "[-] (mean - mean_ref) / mean_ref"),
+    ("turn_phase_err_hold", "[-]"),
+    ("turn_phase_err_sliding", "[-]"),
+    ("event_dt_median_ms", "[ms] median |dt| of the matched stick-slip events"),
+    ("event_dt_max_ms", "[ms] largest |dt|"),
+    ("events_ref", "[count] reference events"),
+    ("events_unmatched", "[count] without an event of the bristle within 100 ms"),
+    ("buckling_same_side", "[count] bristles on the reference's side at the end of the hold"),
+    ("lateral_force_same_side", "[count] the same by the lateral tip force's sign"),
+    ("turn_tip_force_error", "[-] per-tip normal force, pooled RMS"),
+    ("turn_wall_per_sim_s", "[s/s] one core"),
+    ("random_rms_force_error", "[-]"),
+    ("random_tip_force_error", "[-]"),
+    ("random_coverage_diff_points", "[points]"),
+    ("env_steps_per_s", "[1/s] one env, one core"),
+    ("env_steps_per_s_vec16", "[1/s] batched, N = 16 (nan: no batched env)"),
+    ("env_steps_per_s_vec64", "[1/s] batched, N = 64 (nan: no batched env)"),
+)
+
+
 def write_measured(path: Path, row: dict, info: dict) -> None:
-    """Replace the ``[measured]`` table of a level's TOML file with ``row``'s figures."""
+    """Replace the ``[measured]`` table of a level's TOML file with ``row``'s figures (the keys
+    of MEASURED_KEYS that ``row`` has)."""
     from ..engine.fidelity import MEASURED_MARK
 
     text = path.read_text()
     head = text.split(MEASURED_MARK)[0].rstrip() + "\n\n"
 
     def num(x):
+        if isinstance(x, int):
+            return str(x)
         return "nan" if not math.isfinite(x) else f"{x:.4g}"
 
-    body = "\n".join(
-        [
-            MEASURED_MARK,
-            "[measured]",
-            f'against = "{row["against"]}"',
-            f"turn_rms_force_error = {num(row['turn_rms_force_error'])}   # [-] paper turn",
-            f"turn_tip_force_error = {num(row['turn_tip_force_error'])}   # [-]",
-            f"turn_wall_per_sim_s = {num(row['turn_wall_per_sim_s'])}   # [s/s] one core",
-            f"random_rms_force_error = {num(row['random_rms_force_error'])}   # [-]",
-            f"random_tip_force_error = {num(row['random_tip_force_error'])}   # [-]",
-            f"random_coverage_diff_points = {num(row['random_coverage_diff_points'])}",
-            f"env_steps_per_s = {num(row['env_steps_per_s'])}   # one env, one core",
-            f'commit = "{info.get("commit", "")}"',
-            f'date = "{info.get("date", "")}"',
-            f'cpu = "{info.get("cpu", "")}"',
-        ]
-    )
-    path.write_text(head + body + "\n")
+    lines = [MEASURED_MARK, "[measured]", f'against = "{row["against"]}"']
+    lines += [f"{k} = {num(row[k])}   # {unit}" for k, unit in MEASURED_KEYS if k in row]
+    lines += [
+        f'commit = "{info.get("commit", "")}"',
+        f'date = "{info.get("date", "")}"',
+        f'cpu = "{info.get("cpu", "")}"',
+    ]
+    path.write_text(head + "\n".join(lines) + "\n")
 
 
 def add_arguments(p) -> None:
@@ -317,13 +831,31 @@ def add_arguments(p) -> None:
     add_flag(p, "--quick", "balanced against fast, a 0.16 s press, one 3-step episode (tests)")
     add_flag(p, "--write", "store each level's figures in its configs/fidelity file")
     p.add_argument("--episodes", type=int, default=20, help="random-policy episodes per level")
-    p.add_argument("--steps", type=int, default=50, help="env steps per episode (at most)")
+    p.add_argument("--steps", type=int, default=100, help="env steps per episode (at most)")
     p.add_argument("--levels", nargs="+", default=None, help="levels (default: all four)")
     p.add_argument("--against", default=None, help="the level the others are measured against")
     p.add_argument("--plot", default=str(PLOT), help="Pareto plot path ('' for none)")
+    p.add_argument(
+        "--vec-sizes",
+        type=int,
+        nargs="*",
+        default=list(VEC_SIZES),
+        help="batched env sizes N (gym.make_vec, vector_entry_point); none: skip",
+    )
+    p.add_argument(
+        "--vec-seconds", type=float, default=10.0, help="wall [s] per batched measurement"
+    )
+    p.add_argument("--vec-steps", type=int, default=200, help="at most this many batched steps")
+    p.add_argument(
+        "--write-reference",
+        choices=("turn", "episodes", "all"),
+        default=None,
+        help="compute and store the --against level's (default reference) turn with its tips "
+        f"({REFERENCE_TURN_FILE.name}) and/or its --episodes x --steps random episodes "
+        f"({REFERENCE_EPISODES_FILE.name}) in tests/data, then stop",
+    )
     add_flag(
         p,
         "--rerun-reference",
-        "run the reference level's turn (~10 min) instead of the stored converged turn "
-        "(adds the tip-force error of (a))",
+        "run the reference level's turn and episodes instead of reading the stored ones",
     )

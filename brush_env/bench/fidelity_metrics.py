@@ -45,6 +45,15 @@ with the TCP) and ``z_i`` the bristle's thickness direction (the root frame's lo
 ``sign(d_i)``, or 0 if ``|d_i| < tol`` (0.01 mm: not bent out of line).  ``same_side_count`` is
 the number of bristles whose side equals the reference's (0 = 0 counts as the same).
 
+A tip that sticks through the hold keeps the offset it slid to during the press (on the default
+brush 0.04-0.08 mm, the lean's way, at every level), so the offset's side says where the tip
+went, not which way the bristle bowed.  The bench therefore also counts the bristles whose
+**lateral tip force** has the reference's side: ``sign(t_i . z_i)`` of the tip's tangential
+(friction) force ``t_i`` [N] at the same instant, 0 if below ``SIDE_FORCE_TOL`` (1 mN) -- the
+friction that holds a stuck tip balances the bent bristle's lateral push, whose sign follows the
+bristle's bent shape (the two groups of the default brush push -38 and -29 mN at ``balanced``;
+at the reduced ``fast`` of 5958706 the outer group pushes +11 mN).
+
 **Coverage difference** (``compare_episodes``): over random-policy episodes with the same seeds
 and actions, ``mean_e |c_e - c_e,ref|`` in points of the patch [0-100], with ``c`` the coverage
 fraction at the last step both runs of episode ``e`` reached; the TCP-force and per-tip
@@ -64,6 +73,8 @@ EVENT_HALF_WIDTH = 10e-3
 MATCH_MAX_DT = 100e-3
 #: [mm] a tip offset smaller than this from its straight position has no buckling side (0)
 SIDE_TOL = 0.01
+#: [N] a lateral tip force smaller than this has no side (0)
+SIDE_FORCE_TOL = 1e-3
 
 
 def pooled_rms_error(pairs: Iterable[tuple[np.ndarray, np.ndarray]]) -> float:
@@ -182,7 +193,12 @@ def lateral_offsets(
 ) -> np.ndarray:
     """(nb,) [mm]: ``(tip_pos - rest_tip_world) . lateral_dir`` per tip (all (nb, 3); positions
     [mm], directions unit vectors)."""
-    return np.einsum("ij,ij->i", np.asarray(tip_pos) - np.asarray(rest_tip_world), lateral_dir)
+    return components_along(np.asarray(tip_pos) - np.asarray(rest_tip_world), lateral_dir)
+
+
+def components_along(v: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """(nb,): each row of ``v`` (nb, 3) (any unit) dotted with its unit ``directions`` row."""
+    return np.einsum("ij,ij->i", np.asarray(v, float), np.asarray(directions, float))
 
 
 def buckling_sides(offsets: np.ndarray, tol: float = SIDE_TOL) -> np.ndarray:

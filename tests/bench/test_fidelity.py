@@ -11,7 +11,16 @@ import numpy as np
 import pytest
 
 from brush_env import cli
-from brush_env.bench.fidelity import _pooled_error, compare_episodes, write_measured
+from brush_env.bench.fidelity import (
+    PHASE_NAMES,
+    load_reference_episodes,
+    load_reference_turn,
+    save_episodes,
+    save_turn,
+    turn_metrics,
+    turn_summary,
+    write_measured,
+)
 from brush_env.engine import load_fidelity
 
 
@@ -25,20 +34,16 @@ def test_quick_rows(capsys):
     # 3 bodies against 6 in a buckled press: not the same forces (bench element: ~10 %)
     assert fast["turn_rms_force_error"] > 0.01
     assert fast["env_steps"] == 3 and fast["env_steps_per_s"] > 0
-
-
-def test_pooled_error_is_relative_rms():
-    ref = np.array([[3.0, 4.0], [0.0, 0.0]])
-    assert _pooled_error([(ref, ref)]) == 0.0
-    assert _pooled_error([(2 * ref, ref)]) == pytest.approx(1.0)
-
-
-def test_episodes_compared_over_the_steps_both_reached():
-    ref = {"F": np.ones((5, 3)), "fn": np.ones((5, 2)), "coverage": np.linspace(0, 0.5, 5)}
-    short = {"F": np.ones((3, 3)), "fn": np.ones((3, 2)), "coverage": np.array([0, 0.1, 0.3])}
-    f, t, dc = compare_episodes([short], [ref])
-    assert f == 0.0 and t == 0.0
-    assert dc == pytest.approx(100 * abs(0.3 - 0.25))  # step 3 of both, in points
+    # the measures of issue 29 are there (the quick press has no stick-slip event)
+    for k in PHASE_NAMES:
+        assert math.isfinite(fast[f"turn_phase_mean_{k}_N"]) or k == "hold"  # no hold in quick
+    assert fast["bristles"] == 40 and 0 <= fast["buckling_same_side"] <= 40
+    assert 0 <= fast["lateral_force_same_side"] <= 40
+    assert ref["buckling_same_side"] == 40 and ref["lateral_force_same_side"] == 40
+    assert ref["turn_rms_error_outside_events"] == 0.0
+    assert fast["events_ref"] == 0 and math.isnan(fast["event_dt_median_ms"])
+    # --vec-sizes are not measured in --quick; without a batched env they read "n/a"
+    assert math.isnan(fast["env_steps_per_s_vec16"]) and "N=16" in fast["vec_note"]
 
 
 def test_write_measured_keeps_the_settings_and_replaces_the_table(tmp_path):
@@ -53,11 +58,75 @@ def test_write_measured_keeps_the_settings_and_replaces_the_table(tmp_path):
         random_tip_force_error=0.2,
         random_coverage_diff_points=0.5,
         env_steps_per_s=20.0,
+        event_dt_median_ms=3.5,
+        buckling_same_side=38,
+        env_steps_per_s_vec16=float("nan"),
     )
     for value in (0.12, 0.07):  # twice: the second write replaces the first table
         write_measured(p, dict(row, turn_rms_force_error=value), {"commit": "abc"})
     fid = load_fidelity(p)
     assert fid.measured["turn_rms_force_error"] == 0.07
     assert math.isnan(fid.measured["random_rms_force_error"])
+    assert fid.measured["event_dt_median_ms"] == 3.5 and fid.measured["buckling_same_side"] == 38
+    assert math.isnan(fid.measured["env_steps_per_s_vec16"])
     assert fid.bodies_per_bristle == load_fidelity("fast").bodies_per_bristle
     assert p.read_text().count("[measured]") == 1
+
+
+def _synthetic_turn(delay: float = 0.0, scale: float = 1.0) -> dict:
+    """A turn record of 2 tips on a 1 ms step: |F| 1 N in the press, 2 N in the hold, 3 N
+    sliding; tip 0 slips at 0.8 s + delay, tip 1 at 0.9 s + delay, the force steps from 3 N to
+    3.5 N at the first slip."""
+    t = 1e-3 * np.arange(1, 1201)
+    mag = np.where(t <= 0.5, 1.0, np.where(t <= 0.75, 2.0, 3.0))
+    mag = np.where(t >= 0.8 + delay - 1e-12, 3.5, mag) * scale
+    F = np.stack([np.zeros_like(t), np.zeros_like(t), mag], axis=1)
+    sliding = np.stack([t >= 0.8 + delay - 1e-12, t >= 0.9 + delay - 1e-12], axis=1)
+    phases = {"press": (0.0, 0.5), "hold": (0.5, 0.75), "sliding": (0.75, 1.2)}
+    fn = np.stack([mag / 2, mag / 2], axis=1)
+    off, lat = np.array([0.2, -0.3]), np.array([-0.03, 0.02])
+    return turn_summary(t, F, fn, sliding, np.ones_like(sliding), off, lat, phases, 1.0, "ok")
+
+
+def test_turn_metrics_of_a_delayed_copy():
+    ref = _synthetic_turn()
+    late = _synthetic_turn(delay=8e-3)
+    m = turn_metrics(late, ref)
+    assert m["event_dt_median_ms"] == pytest.approx(8.0)
+    assert m["event_dt_max_ms"] == pytest.approx(8.0)
+    assert m["events_ref"] == 2 and m["events_unmatched"] == 0
+    assert m["turn_rms_force_error"] > 0.01 and m["turn_rms_error_outside_events"] == 0.0
+    assert m["turn_phase_mean_hold_N"] == pytest.approx(2.0)
+    assert m["turn_phase_err_press"] == 0.0 and m["buckling_same_side"] == 2
+    assert m["lateral_force_same_side"] == 2
+    louder = turn_metrics(_synthetic_turn(scale=1.02), ref)
+    assert louder["turn_phase_err_hold"] == pytest.approx(0.02)
+    assert louder["turn_rms_error_outside_events"] == pytest.approx(0.02)
+    assert louder["turn_tip_force_error"] == pytest.approx(0.02)
+
+
+def test_stored_turn_and_episodes_round_trip(tmp_path):
+    run = _synthetic_turn()
+    save_turn(tmp_path / "turn.npz", run, "reference", "synthetic")
+    back = load_reference_turn(tmp_path / "turn.npz")
+    assert back["meta"]["level"] == "reference"
+    assert turn_metrics(back, run)["turn_rms_force_error"] == pytest.approx(0.0, abs=1e-7)
+    assert back["events"][1] == pytest.approx(run["events"][1])
+    eps = [
+        {
+            "F": np.ones((n, 3)),
+            "fn": np.ones((n, 4)),
+            "coverage": np.zeros(n),
+            "wall_s": 2.0,
+            "end": end,
+        }
+        for n, end in ((5, "steps"), (2, "force_limit"))
+    ]
+    p = tmp_path / "eps.npz"
+    save_episodes(p, eps, "reference", "synthetic", steps=5)
+    assert load_reference_episodes("balanced", 2, 5, p) is None  # another level
+    assert load_reference_episodes("reference", 3, 5, p) is None  # more episodes than stored
+    assert load_reference_episodes("reference", 2, 6, p) is None  # longer than stored
+    got = load_reference_episodes("reference", 2, 4, p)
+    assert [len(e["F"]) for e in got] == [4, 2]
+    assert got[0]["wall_s"] == pytest.approx(2.0 * 4 / 5) and got[1]["end"] == "force_limit"
