@@ -168,9 +168,14 @@ def turn_summary(
     """A turn run's record reduced to what (a) compares: every solver step's flags become the
     stick->slip events (``fidelity_metrics.stick_slip_events``), forces and flags go onto the
     5 ms grid (multiples of SAMPLE from the first step to the last), the phase means of |F|
-    on it."""
-    grid = np.arange(1, int(math.floor(t[-1] / SAMPLE + 1e-6)) + 1) * SAMPLE if len(t) else t
-    grid = grid[grid >= t[0] - 1e-9] if len(t) else grid
+    on it (a run that diverged in its first step has one sample of NaN at the first step)."""
+    if len(t) == 0:
+        nb = np.shape(fn)[1] if np.ndim(fn) == 2 else 0
+        t = np.array([SAMPLE])
+        F, fn = np.full((1, 3), np.nan), np.full((1, nb), np.nan)
+        sliding = contact = np.zeros((1, nb), bool)
+    grid = np.arange(1, int(math.floor(t[-1] / SAMPLE + 1e-6)) + 1) * SAMPLE
+    grid = grid[grid >= t[0] - 1e-9]
     idx = np.clip(np.searchsorted(t, grid - 1e-9), 0, max(len(t) - 1, 0))
     ev_b, ev_t = fm.stick_slip_events(t, sliding, contact)
     Fg = fm.on_grid(grid, t, F)
@@ -186,7 +191,7 @@ def turn_summary(
         "phases": phases,
         "phase_means": fm.phase_means(grid, Fg, phases),
         "wall_s": wall_s,
-        "sim_s": float(t[-1]) if len(t) else 0.0,
+        "sim_s": float(t[-1]),
         "status": status,
     }
 
