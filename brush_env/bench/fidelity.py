@@ -11,9 +11,10 @@ error (issues 12 and 29).
     (``REFERENCE_TURN_FILE``, ``--write-reference turn`` remakes it; without it, bench element's
     TCP-force-only file, and the tip measures are "—") unless ``--rerun-reference``.
     Measures against ``reference`` (definitions: ``fidelity_metrics``): RMS TCP-force error,
-    the same outside +-10 ms of the reference's stick->slip events, phase means of |F| (press,
-    hold, sliding) and their relative errors, the event-time error (median and largest |dt| of
-    each reference event to the same bristle's nearest event, unmatched beyond 100 ms), the
+    the same outside +-10 ms of the reference's stick->slip events (those after >= 5 ms of
+    stick), phase means of |F| (press, hold, sliding) and their relative errors, the event-time
+    error (median and largest |dt| of each reference event to the same bristle's nearest event,
+    unmatched beyond 100 ms), the
     bristles on the reference's buckling side at the end of the hold, the per-tip normal-force
     error; wall time per simulated second.
 (b) **Random-policy episodes** of FlatPlate-v0 at each level (``gym.make(..., fidelity=level)``,
@@ -177,7 +178,7 @@ def turn_summary(
     grid = np.arange(1, int(math.floor(t[-1] / SAMPLE + 1e-6)) + 1) * SAMPLE
     grid = grid[grid >= t[0] - 1e-9]
     idx = np.clip(np.searchsorted(t, grid - 1e-9), 0, max(len(t) - 1, 0))
-    ev_b, ev_t = fm.stick_slip_events(t, sliding, contact)
+    events = fm.stick_slip_events(t, sliding, contact)
     Fg = fm.on_grid(grid, t, F)
     return {
         "t": grid,
@@ -185,7 +186,7 @@ def turn_summary(
         "fn": fm.on_grid(grid, t, fn),
         "sliding": sliding[idx],
         "in_contact": contact[idx],
-        "events": (ev_b, ev_t),
+        "events": events,
         "offsets": offsets,
         "lateral_force": lateral_force,
         "phases": phases,
@@ -224,6 +225,7 @@ def save_turn(path: Path, run: dict, level: str, settings: str) -> None:
         in_contact=run["in_contact"],
         event_bristle=run["events"][0],
         event_t=run["events"][1],
+        event_stick_s=run["events"][2],
         offsets=run["offsets"],
         lateral_force=run["lateral_force"],
         phases=np.array([run["phases"][k] for k in PHASE_NAMES]),
@@ -244,7 +246,7 @@ def load_reference_turn(path: Path = REFERENCE_TURN_FILE) -> dict:
         "fn": d["fn"].astype(float),
         "sliding": d["sliding"],
         "in_contact": d["in_contact"],
-        "events": (d["event_bristle"], d["event_t"]),
+        "events": (d["event_bristle"], d["event_t"], d["event_stick_s"]),
         "offsets": d["offsets"],
         "lateral_force": d["lateral_force"],
         "phases": phases,
@@ -479,14 +481,15 @@ def turn_metrics(run: dict, ref: dict) -> dict:
         bristles=0,
     )
     if ref["events"] is not None:
+        ref_ev = fm.long_stick_events(ref["events"])
+        run_ev = fm.long_stick_events(run["events"])
         i, j = _common(run, ref)
-        mask = fm.event_mask(ref["t"][j], ref["events"][1], fm.EVENT_HALF_WIDTH)
+        mask = fm.event_mask(ref["t"][j], ref_ev[1], fm.EVENT_HALF_WIDTH)
         out["turn_rms_error_outside_events"] = fm.rms_error_outside(run["F"][i], ref["F"][j], mask)
         out["turn_masked_fraction"] = float(mask.mean()) if mask.size else nan
         # only the reference's events up to where the run got
-        rb, rt = ref["events"]
-        reached = rt <= run["sim_s"] + 1e-9
-        m = fm.match_events((rb[reached], rt[reached]), run["events"])
+        reached = ref_ev[1] <= run["sim_s"] + 1e-9
+        m = fm.match_events((ref_ev[0][reached], ref_ev[1][reached]), run_ev)
         out.update(
             event_dt_median_ms=m["median_abs_ms"],
             event_dt_max_ms=m["max_abs_ms"],
@@ -495,6 +498,8 @@ def turn_metrics(run: dict, ref: dict) -> dict:
             events_matched=m["n_matched"],
             events_unmatched=m["n_unmatched"],
             events_run=m["n_run"],
+            transitions_ref=int(len(ref["events"][0])),
+            transitions_run=int(len(run["events"][0])),
         )
     if ref["offsets"] is not None and run["offsets"] is not None:
         out["buckling_same_side"] = fm.same_side_count(

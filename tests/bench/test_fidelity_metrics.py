@@ -50,17 +50,35 @@ def test_phase_means_of_a_piecewise_constant_signal():
 
 def test_stick_slip_events_need_contact_at_both_samples():
     t, sliding, contact = _steps([0.2, 0.5], n=600)
-    b, te = fm.stick_slip_events(t, sliding, contact)
+    b, te, stick = fm.stick_slip_events(t, sliding, contact)
     assert b.tolist() == [0, 1] and te == pytest.approx([0.2, 0.5])
+    assert stick == pytest.approx([0.2 - DT, 0.5 - DT])  # stuck from the first sample on
     # bristle 1 lands already sliding at 0.5 s (out of contact before): no stick->slip
     contact[:, 1] = t >= 0.5 - 1e-12
-    b, te = fm.stick_slip_events(t, sliding, contact)
+    b, te, _ = fm.stick_slip_events(t, sliding, contact)
     assert b.tolist() == [0]
-    # slip -> stick -> slip again: two events of one bristle, sorted by time
+    # slip -> stick -> slip again: two events of one bristle, sorted by time; the second
+    # stuck from 0.301 s (the first sample of the stick) to 0.4 s
     s = sliding[:, :1].copy()
     s[(t > 0.3) & (t < 0.4), 0] = False
-    b, te = fm.stick_slip_events(t, s, np.ones_like(s))
+    b, te, stick = fm.stick_slip_events(t, s, np.ones_like(s))
     assert b.tolist() == [0, 0] and te == pytest.approx([0.2, 0.4])
+    assert stick[1] == pytest.approx(0.4 - 0.301)
+
+
+def test_a_flickering_flag_makes_no_counting_event():
+    """Stick 100 ms, then the flag alternates every step for 20 steps, then slides: one event
+    that counts (the first), 10 one-step flickers that do not."""
+    t = DT * np.arange(1, 301)
+    s = t > 0.1 + 1e-9
+    flick = (t > 0.1 + 1e-9) & (t < 0.12 - 1e-9)
+    s[flick] = (np.round(t[flick] / DT).astype(int) % 2) == 1
+    s = s[:, None]
+    raw = fm.stick_slip_events(t, s, np.ones_like(s))
+    assert len(raw[0]) == 10
+    b, te, stick = fm.long_stick_events(raw, min_stick=5e-3)
+    assert te == pytest.approx([0.101]) and stick == pytest.approx([0.1])
+    assert len(fm.long_stick_events(raw, min_stick=0.0)[0]) == 10
 
 
 def test_event_time_error_of_an_8_ms_shift():
