@@ -525,33 +525,13 @@ def bench_fidelity(args) -> int:
         return _write_references(args, against, log)
     if against not in levels:
         levels.insert(0, against)
-    episodes = 1 if args.quick else args.episodes
-    steps = 3 if args.quick else args.steps
-    brush = "tiny_env" if args.quick else None
     print("warming up the kernels ...", file=log, flush=True)
     warm_kernels()
     turns: dict = {}
     eps: dict = {}
     vec: dict = {}
     for name in levels:
-        print(f"  {name}: the paper's turn ...", file=log, flush=True)
-        if name == "reference" and not args.quick and not args.rerun_reference:
-            turns[name] = stored_reference_turn()
-        else:
-            turns[name] = turn_run(name, args.quick)
-        stored = None
-        if not args.quick and not args.rerun_reference and name == against:
-            stored = load_reference_episodes(name, episodes, steps)
-        print(
-            f"  {name}: {episodes} random episodes" + (" (stored)" if stored else "") + " ...",
-            file=log,
-            flush=True,
-        )
-        eps[name] = stored or [episode_run(name, s, steps, brush) for s in range(episodes)]
-        vec[name] = {}
-        for n in [] if args.quick else args.vec_sizes:
-            print(f"  {name}: batched env, N = {n} ...", file=log, flush=True)
-            vec[name][n] = vector_steps_per_s(name, n, args.vec_seconds, args.vec_steps)
+        turns[name], eps[name], vec[name] = measure_level(args, name, against, log)
     rows = []
     for name in levels:
         row = level_row(name, load_fidelity(name).describe(), against, turns, eps, vec[name])
@@ -559,8 +539,7 @@ def bench_fidelity(args) -> int:
     if not args.json:
         print(format_table(rows))
         for r in rows:
-            if r.get("vec_note"):
-                print(f"batched env, {r['level']}: {r['vec_note']}", file=log)
+            print(f"batched env, {r['level']}: {r['vec_note']}", file=log)
     if args.plot and not args.quick:
         pareto_plot(rows, Path(args.plot))
         print(f"plot: {args.plot}", file=log)
@@ -570,6 +549,39 @@ def bench_fidelity(args) -> int:
             write_measured(load_fidelity(r["level"]).path, r, info)
         print("wrote [measured] into configs/fidelity/*.toml", file=log)
     return 0
+
+
+def measure_level(args, name: str, against: str, log) -> tuple[dict, list, dict]:
+    """(a), (b) and (c) of one level: its turn (stored for ``reference`` unless
+    ``--rerun-reference``), its episodes (stored for ``against`` when the file holds them) and
+    its batched rates {N: (rate, note)}; each timed run after an untimed one that loads (or
+    compiles) the level's kernels."""
+    episodes = 1 if args.quick else args.episodes
+    steps = 3 if args.quick else args.steps
+    brush = "tiny_env" if args.quick else None
+    live = args.quick or args.rerun_reference
+    print(f"  {name}: the paper's turn ...", file=log, flush=True)
+    if name == "reference" and not live:
+        turn = stored_reference_turn()
+    else:
+        if not args.quick:
+            turn_run(name, quick=True)  # untimed warm-up
+        turn = turn_run(name, args.quick)
+    stored = None if (live or name != against) else load_reference_episodes(name, episodes, steps)
+    print(
+        f"  {name}: {episodes} random episodes" + (" (stored)" if stored else "") + " ...",
+        file=log,
+        flush=True,
+    )
+    if stored is None:
+        if episodes > 0:
+            episode_run(name, 0, 2, brush)  # untimed warm-up: the env's own kernels
+        stored = [episode_run(name, s, steps, brush) for s in range(episodes)]
+    vec = {}
+    for n in [] if args.quick else args.vec_sizes:
+        print(f"  {name}: batched env, N = {n} ...", file=log, flush=True)
+        vec[n] = vector_steps_per_s(name, n, args.vec_seconds, args.vec_steps)
+    return turn, stored, vec
 
 
 def level_row(name: str, settings: str, against: str, turns: dict, eps: dict, vec: dict) -> dict:
@@ -644,6 +656,12 @@ def _num(x: float, fmt: str = ".1f") -> str:
     return "n/a" if not math.isfinite(x) else format(x, fmt)
 
 
+def _settings(r: dict) -> str:
+    """The level's description without its name."""
+    text = r["settings"]
+    return text[len(r["level"]) :].lstrip(": ") if text.startswith(r["level"]) else text
+
+
 def format_table(rows) -> str:
     """Two Markdown tables: (a) the paper's turn; (b) random episodes and (c) speed."""
 
@@ -675,13 +693,13 @@ def format_table(rows) -> str:
             ("level", lambda r: r["level"]),
             ("TCP force err", lambda r: _pct(r["turn_rms_force_error"])),
             ("outside ±10 ms of events", lambda r: _pct(r["turn_rms_error_outside_events"])),
-            ("press mean |F| [N]", phase("press")),
-            ("hold mean |F| [N]", phase("hold")),
-            ("sliding mean |F| [N]", phase("sliding")),
+            ("press: mean ‖F‖ [N] (err)", phase("press")),
+            ("hold: mean ‖F‖ [N] (err)", phase("hold")),
+            ("sliding: mean ‖F‖ [N] (err)", phase("sliding")),
             ("event Δt median / max [ms]", events),
             ("same side at hold: tip offset / tip force", side),
             ("tip force err", lambda r: _pct(r["turn_tip_force_error"])),
-            ("wall / sim s", lambda r: _num(r["turn_wall_per_sim_s"], ".2f")),
+            ("wall / sim s [s/s]", lambda r: _num(r["turn_wall_per_sim_s"], ".2f")),
             ("status", lambda r: r["turn_status"]),
         ],
     )
@@ -693,16 +711,16 @@ def format_table(rows) -> str:
             ("random: tip force err", lambda r: _pct(r["random_tip_force_error"])),
             ("coverage diff [points]", lambda r: _num(r["random_coverage_diff_points"], ".2f")),
             (
-                "episodes × steps",
+                "episodes (env steps)",
                 lambda r: (
-                    f"{r['episodes']} × ≤{max(1, r['env_steps'] // max(r['episodes'], 1))}"
-                    + (" (stored)" if r.get("episodes_stored") else "")
+                    f"{r['episodes']} ({r['env_steps']})"
+                    + (" stored" if r.get("episodes_stored") else "")
                 ),
             ),
             ("env steps/s (1 env)", lambda r: _num(r["env_steps_per_s"])),
             ("N = 16", lambda r: _num(r["env_steps_per_s_vec16"], ".0f")),
             ("N = 64", lambda r: _num(r["env_steps_per_s_vec64"], ".0f")),
-            ("settings", lambda r: r["settings"].split(": ", 1)[-1]),
+            ("settings", _settings),
         ],
     )
     return (
@@ -711,76 +729,98 @@ def format_table(rows) -> str:
 
 
 def pareto_plot(rows, path: Path) -> None:
-    """Three panels against wall time per simulated second of the turn (log x), one point per
-    level and measure: relative force errors [%]; event-time error [ms]; bristles off the
-    reference's buckling side and coverage difference [points]."""
+    """Four panels, one point per level and measure.  Against wall time per simulated second of
+    the turn (log x): the turn's relative force errors [%]; its event-time error [ms]; the
+    bristles off the reference's side at the hold [count].  Against env steps per second (log
+    x; one env, and N = 64 batched where measured): the random episodes' force errors [%] and
+    coverage difference [points]."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
-    fig, axes = plt.subplots(1, 3, figsize=(14.0, 4.4))
-    xs = [r["turn_wall_per_sim_s"] for r in rows]
+    for r in rows:
+        errs = [abs(r[f"turn_phase_err_{k}"]) for k in PHASE_NAMES]
+        r["_phase_max"] = max((e for e in errs if math.isfinite(e)), default=math.nan)
+        for key in ("buckling_same_side", "lateral_force_same_side"):
+            r[f"_{key}_off"] = float(r["bristles"] - r[key]) if r[key] >= 0 else math.nan
+    wall = "turn_wall_per_sim_s"
+    against = rows[0]["against"]
     panels = [
         (
-            axes[0],
-            f"error vs {rows[0]['against']} [%]",
+            wall,
+            f"paper turn: error vs {against} [%]",
             [
-                ("turn_rms_force_error", "o", "turn: TCP force RMS", 100),
+                ("turn_rms_force_error", "o", "TCP force RMS", 100),
                 (
                     "turn_rms_error_outside_events",
                     "D",
-                    "turn: TCP RMS outside ±10 ms of events",
+                    "TCP force RMS outside ±10 ms of events",
                     100,
                 ),
-                ("turn_phase_err_max", "^", "turn: largest |phase-mean error|", 100),
-                ("turn_tip_force_error", "v", "turn: per-tip normal force RMS", 100),
-                ("random_rms_force_error", "s", "random episodes: TCP force RMS", 100),
+                ("_phase_max", "^", "largest |phase-mean error| (press, hold, sliding)", 100),
+                ("turn_tip_force_error", "v", "per-tip normal force RMS", 100),
             ],
         ),
         (
-            axes[1],
-            "stick→slip event-time error |Δt| [ms]",
+            wall,
+            "paper turn: stick→slip event-time error |Δt| [ms]",
+            [("event_dt_median_ms", "o", "median", 1), ("event_dt_max_ms", "^", "largest", 1)],
+        ),
+        (
+            wall,
+            "paper turn: bristles off the reference's side [count]",
             [
-                ("event_dt_median_ms", "o", "median", 1),
-                ("event_dt_max_ms", "^", "largest", 1),
+                ("_buckling_same_side_off", "o", "by the tip's lateral offset", 1),
+                ("_lateral_force_same_side_off", "s", "by the lateral tip force", 1),
             ],
         ),
         (
-            axes[2],
-            "bristles [count] / coverage [points]",
+            "env_steps_per_s",
+            "random episodes: error [%] / coverage [points]",
             [
-                ("buckling_other_side", "o", "bristles not on the reference's buckling side", 1),
+                ("random_rms_force_error", "o", "TCP force RMS [%]", 100),
+                ("random_tip_force_error", "v", "per-tip normal force RMS [%]", 100),
                 ("random_coverage_diff_points", "s", "coverage difference [points]", 1),
             ],
         ),
     ]
-    for r in rows:
-        errs = [abs(r[f"turn_phase_err_{k}"]) for k in PHASE_NAMES]
-        r_max = max((e for e in errs if math.isfinite(e)), default=math.nan)
-        r.setdefault("turn_phase_err_max", r_max)
-        other = r["bristles"] - r["buckling_same_side"] if r["buckling_same_side"] >= 0 else None
-        r.setdefault("buckling_other_side", math.nan if other is None else float(other))
-    for ax, ylabel, series in panels:
+    xlabels = {
+        wall: "wall time per simulated second of the turn [s/s] (one core)",
+        "env_steps_per_s": "env steps per second (one env; open: N = 64 batched) [1/s]",
+    }
+    fig, axes = plt.subplots(2, 2, figsize=(12.0, 8.4))
+    for ax, (xkey, ylabel, series) in zip(axes.flat, panels):
         for key, mark, label, scale in series:
-            ys = [scale * r[key] for r in rows]
-            ax.scatter(xs, ys, marker=mark, label=label)
-            for r, x, y in zip(rows, xs, ys):
-                if math.isfinite(x) and math.isfinite(y):
-                    ax.annotate(
-                        r["level"], (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7
+            pts = [(r[xkey], scale * r[key], r["level"]) for r in rows]
+            pts = [(x, y, lv) for x, y, lv in pts if math.isfinite(x) and math.isfinite(y)]
+            sc = ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=mark, label=label)
+            for x, y, lv in pts:
+                ax.annotate(lv, (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+            if xkey == "env_steps_per_s":  # the batched rate of the same level, hollow
+                vec = [(r["env_steps_per_s_vec64"], scale * r[key]) for r in rows]
+                vec = [(x, y) for x, y in vec if math.isfinite(x) and math.isfinite(y)]
+                if vec:
+                    ax.scatter(
+                        [v[0] for v in vec],
+                        [v[1] for v in vec],
+                        marker=mark,
+                        facecolors="none",
+                        edgecolors=sc.get_facecolor(),
                     )
         ax.set_xscale("log")
-        ax.set_xlabel("wall time per simulated second of the turn [s/s] (one core)")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(xlabels[xkey])
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=7)
     for r in rows:
-        r.pop("turn_phase_err_max", None)
-        r.pop("buckling_other_side", None)
+        for k in [k for k in r if k.startswith("_")]:
+            del r[k]
     fig.suptitle("brush_env fidelity levels against reference (brush-env bench fidelity)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
