@@ -811,6 +811,11 @@ def pareto_plot(rows, path: Path) -> None:
                     )
         ax.set_xscale("log")
         ax.xaxis.set_minor_formatter(NullFormatter())
+        if xkey == "env_steps_per_s":  # errors from 0 to many times the reference's force
+            ax.set_yscale("symlog", linthresh=10.0)
+            ax.set_ylim(0.0, 2.0 * max(ax.get_ylim()[1], 10.0))
+        if series[0][0] == "_buckling_same_side_off":
+            ax.set_ylim(-1.0, max([r["bristles"] for r in rows] + [1]) + 1.0)
         ax.set_xlabel(xlabels[xkey])
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=7)
