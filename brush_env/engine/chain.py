@@ -394,22 +394,10 @@ class DFMChain(BristleModel):
         )
 
     def contact(self) -> TipContact:
-        ts = self.state.tip_state
-        fn = ts["fn"].copy()
-        touching = fn > 0.0
-        return TipContact(
-            fn,
-            ts["ft"].copy(),
-            (ts["slide"] > 0) & touching,
-            np.maximum(ts["pen"], 0.0) * touching,
-            ts["cpt"].copy(),
-            ts["ftt"].copy(),
-            np.where(touching, ts["surf"], -1).astype(np.int64),
-        )
+        return tip_contact(self.state.tip_state)
 
     def tip_penetration(self) -> np.ndarray:
-        ts = self.state.tip_state
-        return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
+        return tip_penetration(self.state.tip_state)
 
     def shaft_contact(self) -> ShaftContact | None:
         """Per-body shaft contact of the last solver step (None when the scene's is off)."""
@@ -526,6 +514,26 @@ def _shaft_capsules(brush: BrushConfig, model: Model) -> np.ndarray:
         sh["lo"][i0:i1] = -0.5 * seg
         sh["hi"][i0:i1] = np.minimum(0.5 * seg, 0.5 * seg + after - model.tip_radius[j])
     return sh
+
+
+def tip_contact(ts: np.ndarray) -> TipContact:
+    """The seam's ``TipContact`` of the tips' contact states (``records.TIP_STATE``), copied."""
+    fn = ts["fn"].copy()
+    touching = fn > 0.0
+    return TipContact(
+        fn,
+        ts["ft"].copy(),
+        (ts["slide"] > 0) & touching,
+        np.maximum(ts["pen"], 0.0) * touching,
+        ts["cpt"].copy(),
+        ts["ftt"].copy(),
+        np.where(touching, ts["surf"], -1).astype(np.int64),
+    )
+
+
+def tip_penetration(ts: np.ndarray) -> np.ndarray:
+    """(nb,) [mm] each tip's penetration of its last evaluation (0 where it does not touch)."""
+    return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
 
 
 def fresh_tip_state(nb: int) -> np.ndarray:

@@ -24,7 +24,14 @@ from . import records as rec
 from . import records as rec_
 from . import shaft as shf
 from .bristles import BristleModel, TipContact, register_bristle_model
-from .chain import fresh_tip_state, head_outline, surface_rows, tip_pairs
+from .chain import (
+    fresh_tip_state,
+    head_outline,
+    surface_rows,
+    tip_contact,
+    tip_pairs,
+    tip_penetration,
+)
 from .checks import ConfigError
 from .config import BrushConfig
 from .mesh_contact import build_mesh, empty_mesh
@@ -384,22 +391,10 @@ class PRBBristles(BristleModel):
         )
 
     def contact(self) -> TipContact:
-        ts = self.state.tip_state
-        fn = ts["fn"].copy()
-        touching = fn > 0.0
-        return TipContact(
-            fn,
-            ts["ft"].copy(),
-            (ts["slide"] > 0) & touching,
-            np.maximum(ts["pen"], 0.0) * touching,
-            ts["cpt"].copy(),
-            ts["ftt"].copy(),
-            np.where(touching, ts["surf"], -1).astype(np.int64),
-        )
+        return tip_contact(self.state.tip_state)
 
     def tip_penetration(self) -> np.ndarray:
-        ts = self.state.tip_state
-        return np.maximum(ts["pen"], 0.0) * (ts["fn"] > 0.0)
+        return tip_penetration(self.state.tip_state)
 
     def head_clearance(self) -> float | None:
         if self._head is None:
