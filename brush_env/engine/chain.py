@@ -162,19 +162,8 @@ class DFMChain(BristleModel):
         self.tip_args = np.zeros(nb, rec.TIP_ARGS)
         self.tip_args["radius"] = self.model.tip_radius
         self.contact_params = scene.contact.as_array()  # Tables 2-3, from the scene
-        self.surfaces, grids = surface_rows(scene.surfaces)
-        self.sdf = pack_grids(grids)
-        meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
-        if len(meshes) > 1:
-            raise ConfigError(
-                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
-            )
-        self.mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
-        self.pair_ptr, self.pair_idx = (
-            tip_pairs(self.model, scene)
-            if scene.tip_tip
-            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
-        )
+        self.surfaces, self.sdf, self.mesh = scene_surfaces(scene)
+        self.pair_ptr, self.pair_idx = scene_tip_pairs(self.model, scene)
         self._ws = rec.make_work(
             int(np.diff(self.model.bstart).max()),
             self.model.n_bodies,
@@ -514,6 +503,26 @@ def _shaft_capsules(brush: BrushConfig, model: Model) -> np.ndarray:
         sh["lo"][i0:i1] = -0.5 * seg
         sh["hi"][i0:i1] = np.minimum(0.5 * seg, 0.5 * seg + after - model.tip_radius[j])
     return sh
+
+
+def scene_surfaces(scene) -> tuple[np.ndarray, object, object]:
+    """The kernels' view of a scene's surfaces: their records (``surface_rows``), the packed SDF
+    grids and the triangle mesh (at most one; an empty one without)."""
+    surfaces, grids = surface_rows(scene.surfaces)
+    meshes = [srf for srf in scene.surfaces if isinstance(srf, MeshPlate)]
+    if len(meshes) > 1:
+        raise ConfigError(
+            f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
+        )
+    mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
+    return surfaces, pack_grids(grids), mesh
+
+
+def scene_tip_pairs(model, scene) -> tuple[np.ndarray, np.ndarray]:
+    """``tip_pairs`` of the model if the scene has tip-tip contact on, else no pairs."""
+    if scene.tip_tip:
+        return tip_pairs(model, scene)
+    return np.zeros(model.n_bristles + 1, np.int64), np.zeros(0, np.int64)
 
 
 def tip_contact(ts: np.ndarray) -> TipContact:

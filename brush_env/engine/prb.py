@@ -27,17 +27,14 @@ from .bristles import BristleModel, TipContact, register_bristle_model
 from .chain import (
     fresh_tip_state,
     head_outline,
-    surface_rows,
+    scene_surfaces,
+    scene_tip_pairs,
     tip_contact,
-    tip_pairs,
     tip_penetration,
 )
 from .checks import ConfigError
 from .config import BrushConfig
-from .mesh_contact import build_mesh, empty_mesh
 from .prb_calibration import joint_parameters
-from .scene import MeshPlate
-from .sdf import pack_grids
 from .settings import SimSettings, SimulationDivergence
 from .simulator import PENETRATION_WARN_FRACTION
 
@@ -156,19 +153,8 @@ class PRBBristles(BristleModel):
         self._cp_frictionless = self.contact_params.copy()
         self._cp_frictionless["mu_s"] = 0.0
         self._cp_frictionless["mu_d"] = 0.0
-        self.surfaces, grids = surface_rows(scene.surfaces)
-        self.sdf = pack_grids(grids)
-        meshes = [s for s in scene.surfaces if isinstance(s, MeshPlate)]
-        if len(meshes) > 1:
-            raise ConfigError(
-                f"scene {scene.name!r}: at most one triangle-mesh surface, got {len(meshes)}"
-            )
-        self.mesh = build_mesh(*meshes[0].triangles()) if meshes else empty_mesh()
-        self.pair_ptr, self.pair_idx = (
-            tip_pairs(_PairModel(m), scene)
-            if scene.tip_tip
-            else (np.zeros(nb + 1, np.int64), np.zeros(0, np.int64))
-        )
+        self.surfaces, self.sdf, self.mesh = scene_surfaces(scene)
+        self.pair_ptr, self.pair_idx = scene_tip_pairs(_PairModel(m), scene)
         # half of each bristle's weight at its tip, the other half at its root (statics of a
         # uniform cantilever: the same root force, the root moment within the bristle's sag)
         g = np.asarray(settings.gravity, float)
