@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT, lu_dense, lus_dense
-from .contact import penetration_step_limit, step10, step10_dx, tip_load
+from .contact import PEN_STEP_MIN, penetration_step_limit, step10, step10_dx, tip_load
 from .records import Substep
 
 #: the reduced model's kernels: as HOT, with fast floating point (reassociation and fused
@@ -92,6 +92,8 @@ BACKTRACKS = 4
 FREE_PASSES = 3
 #: a bristle whose step fails is retried in up to 2**MAX_HALVINGS sub-steps (``_halved``)
 MAX_HALVINGS = 5
+#: passes over the bristles whose tips overlap too far, after the sweep (``step_all``)
+TT_PASSES = 2
 
 
 @njit(**PRB, inline="always")
@@ -457,21 +459,24 @@ def _bow_side(q, geo, wk):
 @njit(**PRB)
 def _escape(q, s, A, kq, geo, wk, dq, push):
     """dq <- a step off a saddle when the Newton matrix is not positive definite (a column
-    pressed past its buckling load, held straight by the last Newton iterates): the shifted
-    Newton step (A - lam I + eps) dq = -s plus, with ``push`` (at the saddle itself), a move
-    along the direction of negative curvature, to the side ``_bow_side`` picks.  Returns the
-    smallest eigenvalue (>= 0: A is fine, dq untouched)."""
+    pressed past its buckling load, held straight by the last Newton iterates): the saddle-free
+    Newton step -sum_m v_m (v_m . s) / max(|lam_m|, floor) over the eigenpairs of A's symmetric
+    part (Newton along the stable modes, down the energy along the unstable ones, never back up
+    onto the saddle), plus, with ``push`` (at the saddle itself, where s ~ 0), a move along the
+    direction of negative curvature to the side ``_bow_side`` picks.  Returns the smallest
+    eigenvalue (>= 0: A is fine, dq untouched)."""
     lam = _sym_min_eig(A, wk.S, wk.V, wk.w)
     if lam >= 0.0:
         return lam
-    kmax = max(kq[0], kq[1], kq[2], kq[3])
+    # the floor keeps a mode near its buckling load (lam ~ 0) from a step beyond MAX_DQ
+    floor = 1e-2 * max(kq[0], kq[1], kq[2], kq[3])
     for i in range(NQ):
-        for j in range(NQ):
-            wk.S[i, j] = 0.5 * (A[i, j] + A[j, i])
-        wk.S[i, i] += -lam + 1e-3 * kmax
-        dq[i] = -s[i]
-    lu_dense(wk.S, NQ, wk.piv)
-    lus_dense(wk.S, NQ, wk.piv, dq)
+        dq[i] = 0.0
+    for m in range(NQ):
+        vs = wk.V[0, m] * s[0] + wk.V[1, m] * s[1] + wk.V[2, m] * s[2] + wk.V[3, m] * s[3]
+        c = vs / max(abs(wk.S[m, m]), floor)
+        for i in range(NQ):
+            dq[i] -= c * wk.V[i, m]
     if push:
         # the side is the geometry's (``_bow_side``), not the residual's: a tip that meets the
         # plate within a step loads the straight column at once, and its residual's component
@@ -532,6 +537,58 @@ def _conservative_part(b, con, B, wk):
 
 
 @njit(**PRB)
+def _partner_limit(b, x, dp, R, con, amax):
+    """The fraction (at most amax) of the tip step dp from x [mm] that keeps the tip out of every
+    partner tip by more than twice its overlap now (at least PEN_STEP_MIN), along the whole
+    straight path (a ray against the partner's sphere).  ``penetration_step_limit`` looks along
+    the line of centres only: a massless tip springing back ~1 mm in one iterate passed across
+    that line and landed 0.6 mm inside its neighbour's tip (random actions, seed 10), where the
+    Table 3 push runs along both bristles' links and nothing gives."""
+    tips = con.tips
+    ptr = con.pair_ptr
+    if ptr.shape[0] <= b + 1:
+        return amax
+    aa = dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2]
+    if aa == 0.0:
+        return amax
+    for q in range(ptr[b], ptr[b + 1]):
+        j = con.pair_idx[q]
+        d0, d1, d2 = x[0] - tips[j, 0], x[1] - tips[j, 1], x[2] - tips[j, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        rs = R + tips[j, 6]
+        gap = np.sqrt(dd) - rs
+        rt = rs - max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)  # the closest the centres may come
+        c = dd - rt * rt
+        if c <= 0.0:
+            continue
+        bb = 2.0 * (dp[0] * d0 + dp[1] * d1 + dp[2] * d2)
+        disc = bb * bb - 4.0 * aa * c
+        if bb >= 0.0 or disc < 0.0:  # moving away, or the path misses the sphere
+            continue
+        a = (-bb - np.sqrt(disc)) / (2.0 * aa)
+        if a < amax:
+            amax = max(a, 0.0)
+    return amax
+
+
+@njit(**PRB)
+def _contact_limit(b, B, dq, con, wk):
+    """The fraction of the joint step dq that the tip's (linearised) step wk.dp = B J dq may take
+    from wk.xw (J in wk.J): the full model's penetration limit and ``_partner_limit``."""
+    for a in range(3):
+        t = 0.0
+        for i in range(NQ):
+            t += wk.J[a, i] * dq[i]
+        wk.tmp[a] = t
+    dp = wk.dp
+    for a in range(3):
+        dp[a] = B[a, 0] * wk.tmp[0] + B[a, 1] * wk.tmp[1] + B[a, 2] * wk.tmp[2]
+    R = con.tip_args[b].radius
+    a_pen = penetration_step_limit(b, wk.xw, dp, R, con, wk.tw)
+    return _partner_limit(b, wk.xw, dp, R, con, a_pen)
+
+
+@njit(**PRB)
 def _step_limit(b, B, dq, static, sub, con, wk, leaving):
     """(fraction of dq to take, max |dq|, held): the cap MAX_DQ on the angles, the full model's
     contact limits on the tip's (linearised) step (``penetration_step_limit``,
@@ -541,17 +598,10 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
     for i in range(NQ):
         dmax = max(dmax, abs(dq[i]))
     alpha = 1.0 if dmax <= MAX_DQ else MAX_DQ / dmax
-    for a in range(3):
-        t = 0.0
-        for i in range(NQ):
-            t += wk.J[a, i] * dq[i]
-        wk.tmp[a] = t
-    dp = wk.dp
-    for a in range(3):
-        dp[a] = B[a, 0] * wk.tmp[0] + B[a, 1] * wk.tmp[1] + B[a, 2] * wk.tmp[2]
-    a_pen = penetration_step_limit(b, wk.xw, dp, con.tip_args[b].radius, con, wk.tw)
+    a_pen = _contact_limit(b, B, dq, con, wk)
     if a_pen < alpha:
         alpha = max(a_pen, 1e-3)
+    dp = wk.dp
     st = con.tip_state[b]
     if st.fn > 0.0 and st.pen > 0.0 and not leaving:
         # a touching tip leaves its surface at most halfway per iterate (the mirror of the
@@ -648,6 +698,8 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
         wk.qr[i] = j.rest[i]
     damp = 0.0 if static else j.beta / sub.h
     ftol = tol * max(kq[0], kq[1], kq[2], kq[3])
+    kmin = min(kq[0], kq[1], kq[2], kq[3])
+    lsum = geo[1] + geo[2]
     dq = wk.dq
     escapes = 0
     small = False  # the last step was below tol
@@ -663,19 +715,11 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
             for i in range(NQ):
                 wk.qb[i] = q[i]
         converged = smax <= ftol or small
-        # a converged, straight bristle whose tip is pressed toward its root may sit on a saddle
-        check = (
-            converged
-            and escapes < MAX_ESCAPES
-            and wk.Fl[0] < 0.0
-            and max(
-                abs(q[0] - wk.qr[0]),
-                abs(q[1] - wk.qr[1]),
-                abs(q[2] - wk.qr[2]),
-                abs(q[3] - wk.qr[3]),
-            )
-            < STRAIGHT
-        )
+        # a converged bristle whose tip is pressed toward its root may sit on a saddle: straight,
+        # or leaning with its tip held by stiction so that the load runs along its links (a
+        # column with no axial give holds any load there); checked when the axial load is past
+        # a tenth of the softest joint's over the bristle's length (the buckling loads are ~1)
+        check = converged and escapes < MAX_ESCAPES and -wk.Fl[0] * lsum > 0.1 * kmin
         if converged and not check:
             return it
         _tangent(q, geo, kq, c3, damp, B, wk)
@@ -686,8 +730,9 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
         turn = 0.0
         for i in range(NQ):
             turn = max(turn, abs(q[i] - wk.qr[i]))
-        pressed = wk.Fl[0] < 0.0 and turn < BUCKLING and stalls < 2
-        push = pressed and turn < STRAIGHT and escapes < MAX_ESCAPES  # the side: _bow_side
+        pressed = wk.Fl[0] < 0.0 and turn < BUCKLING and (stalls < 2 or converged)
+        # on the saddle itself (straight, or converged) the step also moves along the mode
+        push = pressed and (turn < STRAIGHT or converged) and escapes < MAX_ESCAPES
         ok, modified = _direction(b, q, geo, kq, B, con, wk, dq, pressed, push)
         if not ok:
             return -1
@@ -854,6 +899,16 @@ def _solve_one(b, joints, frames, ctx, gtip):
     for i in range(NQ):
         if abs(q[b, i] - qp[b, i]) > MAX_DQ:
             ex = 0.0
+    if ex > 0.0:
+        # ... no further than a Newton step may go (``_step_limit``'s contact limits): carried on
+        # blindly, it put a tip 0.6 mm inside its neighbour's, on an equilibrium whose push runs
+        # along the links (random actions, seed 10)
+        for i in range(NQ):
+            wk.dq[i] = q[b, i] - qp[b, i]
+        geo = ctx.prm[b].geo
+        kinematics(q[b], geo, wk.x, wk.J, wk.cs, wk.orders, wk.v, wk.tmp)
+        _to_world(pose.B, wk.x, pose.rw, wk.xw)
+        ex = _contact_limit(b, pose.B, wk.dq, ctx.con, wk)
     for i in range(NQ):
         wk.qt[i] = q[b, i] + ex * (q[b, i] - qp[b, i])
     n = solve_bristle(b, wk.qt, wk.qn, pose, ctx, LOOSE_TOL)
@@ -891,6 +946,62 @@ def _accept(b, joints, frames, ctx, gtip, rootw):
 
 
 @njit(**PRB)
+def _keep_start(b, joints, con, wk, restore):
+    """wk.start[b] <- bristle b's state at the step's start (angles now and before, tip position
+    and velocity, stiction deformation and sliding flag), or back from it with ``restore``."""
+    st = con.tip_state[b]
+    keep = wk.start[b]
+    tips = con.tips
+    if restore:
+        for i in range(NQ):
+            joints.q[b, i] = keep[i]
+            joints.qp[b, i] = keep[NQ + i]
+        for a in range(6):
+            tips[b, a] = keep[2 * NQ + a]
+        for a in range(3):
+            st.delta[a] = keep[2 * NQ + 6 + a]
+        st.beta = keep[2 * NQ + 9]
+        return
+    for i in range(NQ):
+        keep[i] = joints.q[b, i]
+        keep[NQ + i] = joints.qp[b, i]
+    for a in range(6):
+        keep[2 * NQ + a] = tips[b, a]
+    for a in range(3):
+        keep[2 * NQ + 6 + a] = st.delta[a]
+    keep[2 * NQ + 9] = st.beta
+
+
+@njit(**PRB)
+def _step_one(b, joints, frames, ctx, gtip, rootw):
+    """Bristle b's solver step from its state at the step's start (``_solve_one``), taken
+    (``_accept``) or, if it failed even halved, left as it was with ctx.out.status[b] = 1."""
+    wk, out, con = ctx.wk, ctx.out, ctx.con
+    tips = con.tips
+    st = con.tip_state[b]
+    for a in range(3):
+        st.pn[a] = tips[b, a]
+        st.hist[a] = -tips[b, a]  # backward Euler: v = (p - p_n) / h
+        wk.d0[a] = st.delta[a]
+    wk.d0[3] = st.beta
+    for i in range(NQ):
+        wk.qn[i] = joints.q[b, i]
+        wk.qt[i] = joints.q[b, i]
+    n = _solve_one(b, joints, frames, ctx, gtip)
+    out.iters[b] += max(n, 0)
+    if n >= LOOSE:
+        out.loose[b] += 1
+    if n < 0:
+        out.status[b] = 1
+        for a in range(3):
+            st.delta[a] = wk.d0[a]
+        st.beta = wk.d0[3]
+        return
+    out.status[b] = 0
+    _accept(b, joints, frames, ctx, gtip, rootw)
+
+
+@njit(**PRB)
 def step_all(p0, R0, p, R, geo, joints, frames, ctx, gtip, rootw):
     """One solver step of every bristle from the TCP pose (p0, R0) to (p [mm], R) at the step's
     end (``geo``: the brush; ``joints``: the angles, updated; ``frames``: filled with the roots
@@ -899,33 +1010,34 @@ def step_all(p0, R0, p, R, geo, joints, frames, ctx, gtip, rootw):
     (``_accept``), so that the next bristle sees it (one Gauss-Seidel sweep of the tip-tip
     contacts).  rootw (nb, 6): each bristle's push on the head.  A bristle that fails even
     halved leaves its state untouched and sets ctx.out.status[b] = 1 (the caller rolls the
-    whole step back)."""
+    whole step back).
+
+    Then, up to TT_PASSES times, a bristle whose tips' overlap with its neighbours went past the
+    penalty law's range (Table 3's force at LOOSE_PEN of its radius) is solved again from the
+    step's start with its partners where the sweep left them: a massless bristle springs back
+    within one step, and the sweep held the neighbour it springs into where that one stood
+    before it sprang back too (two tips on one spot, a 50 N push, under random actions)."""
     wk, out, con = ctx.wk, ctx.out, ctx.con
     root_frames(p, R, geo.root_p, geo.root_R, frames.rootpos, frames.Bw)
     root_frames(p0, R0, geo.root_p, geo.root_R, wk.rp0, wk.B0)
-    tips = con.tips
-    for b in range(joints.q.shape[0]):
-        st = con.tip_state[b]
-        for a in range(3):
-            st.pn[a] = tips[b, a]
-            st.hist[a] = -tips[b, a]  # backward Euler: v = (p - p_n) / h
-            wk.d0[a] = st.delta[a]
-        wk.d0[3] = st.beta
-        for i in range(NQ):
-            wk.qn[i] = joints.q[b, i]
-            wk.qt[i] = joints.q[b, i]
-        n = _solve_one(b, joints, frames, ctx, gtip[b])
-        out.iters[b] = max(n, 0)
-        if n >= LOOSE:
-            out.loose[b] += 1
-        if n < 0:
-            out.status[b] = 1
-            for a in range(3):
-                st.delta[a] = wk.d0[a]
-            st.beta = wk.d0[3]
-            continue
-        out.status[b] = 0
-        _accept(b, joints, frames, ctx, gtip[b], rootw)
+    nb = joints.q.shape[0]
+    cp = con.cp[0]
+    for b in range(nb):
+        out.iters[b] = 0
+        _keep_start(b, joints, con, wk, False)
+        _step_one(b, joints, frames, ctx, gtip[b], rootw)
+    if con.pair_ptr.shape[0] <= 1:
+        return
+    for _ in range(TT_PASSES):
+        again = False
+        for b in range(nb):
+            lim = cp.k_tt * (LOOSE_PEN * con.tip_args[b].radius) ** cp.m1_tt
+            if out.status[b] == 0 and con.tip_state[b].ftt > lim:
+                _keep_start(b, joints, con, wk, True)
+                _step_one(b, joints, frames, ctx, gtip[b], rootw)
+                again = True
+        if not again:
+            return
 
 
 @njit(**PRB)

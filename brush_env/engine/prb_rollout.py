@@ -64,7 +64,7 @@ Drive = namedtuple(
     ],
 )
 Limits = namedtuple("Limits", ["force", "penetration", "warn_fraction"])
-Backup = namedtuple("Backup", ["q", "qp", "tips", "tip_state"])
+Backup = namedtuple("Backup", ["q", "qp", "tips", "tip_state", "rootw"])
 
 
 def make_record(n: int, nb: int) -> Record:
@@ -98,20 +98,24 @@ def _copy2(src, dst):
 
 
 @njit(**PRB)
-def _save(q, qp, tips, ts, bk, restore):
-    """bk <- the bristles' state (q, tips, tip states), or back from bk with ``restore``."""
+def _save(q, qp, tips, ts, rootw, bk, restore):
+    """bk <- the bristles' state (q, tips, tip states, root wrenches), or back from bk with
+    ``restore`` (the wrenches too: a failed step has written those of the bristles before the
+    one that failed)."""
     a = ts.view(np.uint8)
     c = bk.tip_state.view(np.uint8)
     if restore:
         _copy2(bk.q, q)
         _copy2(bk.qp, qp)
         _copy2(bk.tips, tips)
+        _copy2(bk.rootw, rootw)
         for i in range(a.shape[0]):
             a[i] = c[i]
     else:
         _copy2(q, bk.q)
         _copy2(qp, bk.qp)
         _copy2(tips, bk.tips)
+        _copy2(rootw, bk.rootw)
         for i in range(a.shape[0]):
             c[i] = a[i]
 
@@ -180,7 +184,7 @@ def rollout(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec):
     p, R, Rn, ps = drv.p, drv.R, drv.Rn, drv.ps
     for k in range(n):
         drv.k[0] = k
-        _save(q, qp, con.tips, con.tip_state, bk, False)
+        _save(q, qp, con.tips, con.tip_state, rootw, bk, False)
         rec.pen_max[k] = 0.0
         rec.beyond[k] = 0
         rec.head[k] = np.inf
@@ -195,7 +199,7 @@ def rollout(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec):
             _left(drv.dR if s == drv.substeps else drv.dR_sub, R if s == drv.substeps else Rs, Rn)
             _copy2(Rn, Rs)
             if not _solver_step(drv, Rs, geo, joints, frames, ctx, gtip, rootw, lim, rec):
-                _save(q, qp, con.tips, con.tip_state, bk, True)
+                _save(q, qp, con.tips, con.tip_state, rootw, bk, True)
                 for b in range(q.shape[0]):
                     if out.status[b] != 0:
                         return k, STOP_DIVERGENCE, b
