@@ -1,8 +1,10 @@
 """Many brushes per call (issue 29 item 3): N FlatPlate-v0 / ToothRow-v0 envs as one Gymnasium 1.x
 ``VectorEnv``, and an SB3 ``VecEnv`` adapter of it.
 
-    envs = gym.make_vec("brush_env/FlatPlate-v0", num_envs=16, vectorization_mode="vector_entry_point")
-    obs, infos = envs.reset(seed=0)             # obs: (16, 407) float32; env i seeded with 0 + i
+    envs = gym.make_vec(
+        "brush_env/FlatPlate-v0", num_envs=16, vectorization_mode="vector_entry_point"
+    )
+    obs, infos = envs.reset(seed=0)  # obs: (16, 407) float32; env i is seeded with 0 + i
     obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
 
 **What it is today: a loop.**  The N brushes are N independent single-env cores
