@@ -44,7 +44,7 @@ class SB3VecEnv(VecEnv):
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self.metadata = dict(venv.metadata)
         self._actions: Any = None
-        self._obs = create_empty_array(venv.single_observation_space, n=venv.num_envs)
+        self._obs: Any = create_empty_array(venv.single_observation_space, n=venv.num_envs)
 
     def _batch(self, obs_list: list) -> Any:
         self._obs = concatenate(self.venv.single_observation_space, obs_list, self._obs)

@@ -168,7 +168,7 @@ class BrushVectorEnv(VectorEnv):
         self.single_action_space = first.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._obs = create_empty_array(self.single_observation_space, n=self.num_envs)
+        self._obs: Any = create_empty_array(self.single_observation_space, n=self.num_envs)
         self._env_obs: list[Any] = [None] * self.num_envs
         self._rewards = np.zeros(self.num_envs, dtype=np.float64)
         self._terminations = np.zeros(self.num_envs, dtype=np.bool_)
