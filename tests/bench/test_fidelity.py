@@ -48,7 +48,7 @@ def test_quick_rows(capsys):
     assert math.isnan(fast["env_steps_per_s_vec16"]) and "N=16" in fast["vec_note"]
 
 
-@pytest.mark.filterwarnings("ignore::brush_env.engine.simulator.PenetrationWarning")  # random actions
+@pytest.mark.filterwarnings("ignore::brush_env.engine.simulator.PenetrationWarning")
 def test_batched_rate_is_measured_on_the_batched_env():
     """(c) on a short run: gym.make_vec(..., "vector_entry_point") at the reduced level, N = 4,
     three timed steps (a rate, no timing asserted)."""
