@@ -3,9 +3,16 @@
     python -m agents.train --algo ppo --config configs/agents/ppo.toml --timesteps 200000 \\
         --n-envs 2 --out runs/ppo [--env-kw brush=\\"tiny_env\\"] [--seed 0]
 
-* Environments: ``make_vec_env`` from the ``brush_env:brush_env/FlatPlate-v0`` id (the module
-  prefix makes every ``SubprocVecEnv`` worker import brush_env, which registers the id); a
-  ``DummyVecEnv`` for ``--n-envs 1``.  Each env is wrapped in ``Monitor``.
+* Environments (``--vec-env``): ``batched`` -- the id's batched env
+  (``gym.make_vec(id, N, vectorization_mode="vector_entry_point")``, brush_env/envs/vector.py:
+  the N envs in this process, today a Python loop over N single-env cores) behind the SB3
+  adapter ``brush_env.envs.sb3.SB3VecEnv``, in ``VecMonitor``; ``subproc`` -- ``make_vec_env``
+  from the ``brush_env:brush_env/FlatPlate-v0`` id (the module prefix makes every
+  ``SubprocVecEnv`` worker import brush_env, which registers the id), a ``DummyVecEnv`` for
+  ``--n-envs 1``, each env in ``Monitor``.  ``auto`` (default): ``batched`` for FlatPlate-v0 and
+  ToothRow-v0 at the ``fast`` and ``reduced`` fidelity levels (``BATCHED_LEVELS``: an env step
+  costs milliseconds, so worker processes cost more than they give), ``subproc`` otherwise.  The
+  evaluation env is made the same way with one env.
 * ``VecNormalize`` as the config's ``[normalize]`` says (PPO: observations and rewards; SAC:
   observations only); its statistics are saved with every checkpoint and at the end.
 * ``EvalCallback`` every ``[train] eval_freq`` env steps on a separate env (observations
@@ -41,6 +48,9 @@ ENV_KEYS = {"id", "config", "kwargs"}
 NORMALIZE_KEYS = {"obs", "reward", "clip_obs"}
 TRAIN_KEYS = {"eval_freq", "eval_episodes", "checkpoint_freq", "seed"}
 ALGOS = ("ppo", "sac")
+VEC_ENVS = ("auto", "batched", "subproc")
+#: fidelity levels at which ``--vec-env auto`` trains on the batched env
+BATCHED_LEVELS = ("fast", "reduced")
 
 
 def load_agent_config(path: str | Path) -> dict:
@@ -165,13 +175,23 @@ def _is_brush_env(env_id: str) -> bool:
     return entry.startswith(("brush_env.envs.flat_plate", "brush_env.envs.tooth_row"))
 
 
-def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dict | None) -> dict:
+def check_inputs(
+    algo: str,
+    config,
+    timesteps: int,
+    n_envs: int,
+    env_kwargs: dict | None,
+    vec_env: str = "auto",
+) -> dict:
     """Validate everything the run needs in this process (nothing written, no worker started);
-    returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train."""
+    returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train,
+    vec_env (``batched`` or ``subproc``, ``auto`` resolved)."""
     from brush_env.envs.config import load_env_config
 
     if algo not in ALGOS:
         raise ConfigError(f"--algo {algo!r} is not allowed: must be one of {ALGOS}")
+    if vec_env not in VEC_ENVS:
+        raise ConfigError(f"--vec-env {vec_env!r} is not allowed: must be one of {VEC_ENVS}")
     for flag, value, unit in (
         ("--timesteps", timesteps, "env steps"),
         ("--n-envs", n_envs, "envs"),
@@ -194,7 +214,9 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dic
             **(env_kwargs or {}),
         }
         env_settings = {k: v for k, v in kwargs.items() if k not in ("config", "render_mode")}
-        load_env_config(kwargs["config"], **env_settings)  # names a bad env key or value here
+        env_cfg = load_env_config(kwargs["config"], **env_settings)  # names a bad key or value
+        if vec_env == "auto":
+            vec_env = "batched" if env_cfg.fidelity in BATCHED_LEVELS else "subproc"
     else:  # e.g. PlanarStroke-v0: its keywords are checked when it is made, before training
         if "config" in envc:
             raise ConfigError(f"{config}: [env] config is only for BrushEnv ids, not {env_id!r}")
@@ -202,6 +224,9 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dic
         import gymnasium as gym
 
         gym.make(env_id.split(":")[-1] if ":" in env_id else env_id, **kwargs).close()
+        if vec_env == "batched":
+            raise ConfigError(f"--vec-env batched: {env_id!r} has no batched env (a BrushEnv id)")
+        vec_env = "subproc"
     hyper = dict(cfg.get("hyperparameters", {}))
     check_hyperparameters(algo, hyper, str(config))
     return {
@@ -211,19 +236,31 @@ def check_inputs(algo: str, config, timesteps: int, n_envs: int, env_kwargs: dic
         "hyper": hyper,
         "norm": cfg.get("normalize", {}),
         "train": cfg.get("train", {}),
+        "vec_env": vec_env,
     }
 
 
 def _make_envs(run: dict, n_envs: int, seed: int):
-    """Training vector env (Subproc for n_envs > 1) and evaluation env, VecNormalize'd as the
-    config's [normalize] says (evaluation: training statistics, raw rewards)."""
+    """Training vector env (``run["vec_env"]``: the batched env, or Subproc for n_envs > 1) and
+    evaluation env, VecNormalize'd as the config's [normalize] says (evaluation: training
+    statistics, raw rewards)."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     env_id, kwargs, norm = run["env_id"], run["kwargs"], run["norm"]
-    vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
-    venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, vec_env_cls=vec_cls, env_kwargs=kwargs)
-    eval_env = make_vec_env(env_id, n_envs=1, seed=seed + 10_000, env_kwargs=kwargs)
+    if run["vec_env"] == "batched":
+        from stable_baselines3.common.vec_env import VecMonitor
+
+        from brush_env.envs.sb3 import make_sb3_vec_env
+
+        venv = VecMonitor(make_sb3_vec_env(env_id, n_envs, seed=seed, **kwargs))
+        eval_env = VecMonitor(make_sb3_vec_env(env_id, 1, seed=seed + 10_000, **kwargs))
+    else:
+        vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
+        venv = make_vec_env(
+            env_id, n_envs=n_envs, seed=seed, vec_env_cls=vec_cls, env_kwargs=kwargs
+        )
+        eval_env = make_vec_env(env_id, n_envs=1, seed=seed + 10_000, env_kwargs=kwargs)
     if norm.get("obs", False) or norm.get("reward", False):
         gamma = float(run["hyper"].get("gamma", 0.99))
         clip = float(norm.get("clip_obs", 10.0))
@@ -321,6 +358,7 @@ def train(
     env_kwargs: dict | None = None,
     progress: bool = True,
     verbose: int = 0,
+    vec_env: str = "auto",
 ) -> Path:
     """Train and save; returns the path of ``model.zip`` (see the module docstring).
 
@@ -329,14 +367,17 @@ def train(
     from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.vec_env import VecNormalize
 
-    run = check_inputs(algo, config, timesteps, n_envs, env_kwargs)
+    run = check_inputs(algo, config, timesteps, n_envs, env_kwargs, vec_env)
     tr = run["train"]
     seed = tr.get("seed", 0) if seed is None else seed
     n_eval = tr.get("eval_episodes", 3)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     say = _say if progress else (lambda msg: None)
-    say(f"[1/4] starting {n_envs} env(s) of {run['env_id']} (numba kernels load or compile)")
+    say(
+        f"[1/4] starting {n_envs} env(s) of {run['env_id']}, {run['vec_env']} (numba kernels "
+        "load or compile)"
+    )
     venv, eval_env = _make_envs(run, n_envs, seed)
     if _is_brush_env(run["env_id"]):
         say(
@@ -372,6 +413,7 @@ def train(
         "env_kwargs": run["kwargs"],
         "timesteps": timesteps,
         "n_envs": n_envs,
+        "vec_env": run["vec_env"],
         "seed": seed,
         "config": str(config),
         "normalize": run["norm"],
@@ -404,8 +446,13 @@ def build_parser() -> OneLineParser:
     p.add_argument("--algo", required=True, choices=ALGOS, help="algorithm (must match the config)")
     p.add_argument("--config", required=True, help="agent TOML, e.g. configs/agents/ppo.toml")
     p.add_argument("--timesteps", type=int, required=True, help="total env steps to train")
+    p.add_argument("--n-envs", type=int, default=1, help="envs stepped together (default 1)")
     p.add_argument(
-        "--n-envs", type=int, default=1, help="parallel envs (SubprocVecEnv when > 1; default 1)"
+        "--vec-env",
+        choices=VEC_ENVS,
+        default="auto",
+        help="batched: the id's batched env in this process; subproc: SubprocVecEnv (n > 1); "
+        "auto (default): batched at the fast and reduced levels, else subproc",
     )
     p.add_argument("--out", required=True, help="output directory (model, logs, checkpoints)")
     p.add_argument("--seed", type=int, default=None, help="default: [train] seed of the config")
@@ -434,6 +481,7 @@ def _main(argv) -> int:
         env_kwargs=parse_env_kw(args.env_kw),
         progress=not args.no_progress,
         verbose=args.verbose,
+        vec_env=args.vec_env,
     )
     print(f"saved {path}")
     return 0

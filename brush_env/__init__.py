@@ -8,6 +8,7 @@ import hook registers them right after gymnasium's own ``__init__`` has run.  Gy
 has no env plugin entry points any more, hence the hook.
 """
 
+import dataclasses
 import importlib.abc
 import importlib.util
 import sys
@@ -28,6 +29,15 @@ ENV_IDS = {
 #: The wrapper ``gym.make`` adds outside the TimeLimit of every registered id.
 HORIZON_WRAPPER = ("TimeLimitHorizon", "brush_env.envs.horizon:TimeLimitHorizon")
 
+#: Registered ids -> the vector entry point of ``gym.make_vec(id, num_envs=N,
+#: vectorization_mode="vector_entry_point")`` (brush_env/envs/vector.py: N envs in one
+#: ``VectorEnv``); their specs are ``brush_env.gym_registration.BrushEnvSpec``, which lets
+#: ``make_vec`` past the horizon wrapper that ``gym.make`` still applies.
+VECTOR_ENTRY_POINTS = {
+    "brush_env/FlatPlate-v0": "brush_env.envs.vector:FlatPlateVectorEnv",
+    "brush_env/ToothRow-v0": "brush_env.envs.vector:ToothRowVectorEnv",
+}
+
 
 def _register() -> None:
     """Register ``ENV_IDS`` with gymnasium (skipping ids already registered)."""
@@ -38,12 +48,21 @@ def _register() -> None:
     name, entry = HORIZON_WRAPPER
     for env_id, (entry_point, steps) in ENV_IDS.items():
         if env_id not in registry:
+            vector = VECTOR_ENTRY_POINTS.get(env_id)
             register(
                 id=env_id,
                 entry_point=entry_point,
                 max_episode_steps=steps,
                 additional_wrappers=(WrapperSpec(name, entry, {}),),
+                vector_entry_point=vector,
             )
+            if vector is not None:
+                from .gym_registration import BrushEnvSpec
+
+                plain = registry[env_id]
+                registry[env_id] = BrushEnvSpec(
+                    **{f.name: getattr(plain, f.name) for f in dataclasses.fields(plain) if f.init}
+                )
 
 
 class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):

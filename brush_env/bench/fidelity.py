@@ -31,8 +31,11 @@ error (issues 12 and 29).
     vectorization_mode="vector_entry_point", fidelity=level)`` for N in ``--vec-sizes`` (16,
     64), reset with seed 0, one untimed step, then steps of random actions from
     ``default_rng(0)`` until ``--vec-seconds`` of wall have passed (at most ``--vec-steps``);
-    rate = N x steps / wall.  "n/a" (NaN in JSON and [measured]) where ``make_vec`` raises
-    (no vector entry point yet), with the reason in ``vec_note``.
+    rate = N x steps / wall.  The batched env (brush_env/envs/vector.py) is today a Python loop
+    over N single-env cores, so its rate is about the single env's; a level is measured only
+    where one warm-up and one timed batched step fit in ``--vec-seconds`` at its single-env rate
+    of (b) (``batched_too_slow``: in practice ``fast`` and ``reduced``).  "n/a" (NaN in JSON and
+    [measured]) where it is too slow or ``make_vec`` raises, with the reason in ``vec_note``.
 
 The tables go to stdout (``--json``: one object per level), the Pareto plot (x: wall per
 simulated second of (a), log; y: the error measures) to ``--plot`` (default
@@ -578,10 +581,33 @@ def measure_level(args, name: str, against: str, log) -> tuple[dict, list, dict]
             episode_run(name, 0, 2, brush)  # untimed warm-up: the env's own kernels
         stored = [episode_run(name, s, steps, brush) for s in range(episodes)]
     vec = {}
+    n_steps = sum(len(e["F"]) for e in stored)
+    wall = sum(e["wall_s"] for e in stored)
+    single = n_steps / wall if wall > 0 else math.nan
     for n in [] if args.quick else args.vec_sizes:
+        slow = batched_too_slow(single, n, args.vec_seconds)
+        if slow:
+            vec[n] = (math.nan, slow)
+            continue
         print(f"  {name}: batched env, N = {n} ...", file=log, flush=True)
         vec[n] = vector_steps_per_s(name, n, args.vec_seconds, args.vec_steps)
     return turn, stored, vec
+
+
+def batched_too_slow(single_rate: float, n: int, seconds: float) -> str:
+    """The reason (c) skips a batched measurement of ``n`` envs, or "" to measure it: the
+    batched env loops over single-env cores, so a warm-up and one timed step of ``n`` envs take
+    about ``2 n / single_rate`` seconds; more than ``seconds`` is too slow to measure."""
+    if not math.isfinite(single_rate) or single_rate <= 0:
+        return "n/a (no single-env rate from (b) to plan the batched run)"
+    need = 2.0 * n / single_rate
+    if need > seconds:
+        return (
+            f"n/a (too slow: a warm-up and one timed step of {n} envs take ~{need:.0f} s at "
+            f"{single_rate:.0f} env steps/s single, over --vec-seconds {seconds:g}; the batched "
+            "env is a loop over single-env cores)"
+        )
+    return ""
 
 
 def level_row(name: str, settings: str, against: str, turns: dict, eps: dict, vec: dict) -> dict:

@@ -143,3 +143,28 @@ def test_planar_stroke_trains_with_agents_train(tmp_path):
     action, _ = model.predict(obs, deterministic=True)
     assert env.action_space.contains(action)
     env.close()
+
+
+def test_vec_env_auto_is_the_batched_env_at_fast_and_reduced(tmp_path):
+    """--vec-env auto: the batched env (gym.make_vec, vector_entry_point) at fast and reduced,
+    SubprocVecEnv at the full-chain levels; a bad choice is named."""
+    from agents.train import check_inputs
+
+    cfg = tmp_path / "ppo.toml"
+    cfg.write_text(PPO_TOML)
+    assert check_inputs("ppo", cfg, 10, 2, None)["vec_env"] == "batched"  # the default: fast
+    for level, want in (("reduced", "batched"), ("balanced", "subproc")):
+        assert check_inputs("ppo", cfg, 10, 2, {"fidelity": level})["vec_env"] == want
+    assert check_inputs("ppo", cfg, 10, 2, None, "subproc")["vec_env"] == "subproc"
+    with pytest.raises(ValueError, match=r"--vec-env 'threads' is not allowed: must be one of"):
+        check_inputs("ppo", cfg, 10, 2, None, "threads")
+
+
+@pytest.mark.slow  # training
+def test_batched_two_env_ppo_run(tmp_path):
+    """Two envs on the batched env: trains, saves, records the choice."""
+    cfg = tmp_path / "ppo.toml"
+    cfg.write_text(PPO_TOML)
+    model = train("ppo", cfg, 128, 2, tmp_path / "run", progress=False)
+    meta = json.loads((tmp_path / "run" / "meta.json").read_text())
+    assert model.exists() and meta["vec_env"] == "batched" and meta["n_envs"] == 2

@@ -13,12 +13,14 @@ import pytest
 from brush_env import cli
 from brush_env.bench.fidelity import (
     PHASE_NAMES,
+    batched_too_slow,
     load_reference_episodes,
     load_reference_turn,
     save_episodes,
     save_turn,
     turn_metrics,
     turn_summary,
+    vector_steps_per_s,
     write_measured,
 )
 from brush_env.engine import load_fidelity
@@ -42,8 +44,24 @@ def test_quick_rows(capsys):
     assert ref["buckling_same_side"] == 40 and ref["lateral_force_same_side"] == 40
     assert ref["turn_rms_error_outside_events"] == 0.0
     assert fast["events_ref"] == 0 and math.isnan(fast["event_dt_median_ms"])
-    # --vec-sizes are not measured in --quick; without a batched env they read "n/a"
+    # --vec-sizes are not measured in --quick: they read "n/a" / "not measured"
     assert math.isnan(fast["env_steps_per_s_vec16"]) and "N=16" in fast["vec_note"]
+
+
+@pytest.mark.filterwarnings("ignore::brush_env.engine.simulator.PenetrationWarning")
+def test_batched_rate_is_measured_on_the_batched_env():
+    """(c) on a short run: gym.make_vec(..., "vector_entry_point") at the reduced level, N = 4,
+    three timed steps (a rate, no timing asserted)."""
+    rate, note = vector_steps_per_s("reduced", 4, seconds=600.0, max_steps=3)
+    assert math.isfinite(rate) and rate > 0, note
+    assert note.startswith("3 steps of 4 envs in ")
+
+
+def test_batched_rows_skip_levels_too_slow_to_measure():
+    note = batched_too_slow(5.0, 64, 10.0)  # ~13 s per batched step of 64
+    assert note.startswith("n/a (too slow:") and "5 env steps/s single" in note
+    assert batched_too_slow(1000.0, 64, 10.0) == ""
+    assert batched_too_slow(float("nan"), 16, 10.0).startswith("n/a (no single-env rate")
 
 
 def test_write_measured_keeps_the_settings_and_replaces_the_table(tmp_path):
