@@ -612,6 +612,28 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]  # > 0: out of the surface
         if dn * alpha > 0.5 * st.pen:
             return 0.5 * st.pen / dn, dmax, True
+    if st.ftt > 0.0 and not leaving:
+        # ... and its partner tips likewise (Table 3's law has no stiffness at first touch: out
+        # of the partner, Newton heads for the relaxed pose, the penetration limit stops it 2 um
+        # inside, and from there it jumped back out -- until it gave up, random actions seed 8)
+        held = False
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            d0, d1, d2 = (
+                wk.xw[0] - con.tips[j, 0],
+                wk.xw[1] - con.tips[j, 1],
+                wk.xw[2] - con.tips[j, 2],
+            )
+            dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            over = con.tip_args[b].radius + con.tips[j, 6] - dist
+            if over <= 0.0 or dist < 1e-12:
+                continue
+            dn = (dp[0] * d0 + dp[1] * d1 + dp[2] * d2) / dist  # > 0: out of the partner
+            if dn * alpha > 0.5 * over:
+                alpha = 0.5 * over / dn
+                held = True
+        if held:
+            return alpha, dmax, True
     return alpha, dmax, False
 
 
@@ -631,6 +653,12 @@ def _line_search(b, q, qn, damp, pose, ctx, dq, alpha, smax0, descend):
     g1 = _slope(wk.s, dq)
     if smax < smax0 and not descend:
         return alpha, smax  # the residual fell (Newton's quadratic step)
+    if g0 < 0.0 and g1 <= 0.0 and alpha < 1.0:
+        # a step cut short by a contact limit (a tip meeting a surface or a partner tip) with
+        # the energy still falling at its end: taken, though the residual rose -- the contact
+        # has just begun to push, and backing off to where it did not kept a tip at the edge
+        # of a partner's, in and out of it, until Newton gave up (random actions, seed 8)
+        return alpha, smax
     if not (g0 < 0.0 and g1 > 0.0):
         # no minimum to find along dq, and the residual rose: back off (halving), keeping the
         # best point (a tip thrown across the edge of a contact, where the tangent of one side
