@@ -69,6 +69,11 @@ MAX_ESCAPES = 4
 #: equilibrium checked for stability (the saddle of a column pressed along its axis; a bent
 #: bristle was followed along its branch from a stable state)
 STRAIGHT = 0.005
+#: [rad] a converged, pressed bristle whose joints all turn less than this (from straight, not
+#: from rest) is checked for stability (``solve_bristle``): the saddle of a leaning column
+#: loaded along its links was at 0.005-0.04 rad (random actions, seed 0); a buckled one is at
+#: 0.2-1 rad
+SADDLE_TURN = 0.1
 #: [rad] a pressed bristle whose joints turn less than this from rest keeps to the energy's
 #: descent where its conservative tangent is indefinite (``_direction``; all of them, as set)
 BUCKLING = 10.0
@@ -747,11 +752,18 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
             for i in range(NQ):
                 wk.qb[i] = q[i]
         converged = smax <= ftol or small
-        # a converged bristle whose tip is pressed toward its root may sit on a saddle: straight,
-        # or leaning with its tip held by stiction so that the load runs along its links (a
-        # column with no axial give holds any load there); checked when the axial load is past
-        # a tenth of the softest joint's over the bristle's length (the buckling loads are ~1)
-        check = converged and escapes < MAX_ESCAPES and -wk.Fl[0] * lsum > 0.1 * kmin
+        # a converged bristle whose tip is pressed toward its root may sit on a saddle: its links
+        # in line with the load (a column with no axial give holds any load there -- straight,
+        # or leaning with its tip held by stiction), so nearly straight in its own frame (a bent
+        # chain's elbow is off the load's line, and its springs bound the load); checked when the
+        # axial load is past a tenth of the softest joint's over the bristle's length (the
+        # buckling loads are ~1)
+        check = (
+            converged
+            and escapes < MAX_ESCAPES
+            and -wk.Fl[0] * lsum > 0.1 * kmin
+            and max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < SADDLE_TURN
+        )
         if converged and not check:
             return it
         _tangent(q, geo, kq, c3, damp, B, wk)
