@@ -149,11 +149,12 @@ class PRBBristles(BristleModel):
         self.tip_args["radius"] = m.tip_radius
         self.contact_params = scene.contact.as_array()
         # friction is the reduced model's own return mapping (prb_kernels._friction): the shared
-        # tip load runs without it.  And without eq 6's damping term (c delta^m2 v^m3, tip-plate
+        # tip load runs without it.  And without eq 6's damping term (c v^m2 delta^m3, tip-plate
         # and Table 3's tip-tip): a massless tip has no speed of its own, only the step's
-        # (x - x_n) / h, which is ~200 mm/s when a lifted bristle springs back within one step;
-        # Table 3's c v^2 made that a 50 N push between two neighbours' tips (random actions,
-        # seed 10).  The joints' damping stands in for the dissipation (module docstring)
+        # (x - x_n) / h, ~200 mm/s when a lifted bristle springs back within one step.  The
+        # term is small at the penalty law's depths (m3 = 2); over bench fidelity's 20 random
+        # episodes leaving it out moved the errors from 34.1 % / 45.1 % (TCP / tip force) to
+        # 32.7 % / 43.8 %.  The joints' damping stands in for the dissipation
         self._cp_frictionless = self.contact_params.copy()
         for key in ("mu_s", "mu_d", "c", "c_tt"):
             self._cp_frictionless[key] = 0.0
