@@ -25,8 +25,8 @@ the plateau of the post-buckled bristles, ~1.6 N while only the 10 mm outer rows
 ~4.4-4.9 N once the 9 mm inner rows touch too (past ~1.1 mm), so any static press deeper than
 ~1.1 mm holds the brush above the env's 4 N limit, and starting the circle from it adds a
 break-away peak (6.2-6.7 N at 3 mm).  Pressed while sliding, the same 3 mm peaks at ~2.3 N and
-holds ~0.3-1.3 N: within the limit, and ~2x the coverage.  The paper's motion stays available as
-``press="static"`` (``press_depth`` 3 mm).
+holds ~0.3-1.3 N: within the limit, with the same coverage and twice the return.  The paper's
+motion stays available as ``press="static"`` (``press_depth`` 3 mm).
 
 Tracking law at step k (time t_k = k dt, pose (p, R) from the observation):
 ``v = (P(t_k+1) - P(t_k)) / dt + kp (P(t_k) - p)`` and
