@@ -6,7 +6,9 @@
         --out runs/eval_teeth_reference
     python -m agents.evaluate --policy runs/ppo/model.zip --episodes 5 --out runs/eval_ppo --video
 
-``--policy`` is ``reference`` (agents/reference.py), ``random`` (uniform actions) or the path of
+``--policy`` is ``reference`` (agents/reference.py, the env's reference as shipped),
+``reference-static`` / ``reference-sliding`` (the same with the press at rest first -- the paper's
+order -- or made while moving; docs/rl.md), ``random`` (uniform actions) or the path of
 a stable-baselines3 model saved by ``agents/train.py`` (its ``meta.json`` names the algorithm and
 the env settings it was trained on, which ``--env-kw`` may override; a ``vecnormalize.pkl`` beside
 it normalises the observations as in training).
@@ -63,17 +65,29 @@ def parse_env_kw(items) -> dict:
     return out
 
 
+#: ``--policy`` names of the reference policy -> its keyword arguments (the press profile)
+REFERENCES = {
+    "reference": {},
+    "reference-static": {"press": "static"},
+    "reference-sliding": {"press": "sliding"},
+}
+
+
 def load_policy(spec: str, env: gym.Env, seed: int = 0):
-    """(policy with SB3-style predict, obs_transform) for 'reference', 'random' or a model path."""
-    if spec == "reference":
-        return ReferencePolicy.for_env(env), None
+    """(policy with SB3-style predict, obs_transform) for a name of :data:`REFERENCES`,
+    'random' or a model path."""
+    if spec in REFERENCES:
+        return ReferencePolicy.for_env(env, **REFERENCES[spec]), None
     if spec == "random":
         return RandomPolicy(env.action_space, seed=seed), None
     path = Path(spec)
     if not path.exists() and path.with_suffix(".zip").exists():
         path = path.with_suffix(".zip")
     if not path.exists():
-        raise ConfigError(f"--policy {spec!r}: not 'reference', 'random' or an existing model file")
+        raise ConfigError(
+            f"--policy {spec!r}: not one of {', '.join(REFERENCES)}, 'random' or an existing "
+            "model file"
+        )
     from stable_baselines3 import PPO, SAC
 
     meta_path = path.parent / "meta.json"
@@ -266,7 +280,7 @@ def evaluate(
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
     meta = Path(policy).parent / "meta.json"
-    if policy not in ("reference", "random") and meta.is_file():
+    if policy not in (*REFERENCES, "random") and meta.is_file():
         # a trained model is evaluated on the env it was trained on, unless overridden
         trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))
         config = trained.pop("config", config)
@@ -336,7 +350,11 @@ def _jsonable(d: dict) -> dict:
 
 def build_parser() -> OneLineParser:
     p = OneLineParser(prog="python -m agents.evaluate", description=__doc__.split("\n")[0])
-    p.add_argument("--policy", required=True, help="reference | random | PATH to a SB3 model")
+    p.add_argument(
+        "--policy",
+        required=True,
+        help="reference | reference-static | reference-sliding | random | PATH to a SB3 model",
+    )
     p.add_argument("--episodes", type=int, default=5, help="number of episodes (default 5)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--seed", type=int, default=0, help="episode i resets with seed + i")

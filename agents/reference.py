@@ -18,7 +18,9 @@ per vector-env index.  The motion and the control law are in ``brush_env/envs/re
 (``CircleReference``): quintic approach to 1 mm above P0 = (-20, 0) mm, quintic press of the
 bristles 3 mm past the nominal plate, counter-clockwise circle of radius 20 mm about the nominal
 patch centre at 30 mm/s (100 mm/s^2); feed-forward velocity plus a proportional correction
-(5 1/s) of the pose error.
+(5 1/s) of the pose error.  The press runs during the circle's first second (``press="sliding"``,
+the default), which keeps the total force within the env's 4 N limit; ``press="static"`` is the
+paper's order (press at rest, then circle), which holds the brush above it (docs/rl.md).
 """
 
 from __future__ import annotations
@@ -56,8 +58,9 @@ class ReferencePolicy:
     """The env's reference tracking policy (see the module docstring): ``motion="circle"``
     (FlatPlate-v0) plans :class:`~brush_env.envs.reference.CircleReference` (``**kwargs``: radius,
     speed, accel, press_depth, hover, approach_time, press_time, center, start_angle, clockwise,
-    kp, kr); ``"scrub"`` (ToothRow-v0) :class:`~brush_env.envs.reference.ScrubReference`
-    (x_range, y_levels, speed, press_depth, hover, approach_time, press_time, kp, kr).
+    kp, kr, press = "sliding" | "static"); ``"scrub"`` (ToothRow-v0)
+    :class:`~brush_env.envs.reference.ScrubReference` (x_range, y_levels, speed, press_depth,
+    hover, approach_time, press_time, kp, kr, press; "static" by default there).
     ``for_env`` takes the env's ``reference_motion``."""
 
     def __init__(self, layout, config, dt: float, horizon: int, motion: str = "circle", **kwargs):

@@ -157,7 +157,7 @@ MISTAKES = {
     ),  # fmt: skip
     "missing policy": (
         ["-m", "agents.evaluate", "--policy", "missing.zip", "--episodes", "1", "--out", "OUT"],
-        "not 'reference', 'random'",
+        "not one of reference, reference-static, reference-sliding, 'random'",
     ),
 }
 

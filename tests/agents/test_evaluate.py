@@ -72,6 +72,27 @@ def test_parse_env_kw_and_bad_policy(tmp_path):
     }
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_env_kw(["novalue"])
-    with pytest.raises(ValueError, match="not 'reference', 'random'"):
+    with pytest.raises(ValueError, match="not one of reference, reference-static, reference-sl"):
         evaluate(str(tmp_path / "missing.zip"), 1, tmp_path / "out", env_kwargs=SHORT)
     assert not (tmp_path / "out").exists()  # nothing written before the inputs are valid
+
+
+def test_reference_press_variants_by_name():
+    """``--policy reference-static`` is the paper's press at rest, ``reference`` the shipped one."""
+    import gymnasium as gym
+
+    from agents.evaluate import load_policy
+
+    env = gym.make("brush_env/FlatPlate-v0", **SHORT)
+    try:
+        press = {
+            name: load_policy(name, env)[0].controller(0).press
+            for name in ("reference", "reference-static", "reference-sliding")
+        }
+    finally:
+        env.close()
+    assert press == {
+        "reference": "sliding",
+        "reference-static": "static",
+        "reference-sliding": "sliding",
+    }

@@ -34,10 +34,11 @@ def _record_engine_poses(env):
     return poses
 
 
-def test_reference_tcp_path_is_the_papers_circle(make_env):
+@pytest.mark.parametrize("press", ["sliding", "static"])
+def test_reference_tcp_path_is_the_papers_circle(make_env, press):
     env = make_env()  # tiny brush, default 300 steps
     u = env.unwrapped
-    policy = ReferencePolicy.for_env(env)
+    policy = ReferencePolicy.for_env(env, press=press)
     obs, info = env.reset(seed=5, options=NO_CONTACT)  # kinematics only: the plate out of reach
     offset = info["plate_offset"]
     poses = _record_engine_poses(env)
@@ -48,21 +49,34 @@ def test_reference_tcp_path_is_the_papers_circle(make_env):
         if trunc:
             break
     ctrl = policy.controller(0)
-    t_circle = ctrl.circle_start
-    pts = np.array([p + offset for t, p, _ in poses if t >= t_circle + 1e-9])
-    Rs = np.array([R for t, _, R in poses if t >= t_circle + 1e-9])
+    t_circle, t_pressed = ctrl.circle_start, ctrl.pressed_at
+    # static: the circle starts once pressed; sliding: the press runs over the first second of it
+    assert t_pressed == pytest.approx(t_circle + (1.0 if press == "sliding" else 0.0))
+    on = [t >= t_circle + 1e-9 for t, _, _ in poses]
+    pts = np.array([p + offset for (t, p, _), o in zip(poses, on, strict=True) if o])
+    Rs = np.array([R for (t, _, R), o in zip(poses, on, strict=True) if o])
     radius = np.hypot(pts[:, 0], pts[:, 1])
     assert np.max(np.abs(radius - 20.0)) <= CIRCLE_TOL_MM
-    # in the circle's plane, 3 mm past the height at which the tips touch (the paper's press)
-    assert np.max(np.abs(pts[:, 2] - (u.touch_height - 3.0))) <= CIRCLE_TOL_MM
-    assert np.allclose(Rs, np.diag([1.0, -1.0, -1.0]), atol=1e-6)  # the paper's orientation
+    # once pressed, in the circle's plane 3 mm past the height at which the tips touch (the
+    # paper's press); during a sliding press it descends monotonically from 1 mm above
+    pressed = np.array([t >= t_pressed + 1e-9 for t, _, _ in poses])[np.array(on)]
+    assert np.max(np.abs(pts[pressed, 2] - (u.touch_height - 3.0))) <= CIRCLE_TOL_MM
+    if press == "sliding":
+        z = pts[~pressed, 2]
+        assert z[0] == pytest.approx(u.touch_height + 1.0, abs=0.05)
+        assert np.all(np.diff(z) <= 1e-6)
+    # the paper's orientation, to ~1e-6 rad: float32 observations; the sliding circle starts at
+    # the end of the approach's turn, before the rotation correction has removed its last 1e-6
+    assert np.allclose(Rs, np.diag([1.0, -1.0, -1.0]), atol=1e-5)
     # counter-clockwise from P0 = (-20, 0) (Figure 6), more than one full turn in 300 steps
     phi = np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))
     assert np.allclose(pts[0, :2], [-20.0, 0.0], atol=0.05)
     assert np.all(np.diff(phi) >= -1e-9) and phi[-1] - phi[0] > 2 * math.pi
-    # before the circle: the press ends exactly at P0, 3 mm past the nominal touching height
-    p_end, _ = ctrl.trajectory.pose(t_circle)
-    assert np.allclose(p_end, [-20.0, 0.0, u.touch_height - 3.0], atol=1e-9)
+    # the press ends 3 mm past the nominal touching height (static: exactly at P0)
+    p_end, _ = ctrl.trajectory.pose(t_pressed)
+    assert p_end[2] == pytest.approx(u.touch_height - 3.0, abs=1e-9)
+    if press == "static":
+        assert np.allclose(p_end, [-20.0, 0.0, u.touch_height - 3.0], atol=1e-9)
 
 
 @pytest.mark.parametrize("variant", [{}, {"observation_mode": "dict"}, {"action_mode": "3d"}])
@@ -93,6 +107,8 @@ def test_reference_rejects_bad_settings(make_env):
         ReferencePolicy.for_env(env, radius=-1.0)
     with pytest.raises(ValueError, match="speed = 45.0 mm/s is out of range"):
         ReferencePolicy.for_env(env, speed=45.0)
+    with pytest.raises(ValueError, match="press = 'paper' is not allowed: must be one of"):
+        ReferencePolicy.for_env(env, press="paper")
 
 
 def _coverage(env, policy, seed):
