@@ -6,7 +6,8 @@
 force at every step size), ``branch`` (hold direction and jamming angles over step sizes),
 ``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``teeth``
 (tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
-iterations, instructions under callgrind), ``compile``
+iterations, instructions under callgrind), ``drag`` (a pressed brush dragged toward the
+bristles' wide and thin sides), ``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -22,6 +23,7 @@ from . import (
     compile,
     contact,
     convergence,
+    drag,
     element,
     engine,
     env,
@@ -62,6 +64,12 @@ TARGETS = {
         press.add_arguments,
         "3 mm press: hold force at every step size (0.5-50 ms), with and without the internal "
         "split of SimSettings.max_substep, against the 0.125 ms run",
+    ),
+    "drag": (
+        drag.bench_drag,
+        drag.add_arguments,
+        "a pressed bristle and the pressed brush dragged toward the wide and the thin side: "
+        "normal and lateral force at each level against the converged chain",
     ),
     "branch": (
         branch.bench_branch,
