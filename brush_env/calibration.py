@@ -89,7 +89,10 @@ def press_reduced(case: BucklingCase, constants, targets=None) -> np.ndarray:
     return np.array(out)
 
 
-def _case(br, lean: float, tip: str) -> BucklingCase:
+def bristle_case(br, lean: float, tip: str, bodies: int = 6) -> BucklingCase:
+    """``validate buckling``'s one-bristle case for a bristle of ``br``'s type (section, length,
+    material, tip radius) on a brush of effective lean ``lean`` [rad], ``tip`` "free" or
+    "pinned", the full chain with ``bodies`` bodies."""
     sec, mat = br.section, br.material
     return BucklingCase(
         length=br.length,
@@ -100,6 +103,7 @@ def _case(br, lean: float, tip: str) -> BucklingCase:
         radius=br.tip_radius,
         lean_deg=abs(math.degrees(lean)),
         tip=tip,
+        bodies=bodies,
     )
 
 
@@ -109,7 +113,7 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
     from scipy.optimize import least_squares
 
     t0 = time.perf_counter()
-    cases = {tip: _case(br, lean, tip) for tip in ("free", "pinned")}
+    cases = {tip: bristle_case(br, lean, tip) for tip in ("free", "pinned")}
     ref = {}
     for tip, case in cases.items():
         lean = math.degrees(case.scene().brush.effective_lean)
@@ -278,4 +282,4 @@ def run(args) -> int:
     return 0
 
 
-__all__ = ["calibrate_brush", "ensure_calibrated", "fit", "press_reduced"]
+__all__ = ["bristle_case", "calibrate_brush", "ensure_calibrated", "fit", "press_reduced"]

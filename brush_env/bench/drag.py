@@ -50,22 +50,10 @@ def _min_jerk(s: float) -> float:
 
 def bristle_scene(br, lean: float, bodies: int):
     """One bristle of ``br``'s type alone on the plate, friction on (Table 2)."""
-    import math
-
+    from ..calibration import bristle_case
     from ..engine.scene import ContactParams
-    from ..validation.buckling import BucklingCase
 
-    sec, mat = br.section, br.material
-    case = BucklingCase(
-        length=br.length,
-        width=sec.width,
-        thickness=sec.thickness,
-        E=mat.E,
-        nu=mat.nu,
-        radius=br.tip_radius,
-        lean_deg=abs(math.degrees(lean)),
-        bodies=bodies,
-    )
+    case = bristle_case(br, lean, "free", bodies)
     return dataclasses.replace(case.scene(), contact=ContactParams())
 
 
