@@ -8,7 +8,6 @@ import hook registers them right after gymnasium's own ``__init__`` has run.  Gy
 has no env plugin entry points any more, hence the hook.
 """
 
-import dataclasses
 import importlib.abc
 import importlib.util
 import sys
@@ -56,13 +55,15 @@ def _register() -> None:
                 additional_wrappers=(WrapperSpec(name, entry, {}),),
                 vector_entry_point=vector,
             )
-            if vector is not None:
-                from .gym_registration import BrushEnvSpec
+    # the ids with a vector entry point get their BrushEnvSpec; if this runs while
+    # gym_registration itself is being imported (it imports gymnasium, whose import ran this
+    # hook), that module does it at its end instead
+    mod = sys.modules.get("brush_env.gym_registration")
+    if mod is not None and not hasattr(mod, "adopt_vector_specs"):
+        return
+    from .gym_registration import adopt_vector_specs
 
-                plain = registry[env_id]
-                registry[env_id] = BrushEnvSpec(
-                    **{f.name: getattr(plain, f.name) for f in dataclasses.fields(plain) if f.init}
-                )
+    adopt_vector_specs()
 
 
 class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):

@@ -28,7 +28,7 @@ import sys
 import gymnasium.envs.registration as _reg
 from gymnasium.envs.registration import EnvSpec, WrapperSpec
 
-__all__ = ["BrushEnvSpec"]
+__all__ = ["BrushEnvSpec", "adopt_vector_specs"]
 
 _MAKE_VEC_CODE = _reg.make_vec.__code__
 
@@ -45,3 +45,24 @@ class BrushEnvSpec(EnvSpec):
     @additional_wrappers.setter
     def additional_wrappers(self, value: tuple[WrapperSpec, ...]) -> None:
         self.__dict__["_brush_wrappers"] = tuple(value)
+
+
+def adopt_vector_specs() -> None:
+    """Make the spec of every registered id of ``brush_env.VECTOR_ENTRY_POINTS`` a
+    :class:`BrushEnvSpec` (idempotent; ids not registered yet are left for later)."""
+    import dataclasses
+
+    from . import VECTOR_ENTRY_POINTS
+
+    for env_id in VECTOR_ENTRY_POINTS:
+        plain = _reg.registry.get(env_id)
+        if plain is None or isinstance(plain, BrushEnvSpec):
+            continue
+        _reg.registry[env_id] = BrushEnvSpec(
+            **{f.name: getattr(plain, f.name) for f in dataclasses.fields(plain) if f.init}
+        )
+
+
+# imported first (before gymnasium), this module's own ``import gymnasium`` ran the package's
+# registration hook while the class above did not exist yet
+adopt_vector_specs()
