@@ -31,6 +31,8 @@ from gymnasium.envs.registration import EnvSpec, WrapperSpec
 __all__ = ["BrushEnvSpec", "adopt_vector_specs"]
 
 _MAKE_VEC_CODE = _reg.make_vec.__code__
+#: the module of the batched envs (brush_env.VECTOR_ENTRY_POINTS's entry points)
+_VECTOR_MODULE = "brush_env.envs.vector"
 
 
 class BrushEnvSpec(EnvSpec):
@@ -48,15 +50,15 @@ class BrushEnvSpec(EnvSpec):
 
 
 def adopt_vector_specs() -> None:
-    """Make the spec of every registered id of ``brush_env.VECTOR_ENTRY_POINTS`` a
-    :class:`BrushEnvSpec` (idempotent; ids not registered yet are left for later)."""
+    """Make the spec of every registered id whose vector entry point is brush_env's batched env
+    (``brush_env.VECTOR_ENTRY_POINTS``) a :class:`BrushEnvSpec` (idempotent)."""
     import dataclasses
 
-    from . import VECTOR_ENTRY_POINTS
-
-    for env_id in VECTOR_ENTRY_POINTS:
-        plain = _reg.registry.get(env_id)
-        if plain is None or isinstance(plain, BrushEnvSpec):
+    for env_id, plain in list(_reg.registry.items()):
+        vector = plain.vector_entry_point
+        if isinstance(plain, BrushEnvSpec) or not (
+            isinstance(vector, str) and vector.startswith(_VECTOR_MODULE + ":")
+        ):
             continue
         _reg.registry[env_id] = BrushEnvSpec(
             **{f.name: getattr(plain, f.name) for f in dataclasses.fields(plain) if f.init}

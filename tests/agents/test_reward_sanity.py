@@ -117,16 +117,16 @@ def test_random_actions_score_below_the_reference(fast_env, reference_fast):
     assert r["return"] < reference_fast["return"], (r, reference_fast)
 
 
-@pytest.mark.slow  # three default-brush episodes of the full chain at "balanced" (~1-2 min)
+@pytest.mark.slow  # two default-brush episodes of the full chain at "balanced" (~1 min)
 def test_reference_within_limits_and_static_press_below_it_at_balanced():
-    env = gym.make(ENV_ID, fidelity="balanced")
+    # QUICK_STEPS: every force event of the episode (contact, press, break-away) and half a turn;
+    # the deepest press (the highest plate), as the quick tests at ``fast``
+    env = gym.make(ENV_ID, fidelity="balanced", max_episode_steps=QUICK_STEPS)
     try:
         limit = env.unwrapped.config.total_force_limit
         ref = episode(env, ReferencePolicy.for_env(env), 0, HIGH_PLATE)
         assert ref["termination"] is None and ref["time_above"] == 0.0, ref
         assert ref["peak"] < limit and ref["return"] > 0.0, ref
-        low = episode(env, ReferencePolicy.for_env(env), 0, LOW_PLATE)
-        assert low["return"] > 0.0 and low["time_above"] == 0.0, low
         static = episode(env, ReferencePolicy.for_env(env, press="static"), 0, HIGH_PLATE)
         assert static["time_above"] > 0.0 and static["return"] < ref["return"], (static, ref)
     finally:
