@@ -135,8 +135,9 @@ def test_reference_within_limits_and_static_press_below_it_at_balanced():
 
 @pytest.fixture(scope="module")
 def tooth_row():
-    """(env, the scrub reference's episode on the highest row): ToothRow-v0 at its defaults."""
-    env = gym.make("brush_env/ToothRow-v0")
+    """(env, the scrub reference's episode on the highest row): ToothRow-v0 at its defaults,
+    QUICK_STEPS long (the approach, the press and the first strokes)."""
+    env = gym.make("brush_env/ToothRow-v0", max_episode_steps=QUICK_STEPS)
     yield env, episode(env, ReferencePolicy.for_env(env), 0, HIGH_PLATE)
     env.close()
 
