@@ -130,7 +130,7 @@ def simulate_contact(
     scene = replace(scene, brush=scene.brush.with_bodies(bodies), tip_tip=tip_tip)
     sim = Simulator(scene, sim_settings)
     touch_z = sim.touch_height(R0, plate_height(scene))
-    traj, starts = _press_and_circle(touch_z, press, hold)
+    traj, starts = press_and_circle(touch_z, press, hold)
     t_circle = starts[-1]
     n = int(round((t_circle + arc) / dt))
     times = np.arange(n + 1) * dt
@@ -175,7 +175,7 @@ def warm_kernels() -> None:
     simulate_contact(3, 1e-3, "bdf2", True, 0.1, 0.0, 0.0)
 
 
-def _press_and_circle(touch_z: float, press: float, hold: float):
+def press_and_circle(touch_z: float, press: float, hold: float):
     """(trajectory, phase start times): the experiment's press (``press`` s) from tips touching
     at ``touch_z`` [mm], hold (``hold`` s) and one turn of the exact circle, its other numbers
     the experiment's defaults."""
@@ -240,7 +240,7 @@ def arc_seconds(g: dict) -> float:
     of 4 ms, so that every dt of the grid ends on the same time."""
     if g["arc"] != "turn":
         return float(g["arc"])
-    traj, starts = _press_and_circle(0.0, g["press"], g["hold"])
+    traj, starts = press_and_circle(0.0, g["press"], g["hold"])
     return math.ceil((traj.duration - starts[-1]) / 4e-3 - 1e-9) * 4e-3
 
 

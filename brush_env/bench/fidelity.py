@@ -85,24 +85,14 @@ def _hold_geometry(settings, press: float, hold: float, t: float) -> tuple[np.nd
     and each root frame's local z turned by the TCP rotation (scene and trajectory built as
     ``contact.simulate_contact`` builds them)."""
     from ..engine import Simulator, load_scene
-    from ..experiments.plan import DEFAULTS, build_trajectory, plate_height
+    from ..experiments.plan import plate_height
     from ..motion import R0
+    from .contact import press_and_circle
 
     scene = load_scene("flat_plate")
     scene = replace(scene, brush=scene.brush.with_bodies(settings.bodies_per_bristle))
     sim = Simulator(scene, settings)
-    traj, _, _ = build_trajectory(
-        start_xy=(0.0, 0.0),
-        touch_z=sim.touch_height(R0, plate_height(scene)),
-        radius=DEFAULTS["radius"],
-        speed=DEFAULTS["speed"],
-        accel=DEFAULTS["accel"],
-        turns=1.0,
-        press_depth=DEFAULTS["press_depth"],
-        press_time=press,
-        hold_time=hold,
-        path="circle",
-    )
+    traj, _ = press_and_circle(sim.touch_height(R0, plate_height(scene)), press, hold)
     P, R, _, _ = traj.sample(np.array([t]))
     rest = P[0] + sim.rest_tips() @ R[0].T
     lateral = sim.model.root_R[:, :, 2] @ R[0].T
