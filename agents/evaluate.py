@@ -23,7 +23,8 @@ offsets.  Writes to ``--out``:
 
 Metrics per episode: ``return``, ``coverage`` (final fraction), ``steps``, ``termination``,
 ``time_above_force_limit`` [s] (total normal force above ``total_force_limit``),
-``peak_normal_force`` [N], ``peak_tip_force`` [N], ``hard_limit_hit`` (bool) and
+``peak_normal_force`` [N], ``mean_normal_force`` [N] (the total normal force at the end of each
+step, averaged over the episode's steps), ``peak_tip_force`` [N], ``hard_limit_hit`` (bool) and
 ``reward_<term>`` sums.
 """
 
@@ -177,6 +178,7 @@ def run_episode(
         "termination": termination,
         "time_above_force_limit": above,
         "peak_normal_force": peak_f,
+        "mean_normal_force": float(np.mean(series["total_normal_force"][1:])),
         "peak_tip_force": peak_tip,
         "hard_limit_hit": bool(peak_f > cfg.hard_force_limit),
     }

@@ -1,0 +1,404 @@
+"""The RL campaign in one command: train, evaluate at two fidelities, tabulate, plot.
+
+    python -m agents.campaign --config configs/agents/campaign.toml [--jobs 2] [--dry-run]
+
+Stages (each prints its wall time; the whole run prints its total):
+
+1. **train** -- every ``[[train]]`` entry at every one of its seeds, with ``agents/train.py``
+   (``python -m agents.train ... --no-progress`` in a worker process, its output in
+   ``OUT/<algo>/seed_<k>.log``), ``jobs`` runs at a time.
+2. **evaluate** -- the baselines (``reference``, ``random``) and every trained model with
+   ``agents/evaluate.py`` on the same fixed-seed episodes (``[evaluate] seed`` + i), at each level
+   of ``[evaluate] levels`` (level -> number of episodes), in ``OUT/eval/<level>/<name>/``.
+3. **report** -- ``OUT/results.md`` and ``OUT/results.json``: per level, each policy's coverage,
+   time above the force limit, peak and mean total force, peak tip force and return; for trained
+   policies the mean +- std over training seeds of each seed's episode mean, for the baselines the
+   mean +- std over episodes.  ``OUT/learning_curves.png``: the evaluation return during training,
+   mean over seeds with a min-max band, the reference's return as a line.
+
+**Resumable**: a run whose folder holds ``meta.json`` (agents/train.py writes it last) and an
+evaluation whose folder holds ``summary.json`` are kept; an unfinished run is started again from
+its beginning (its folder is cleared first).  Re-running after a crash or Ctrl-C continues.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import tomllib
+
+from brush_env.engine.checks import ConfigError, check_keys
+from brush_env.user_errors import OneLineParser, add_flag, run_main
+
+TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "evaluate"}
+TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
+EVAL_KEYS = {"episodes", "seed", "baselines", "levels"}
+BASELINES = ("reference", "random")
+#: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
+METRICS = {
+    "coverage": ("coverage [%]", 100.0, "{:.1f}"),
+    "time_above_force_limit": ("time above limit [s]", 1.0, "{:.2f}"),
+    "peak_normal_force": ("peak force [N]", 1.0, "{:.2f}"),
+    "mean_normal_force": ("mean force [N]", 1.0, "{:.2f}"),
+    "peak_tip_force": ("peak tip force [N]", 1.0, "{:.3f}"),
+    "return": ("return", 1.0, "{:.1f}"),
+}
+
+
+def _int(path: str, value, low: int = 1) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise ConfigError(f"{path} = {value!r} is out of range: must be an integer >= {low}")
+    return value
+
+
+def load_campaign(path: str | Path) -> dict:
+    """Read and check a campaign TOML (every key and value named in the errors)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"--config {str(path)!r}: no such file (configs/agents/campaign.toml)")
+    try:
+        c = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    check_keys(f"{path} top level", c, sorted(TOP_KEYS))
+    for key in ("out", "train", "evaluate"):
+        if key not in c:
+            raise ConfigError(f"{path}: missing key {key!r}")
+    c.setdefault("env_id", "brush_env/FlatPlate-v0")
+    c.setdefault("env_kwargs", {})
+    c["jobs"] = _int(f"{path}: jobs", c.get("jobs", 1))
+    _check_train(path, c["train"])
+    _check_evaluate(path, c["evaluate"])
+    return c
+
+
+def _check_train(path: Path, train) -> None:
+    if not isinstance(train, list) or not train:
+        raise ConfigError(f"{path}: [[train]] must be one or more tables")
+    seen = set()
+    for i, t in enumerate(train):
+        where = f"{path} [[train]] #{i + 1}"
+        check_keys(where, t, sorted(TRAIN_KEYS))
+        for key in ("algo", "config", "timesteps", "seeds"):
+            if key not in t:
+                raise ConfigError(f"{where}: missing key {key!r}")
+        if t["algo"] in seen:
+            raise ConfigError(f"{where}: algo = {t['algo']!r} appears twice")
+        seen.add(t["algo"])
+        _int(f"{where} timesteps", t["timesteps"])
+        t["n_envs"] = _int(f"{where} n_envs", t.get("n_envs", 1))
+        if not isinstance(t["seeds"], list) or not t["seeds"]:
+            raise ConfigError(f"{where}: seeds = {t['seeds']!r} must be a non-empty list")
+        for s in t["seeds"]:
+            _int(f"{where} seeds", s, 0)
+        if not Path(t["config"]).is_file():
+            raise ConfigError(f"{where}: config = {t['config']!r}: no such file")
+
+
+def _check_evaluate(path: Path, ev: dict) -> None:
+    from brush_env.engine.fidelity import LEVELS
+
+    check_keys(f"{path} [evaluate]", ev, sorted(EVAL_KEYS))
+    ev.setdefault("seed", 1000)
+    ev.setdefault("baselines", list(BASELINES))
+    _int(f"{path} [evaluate] seed", ev["seed"], 0)
+    for b in ev["baselines"]:
+        if b not in BASELINES:
+            raise ConfigError(
+                f"{path} [evaluate] baselines: {b!r} is not allowed: must be one of {BASELINES}"
+            )
+    levels = ev.get("levels") or {}
+    if not isinstance(levels, dict) or not levels:
+        raise ConfigError(f"{path} [evaluate] levels must map a fidelity level to episodes")
+    for level, n in levels.items():
+        if level not in LEVELS:
+            raise ConfigError(
+                f"{path} [evaluate] levels: {level!r} is not a fidelity level (known: "
+                f"{', '.join(LEVELS)})"
+            )
+        _int(f"{path} [evaluate] levels.{level}", n)
+
+
+def _runs(c: dict) -> list[tuple[str, int, dict]]:
+    out = Path(c["out"])
+    return [
+        (t["algo"], s, {**t, "dir": out / t["algo"] / f"seed_{s}"})
+        for t in c["train"]
+        for s in t["seeds"]
+    ]
+
+
+def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
+    cmd = [
+        sys.executable,
+        "-W",
+        "ignore",
+        "-m",
+        "agents.train",
+        "--algo",
+        t["algo"],
+        "--config",
+        t["config"],
+        "--timesteps",
+        str(t["timesteps"]),
+        "--n-envs",
+        str(t["n_envs"]),
+        "--out",
+        str(t["dir"]),
+        "--seed",
+        str(seed),
+        "--no-progress",
+    ]
+    for k, v in c["env_kwargs"].items():
+        cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
+    return cmd
+
+
+def _run_logged(cmd: list[str], log: Path, threads: int | None) -> tuple[int, float]:
+    env = dict(os.environ)
+    if threads is not None:
+        # one thread per worker when workers share the cores: torch's own pool of one thread per
+        # core would otherwise fight the other worker (and numba's, if a kernel is parallel)
+        for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+            env.setdefault(k, str(threads))
+    t0 = time.perf_counter()
+    with log.open("w") as fh:
+        rc = subprocess.call(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
+    return rc, time.perf_counter() - t0
+
+
+def _evals(c: dict) -> list[tuple[str, str, str, int]]:
+    """(level, name, policy spec, episodes) of every evaluation."""
+    ev = c["evaluate"]
+    policies = [(b, b) for b in ev["baselines"]]
+    policies += [(f"{a}_seed_{s}", str(t["dir"] / "model.zip")) for a, s, t in _runs(c)]
+    return [(level, name, spec, n) for level, n in ev["levels"].items() for name, spec in policies]
+
+
+def _eval_cmd(c: dict, level: str, spec: str, n: int, out: Path) -> list[str]:
+    cmd = [sys.executable, "-W", "ignore", "-m", "agents.evaluate", "--policy", spec]
+    cmd += ["--episodes", str(n), "--seed", str(c["evaluate"]["seed"]), "--out", str(out)]
+    cmd += ["--env", c["env_id"]]
+    for k, v in {**c["env_kwargs"], "fidelity": level}.items():
+        cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
+    return cmd
+
+
+def _parallel(jobs: int, tasks: list[tuple[str, list[str], Path]]) -> list[str]:
+    """Run (label, command, log) tasks ``jobs`` at a time; returns the labels that failed."""
+    failed = []
+
+    def one(task):
+        label, cmd, log = task
+        print(f"  start {label}", flush=True)
+        rc, wall = _run_logged(cmd, log, 1 if jobs > 1 else None)
+        state = "done" if rc == 0 else f"FAILED (exit {rc}, see {log})"
+        print(f"  {state}: {label} in {wall / 60:.1f} min", flush=True)
+        if rc != 0:
+            failed.append(label)
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        list(pool.map(one, tasks))
+    return failed
+
+
+def train_stage(c: dict, jobs: int, dry: bool) -> list[str]:
+    tasks = []
+    for algo, seed, t in _runs(c):
+        d = t["dir"]
+        if (d / "meta.json").is_file():
+            print(f"  kept {algo} seed {seed} ({d}/meta.json exists)")
+            continue
+        if d.exists() and not dry:
+            print(f"  {algo} seed {seed}: unfinished run in {d}, starting it again")
+            shutil.rmtree(d)
+        tasks.append(
+            (f"train {algo} seed {seed}", _train_cmd(c, t, seed), d.parent / f"{d.name}.log")
+        )
+    if dry:
+        for label, cmd, _ in tasks:
+            print(f"  would run {label}: {' '.join(cmd)}")
+        return []
+    for _, _, log in tasks:
+        log.parent.mkdir(parents=True, exist_ok=True)
+    return _parallel(jobs, tasks)
+
+
+def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
+    tasks = []
+    root = Path(c["out"]) / "eval"
+    for level, name, spec, n in _evals(c):
+        d = root / level / name
+        if (d / "summary.json").is_file():
+            print(f"  kept {level}/{name}")
+            continue
+        if spec not in BASELINES and not Path(spec).is_file():
+            print(f"  skip {level}/{name}: no model {spec} (its training failed?)")
+            continue
+        tasks.append(
+            (
+                f"evaluate {name} at {level}",
+                _eval_cmd(c, level, spec, n, d),
+                root / level / f"{name}.log",
+            )
+        )
+    if dry:
+        for label, cmd, _ in tasks:
+            print(f"  would run {label}: {' '.join(cmd)}")
+        return []
+    for _, _, log in tasks:
+        log.parent.mkdir(parents=True, exist_ok=True)
+    return _parallel(jobs, tasks)
+
+
+def _cell(values: list[float], key: str) -> str:
+    _, scale, fmt = METRICS[key]
+    v = np.asarray(values, float) * scale
+    if len(v) == 1:
+        return fmt.format(v[0])
+    return f"{fmt.format(v.mean())} ± {fmt.format(v.std())}"
+
+
+def report(c: dict) -> dict:
+    """Collect the evaluations into results.json / results.md (module docstring)."""
+    out = Path(c["out"])
+    results: dict = {"levels": {}, "runs": {}}
+    lines = [
+        "# Campaign results",
+        "",
+        f"Config: env {c['env_id']}, training env keywords {json.dumps(c['env_kwargs'])}.",
+        "Baselines: mean ± std over episodes; trained: mean ± std over training seeds of each "
+        "seed's episode mean.",
+    ]
+    for algo, seed, t in _runs(c):
+        meta = t["dir"] / "meta.json"
+        if meta.is_file():
+            m = json.loads(meta.read_text())
+            results["runs"][f"{algo}_seed_{seed}"] = {
+                k: m.get(k) for k in ("timesteps", "wall_time_s", "env_steps_per_s", "seed")
+            }
+    for level, n in c["evaluate"]["levels"].items():
+        rows: dict = {}
+        for b in c["evaluate"]["baselines"]:
+            s = out / "eval" / level / b / "summary.json"
+            if s.is_file():
+                per = json.loads(s.read_text())["per_episode"]
+                rows[b] = {k: [r[k] for r in per if k in r] for k in METRICS}
+        for t in c["train"]:
+            seeds = []
+            for s in t["seeds"]:
+                f = out / "eval" / level / f"{t['algo']}_seed_{s}" / "summary.json"
+                if f.is_file():
+                    seeds.append(json.loads(f.read_text())["mean"])
+            if seeds:
+                rows[f"{t['algo']} ({len(seeds)} seeds)"] = {
+                    k: [m[k] for m in seeds if k in m] for k in METRICS
+                }
+        results["levels"][level] = {
+            name: {
+                k: {"mean": float(np.mean(v)), "std": float(np.std(v)), "n": len(v)}
+                for k, v in r.items()
+                if v
+            }
+            for name, r in rows.items()
+        }
+        lines += ["", f"## Level `{level}`, {n} episodes (seeds {c['evaluate']['seed']}..)", ""]
+        lines.append("| policy | " + " | ".join(h for h, _, _ in METRICS.values()) + " |")
+        lines.append("|---" * (len(METRICS) + 1) + "|")
+        for name, r in rows.items():
+            cells = [_cell(r[k], k) if r.get(k) else "" for k in METRICS]
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    (out / "results.json").write_text(json.dumps(results, indent=2))
+    (out / "results.md").write_text("\n".join(lines) + "\n")
+    learning_curves(c, out / "learning_curves.png")
+    return results
+
+
+def learning_curves(c: dict, path: Path) -> None:
+    """Evaluation return against env steps per algorithm: mean over seeds, min-max band; the
+    reference policy's return (agents/train.py's reference.json) as a dashed line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    refs = []
+    for t in c["train"]:
+        curves = []
+        for s in t["seeds"]:
+            d = Path(c["out"]) / t["algo"] / f"seed_{s}"
+            f = d / "eval" / "evaluations.npz"
+            if f.is_file():
+                z = np.load(f)
+                curves.append((z["timesteps"], z["results"].mean(axis=1)))
+            if (d / "reference.json").is_file():
+                refs.append(json.loads((d / "reference.json").read_text())["mean_reward"])
+        if not curves:
+            continue
+        n = min(len(x) for x, _ in curves)
+        x = curves[0][0][:n]
+        y = np.array([r[:n] for _, r in curves])
+        (line,) = ax.plot(x, y.mean(0), label=f"{t['algo'].upper()} ({len(curves)} seeds)")
+        ax.fill_between(x, y.min(0), y.max(0), color=line.get_color(), alpha=0.25)
+    if refs:
+        ax.axhline(float(np.mean(refs)), color="k", ls="--", label="reference circle")
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("evaluation return (mean of episodes)")
+    ax.set_title(f"{c['env_id']}, {json.dumps(c['env_kwargs'])}", fontsize=9)
+    ax.legend(loc="best")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def campaign(config: str | Path, jobs: int | None = None, dry_run: bool = False) -> dict | None:
+    c = load_campaign(config)
+    jobs = c["jobs"] if jobs is None else _int("--jobs", jobs)
+    t0 = time.perf_counter()
+    failed = []
+    for name, stage in (("train", train_stage), ("evaluate", evaluate_stage)):
+        t = time.perf_counter()
+        print(f"[{name}] {jobs} job(s) at a time", flush=True)
+        failed += stage(c, jobs, dry_run)
+        print(f"[{name}] {(time.perf_counter() - t) / 60:.1f} min", flush=True)
+    if dry_run:
+        return None
+    results = report(c)
+    out = Path(c["out"])
+    print((out / "results.md").read_text())
+    print(f"campaign wall time {(time.perf_counter() - t0) / 60:.1f} min; {out}/results.md")
+    if failed:
+        raise RuntimeError(f"{len(failed)} task(s) failed: {', '.join(failed)}")
+    return results
+
+
+def build_parser() -> OneLineParser:
+    p = OneLineParser(prog="python -m agents.campaign", description=__doc__.split("\n")[0])
+    p.add_argument("--config", required=True, help="campaign TOML (configs/agents/campaign.toml)")
+    p.add_argument("--jobs", type=int, default=None, help="tasks at a time (default: the config's)")
+    add_flag(p, "--dry-run", "print what would run, run nothing")
+    return p
+
+
+def _main(argv) -> int:
+    args = build_parser().parse_args(argv)
+    campaign(args.config, args.jobs, args.dry_run)
+    return 0
+
+
+def main(argv=None) -> int:
+    return run_main(_main, argv, prog="python -m agents.campaign")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

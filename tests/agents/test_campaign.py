@@ -1,0 +1,119 @@
+"""agents/campaign.py: a tiny campaign trains, evaluates, reports and resumes; config errors."""
+
+import json
+
+import pytest
+
+from agents.campaign import campaign, load_campaign
+from brush_env.engine.checks import ConfigError
+
+PPO_TOML = """
+algo = "ppo"
+policy = "MlpPolicy"
+[env]
+id = "brush_env:brush_env/FlatPlate-v0"
+config = "flat_plate"
+[normalize]
+obs = true
+reward = true
+[hyperparameters]
+n_steps = 32
+batch_size = 16
+n_epochs = 1
+[hyperparameters.policy_kwargs]
+net_arch = [16]
+[train]
+eval_freq = 32
+eval_episodes = 1
+checkpoint_freq = 64
+seed = 0
+"""
+
+
+def _campaign_toml(tmp_path, **over) -> str:
+    (tmp_path / "ppo.toml").write_text(PPO_TOML)
+    body = {
+        "out": f'"{tmp_path / "out"}"',
+        "jobs": "2",
+    }
+    body.update(over)
+    head = "\n".join(f"{k} = {v}" for k, v in body.items())
+    return f"""{head}
+[env_kwargs]
+brush = "tiny_env"
+fidelity = "reduced"
+max_episode_steps = 8
+[[train]]
+algo = "ppo"
+config = "{tmp_path / "ppo.toml"}"
+timesteps = 32
+n_envs = 1
+seeds = [0, 1]
+[evaluate]
+episodes = 1
+seed = 100
+baselines = ["reference", "random"]
+levels = {{ reduced = 1 }}
+"""
+
+
+@pytest.mark.slow  # two tiny trainings and six evaluations in worker processes (~1 min)
+def test_tiny_campaign_trains_evaluates_reports_and_resumes(tmp_path, capsys):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_campaign_toml(tmp_path))
+    results = campaign(cfg)
+    out = tmp_path / "out"
+    for s in (0, 1):
+        assert (out / "ppo" / f"seed_{s}" / "meta.json").is_file()
+        assert (out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").is_file()
+    table = results["levels"]["reduced"]
+    assert set(table) == {"reference", "random", "ppo (2 seeds)"}
+    # the trained row is the mean over seeds of each seed's episode mean
+    per_seed = [
+        json.loads((out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").read_text())[
+            "mean"
+        ]["coverage"]
+        for s in (0, 1)
+    ]
+    assert table["ppo (2 seeds)"]["coverage"]["mean"] == pytest.approx(sum(per_seed) / 2)
+    assert table["ppo (2 seeds)"]["coverage"]["n"] == 2
+    assert (out / "results.md").read_text().count("| ppo (2 seeds) |") == 1
+    assert (out / "learning_curves.png").stat().st_size > 0
+    # a second run keeps everything: nothing is trained or evaluated again
+    capsys.readouterr()
+    campaign(cfg)
+    said = capsys.readouterr().out
+    assert "start " not in said
+    assert said.count("kept ") == 2 + 4
+
+
+@pytest.mark.parametrize(
+    "over, needle",
+    [
+        ({"jobs": "0"}, "jobs = 0 is out of range"),
+        ({"outt": '"x"'}, "unknown key 'outt'"),
+    ],
+)
+def test_campaign_config_errors_name_the_key(tmp_path, over, needle):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_campaign_toml(tmp_path, **over))
+    with pytest.raises(ConfigError, match=needle):
+        load_campaign(cfg)
+
+
+def test_campaign_config_rejects_unknown_level_and_baseline(tmp_path):
+    cfg = tmp_path / "campaign.toml"
+    text = _campaign_toml(tmp_path)
+    cfg.write_text(text.replace("levels = { reduced = 1 }", "levels = { reduce = 1 }"))
+    with pytest.raises(ConfigError, match="'reduce' is not a fidelity level"):
+        load_campaign(cfg)
+    cfg.write_text(text.replace('["reference", "random"]', '["reference", "idle"]'))
+    with pytest.raises(ConfigError, match="'idle' is not allowed"):
+        load_campaign(cfg)
+
+
+def test_shipped_campaign_config_loads():
+    c = load_campaign("configs/agents/campaign.toml")
+    assert {t["algo"] for t in c["train"]} == {"ppo", "sac"}
+    assert all(len(t["seeds"]) >= 3 for t in c["train"])
+    assert "balanced" in c["evaluate"]["levels"]
