@@ -33,9 +33,9 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from brush_env.engine.checks import ConfigError, check_keys
+from brush_env.engine.config_files import read_toml
 from brush_env.user_errors import OneLineParser, add_flag, run_main
 
 TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "evaluate"}
@@ -64,10 +64,7 @@ def load_campaign(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"--config {str(path)!r}: no such file (configs/agents/campaign.toml)")
-    try:
-        c = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    c = read_toml(path)
     check_keys(f"{path} top level", c, sorted(TOP_KEYS))
     for key in ("out", "train", "evaluate"):
         if key not in c:
@@ -210,6 +207,17 @@ def _parallel(jobs: int, tasks: list[tuple[str, list[str], Path]]) -> list[str]:
     return failed
 
 
+def _launch(tasks: list[tuple[str, list[str], Path]], jobs: int, dry: bool) -> list[str]:
+    """Run the tasks (``_parallel``), or with ``dry`` print their commands; returns failures."""
+    if dry:
+        for label, cmd, _ in tasks:
+            print(f"  would run {label}: {' '.join(cmd)}")
+        return []
+    for _, _, log in tasks:
+        log.parent.mkdir(parents=True, exist_ok=True)
+    return _parallel(jobs, tasks)
+
+
 def train_stage(c: dict, jobs: int, dry: bool) -> list[str]:
     tasks = []
     for algo, seed, t in _runs(c):
@@ -223,13 +231,7 @@ def train_stage(c: dict, jobs: int, dry: bool) -> list[str]:
         tasks.append(
             (f"train {algo} seed {seed}", _train_cmd(c, t, seed), d.parent / f"{d.name}.log")
         )
-    if dry:
-        for label, cmd, _ in tasks:
-            print(f"  would run {label}: {' '.join(cmd)}")
-        return []
-    for _, _, log in tasks:
-        log.parent.mkdir(parents=True, exist_ok=True)
-    return _parallel(jobs, tasks)
+    return _launch(tasks, jobs, dry)
 
 
 def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
@@ -250,13 +252,7 @@ def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
                 root / level / f"{name}.log",
             )
         )
-    if dry:
-        for label, cmd, _ in tasks:
-            print(f"  would run {label}: {' '.join(cmd)}")
-        return []
-    for _, _, log in tasks:
-        log.parent.mkdir(parents=True, exist_ok=True)
-    return _parallel(jobs, tasks)
+    return _launch(tasks, jobs, dry)
 
 
 def _cell(values: list[float], key: str) -> str:

@@ -38,9 +38,8 @@ import sys
 import time
 from pathlib import Path
 
-import tomllib
-
 from brush_env.engine.checks import ConfigError, check_keys, did_you_mean
+from brush_env.engine.config_files import read_toml
 from brush_env.user_errors import OneLineParser, add_env_kw, add_flag, run_main
 
 AGENT_KEYS = {"algo", "policy", "env", "normalize", "hyperparameters", "train"}
@@ -58,10 +57,7 @@ def load_agent_config(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"--config {str(path)!r}: no such file (e.g. configs/agents/ppo.toml)")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    data = read_toml(path)
     for keys, allowed, where in (
         (data, AGENT_KEYS, "top level"),
         (data.get("env", {}), ENV_KEYS, "[env]"),

@@ -6,28 +6,7 @@ import pytest
 
 from agents.campaign import campaign, load_campaign
 from brush_env.engine.checks import ConfigError
-
-PPO_TOML = """
-algo = "ppo"
-policy = "MlpPolicy"
-[env]
-id = "brush_env:brush_env/FlatPlate-v0"
-config = "flat_plate"
-[normalize]
-obs = true
-reward = true
-[hyperparameters]
-n_steps = 32
-batch_size = 16
-n_epochs = 1
-[hyperparameters.policy_kwargs]
-net_arch = [16]
-[train]
-eval_freq = 32
-eval_episodes = 1
-checkpoint_freq = 64
-seed = 0
-"""
+from tests.agents.test_train import PPO_TOML  # the tiny PPO (the campaign's --env-kw win)
 
 
 def _campaign_toml(tmp_path, **over) -> str:
@@ -57,7 +36,7 @@ levels = {{ reduced = 1 }}
 """
 
 
-@pytest.mark.slow  # two tiny trainings and six evaluations in worker processes (~1 min)
+@pytest.mark.slow  # two tiny trainings and six evaluations in worker processes (~25 s)
 def test_tiny_campaign_trains_evaluates_reports_and_resumes(tmp_path, capsys):
     cfg = tmp_path / "campaign.toml"
     cfg.write_text(_campaign_toml(tmp_path))
