@@ -357,7 +357,82 @@ def learning_curves(c: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def campaign(config: str | Path, jobs: int | None = None, dry_run: bool = False) -> dict | None:
+def best_run(c: dict, results: dict) -> tuple[str, int]:
+    """(algo, seed) to ship: the algorithm with the highest mean coverage over its seeds at the
+    most accurate evaluated level (the last of ``[evaluate] levels``), then its seed with the
+    highest coverage there."""
+    level = list(c["evaluate"]["levels"])[-1]
+    root = Path(c["out"]) / "eval" / level
+    best = None
+    for t in c["train"]:
+        covs = {}
+        for s in t["seeds"]:
+            f = root / f"{t['algo']}_seed_{s}" / "summary.json"
+            if f.is_file():
+                covs[s] = json.loads(f.read_text())["mean"]["coverage"]
+        if covs:
+            mean = float(np.mean(list(covs.values())))
+            seed = max(covs, key=lambda k: covs[k])
+            if best is None or mean > best[0]:
+                best = (mean, t["algo"], seed)
+    if best is None:
+        raise RuntimeError(f"no trained policy was evaluated at {level}: nothing to ship")
+    return best[1], best[2]
+
+
+def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
+    """Copy the best run's model (:func:`best_run`) to ``DEST/<scene>_<algo>.zip`` with its
+    ``.meta.json`` and ``.vecnormalize.pkl`` (agents/evaluate.py finds them beside it), and
+    write its card section into ``DEST/README.md``: command, commit, seeds, wall time and the
+    evaluation table at every level."""
+    algo, seed = best_run(c, results)
+    scene = c["env_id"].split("/")[-1].split("-")[0]
+    stem = "".join("_" + ch.lower() if ch.isupper() else ch for ch in scene).lstrip("_")
+    dest = Path(dest)
+    dest.mkdir(parents=True, exist_ok=True)
+    run = Path(c["out"]) / algo / f"seed_{seed}"
+    name = f"{stem}_{algo}"
+    shutil.copyfile(run / "model.zip", dest / f"{name}.zip")
+    meta = json.loads((run / "meta.json").read_text())
+    from agents.evaluate import commit_id
+
+    meta["shipped_from"] = {"run": str(run), "commit": commit_id()}
+    (dest / f"{name}.meta.json").write_text(json.dumps(meta, indent=2))
+    if (run / "vecnormalize.pkl").is_file():
+        shutil.copyfile(run / "vecnormalize.pkl", dest / f"{name}.vecnormalize.pkl")
+    table = (Path(c["out"]) / "results.md").read_text().split("\n", 4)[-1]
+    card = [
+        f"## `{name}.zip`",
+        "",
+        f"{algo.upper()} seed {seed} of the campaign (the best algorithm by mean coverage at "
+        f"`{list(c['evaluate']['levels'])[-1]}`, then its best seed), commit {commit_id()}.",
+        f"Trained {meta['timesteps']} env steps on {c['env_id']} with "
+        f"{json.dumps(meta['env_kwargs'])}, {meta['n_envs']} envs, in "
+        f"{meta['wall_time_s'] / 60:.1f} min ({meta['env_steps_per_s']:.0f} env steps/s).",
+        "",
+        "Made by `python -m agents.campaign --config configs/agents/campaign.toml --ship`.",
+        f"Run it: `python -m agents.evaluate --policy {dest}/{name}.zip --episodes 20`.",
+        "",
+        "The campaign's table (all algorithms and seeds, not this model alone):",
+        "",
+        table.strip(),
+        "",
+    ]
+    (dest / f"{name}.md").write_text("\n".join(card))
+    cards = sorted(p.read_text() for p in dest.glob("*.md") if p.name != "README.md")
+    (dest / "README.md").write_text(
+        "# Shipped policies\n\nEach model below sits beside its `.meta.json` (algorithm, env "
+        "settings, training run) and `.vecnormalize.pkl` (observation statistics), which "
+        "`agents/evaluate.py` loads with it.  Remade by the command in its card.\n\n"
+        + "\n".join(cards)
+    )
+    print(f"shipped {run}/model.zip as {dest}/{name}.zip (card {dest}/{name}.md)")
+    return dest / f"{name}.zip"
+
+
+def campaign(
+    config: str | Path, jobs: int | None = None, dry_run: bool = False, ship_to: str | None = None
+) -> dict | None:
     c = load_campaign(config)
     jobs = c["jobs"] if jobs is None else _int("--jobs", jobs)
     t0 = time.perf_counter()
@@ -375,6 +450,8 @@ def campaign(config: str | Path, jobs: int | None = None, dry_run: bool = False)
     print(f"campaign wall time {(time.perf_counter() - t0) / 60:.1f} min; {out}/results.md")
     if failed:
         raise RuntimeError(f"{len(failed)} task(s) failed: {', '.join(failed)}")
+    if ship_to is not None:
+        ship(c, results, ship_to)
     return results
 
 
@@ -383,12 +460,20 @@ def build_parser() -> OneLineParser:
     p.add_argument("--config", required=True, help="campaign TOML (configs/agents/campaign.toml)")
     p.add_argument("--jobs", type=int, default=None, help="tasks at a time (default: the config's)")
     add_flag(p, "--dry-run", "print what would run, run nothing")
+    p.add_argument(
+        "--ship",
+        nargs="?",
+        const="agents/models",
+        default=None,
+        metavar="DIR",
+        help="copy the best model, its statistics and card to DIR (default agents/models)",
+    )
     return p
 
 
 def _main(argv) -> int:
     args = build_parser().parse_args(argv)
-    campaign(args.config, args.jobs, args.dry_run)
+    campaign(args.config, args.jobs, args.dry_run, args.ship)
     return 0
 
 

@@ -74,6 +74,18 @@ REFERENCES = {
 }
 
 
+def companions(model: str | Path) -> tuple[Path, Path]:
+    """(meta.json, vecnormalize.pkl) of a saved model: ``<stem>.meta.json`` and
+    ``<stem>.vecnormalize.pkl`` beside it (a shipped model, agents/models/), else the run folder's
+    ``meta.json`` and ``vecnormalize.pkl`` (agents/train.py's output)."""
+    path = Path(model)
+    stem = path.with_suffix("")
+    own = (Path(f"{stem}.meta.json"), Path(f"{stem}.vecnormalize.pkl"))
+    if own[0].is_file():
+        return own
+    return path.parent / "meta.json", path.parent / "vecnormalize.pkl"
+
+
 def load_policy(spec: str, env: gym.Env, seed: int = 0):
     """(policy with SB3-style predict, obs_transform) for a name of :data:`REFERENCES`,
     'random' or a model path."""
@@ -91,7 +103,7 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
         )
     from stable_baselines3 import PPO, SAC
 
-    meta_path = path.parent / "meta.json"
+    meta_path, vn_path = companions(path)
     algo = json.loads(meta_path.read_text()).get("algo") if meta_path.exists() else None
     classes = {"ppo": PPO, "sac": SAC}
     model = None
@@ -104,7 +116,6 @@ def load_policy(spec: str, env: gym.Env, seed: int = 0):
     if model is None:
         raise ValueError(f"{path}: not a PPO or SAC model saved by stable-baselines3")
     transform = None
-    vn_path = path.parent / "vecnormalize.pkl"
     if vn_path.exists():
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -281,7 +292,7 @@ def evaluate(
         raise ConfigError(f"episodes = {episodes!r} is out of range: must be >= 1")
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
-    meta = Path(policy).parent / "meta.json"
+    meta = companions(policy)[0]
     if policy not in (*REFERENCES, "random") and meta.is_file():
         # a trained model is evaluated on the env it was trained on, unless overridden
         trained = dict(json.loads(meta.read_text()).get("env_kwargs", {}))

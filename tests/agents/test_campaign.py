@@ -5,6 +5,7 @@ import json
 import pytest
 
 from agents.campaign import campaign, load_campaign
+from agents.evaluate import evaluate
 from brush_env.engine.checks import ConfigError
 from tests.agents.test_train import PPO_TOML  # the tiny PPO (the campaign's --env-kw win)
 
@@ -58,12 +59,21 @@ def test_tiny_campaign_trains_evaluates_reports_and_resumes(tmp_path, capsys):
     assert table["ppo (2 seeds)"]["coverage"]["n"] == 2
     assert (out / "results.md").read_text().count("| ppo (2 seeds) |") == 1
     assert (out / "learning_curves.png").stat().st_size > 0
-    # a second run keeps everything: nothing is trained or evaluated again
+    # a second run keeps everything: nothing is trained or evaluated again; --ship copies the
+    # better seed's model, which agents/evaluate.py then runs with its statistics
     capsys.readouterr()
-    campaign(cfg)
+    campaign(cfg, ship_to=str(tmp_path / "models"))
     said = capsys.readouterr().out
     assert "start " not in said
     assert said.count("kept ") == 2 + 4
+    best = max((0, 1), key=lambda s: per_seed[s])
+    shipped = tmp_path / "models" / "flat_plate_ppo.zip"
+    assert shipped.read_bytes() == (out / "ppo" / f"seed_{best}" / "model.zip").read_bytes()
+    assert (tmp_path / "models" / "flat_plate_ppo.vecnormalize.pkl").is_file()
+    assert "ppo (2 seeds)" in (tmp_path / "models" / "README.md").read_text()
+    s = evaluate(str(shipped), 1, tmp_path / "ev", seed=100, quiet=True)
+    assert s["env_kwargs"]["brush"] == "tiny_env"  # the meta beside it gave the env settings
+    assert s["per_episode"][0]["steps"] == 8
 
 
 @pytest.mark.parametrize(
