@@ -147,11 +147,14 @@ def run_episode(
     obs, info = env.reset(seed=seed)
     u = env.unwrapped
     cfg = u.config
+    p0 = np.asarray(info["tcp_position"], float)
     series = {
         "time": [0.0],
         "total_normal_force": [0.0],
         "peak_normal_force": [0.0],
         "coverage": [0.0],
+        "tcp_x": [float(p0[0])],  # [mm] TCP in the plate's frame (info["tcp_position"])
+        "tcp_y": [float(p0[1])],
     }
     frames = [env.render()] if video else []
     terms = dict.fromkeys(REWARD_TERMS, 0.0)
@@ -176,6 +179,8 @@ def run_episode(
         series["total_normal_force"].append(info["total_normal_force"])
         series["peak_normal_force"].append(info["peak_normal_force"])
         series["coverage"].append(info["coverage"])
+        series["tcp_x"].append(float(info["tcp_position"][0]))
+        series["tcp_y"].append(float(info["tcp_position"][1]))
         if video:
             frames.append(env.render())
         if terminated or truncated:
