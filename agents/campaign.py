@@ -36,7 +36,7 @@ import numpy as np
 
 from brush_env.engine.checks import ConfigError, check_keys
 from brush_env.engine.config_files import read_toml
-from brush_env.user_errors import OneLineParser, add_flag, run_main
+from brush_env.user_errors import OneLineParser, UserError, add_flag, run_main
 
 TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "evaluate"}
 TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
@@ -405,7 +405,8 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
         f"## `{name}.zip`",
         "",
         f"{algo.upper()} seed {seed} of the campaign (the best algorithm by mean coverage at "
-        f"`{list(c['evaluate']['levels'])[-1]}`, then its best seed), commit {commit_id()}.",
+        f"`{list(c['evaluate']['levels'])[-1]}`, then its best seed), trained with the code of "
+        f"commit `{meta.get('commit', 'unknown')}`.",
         f"Trained {meta['timesteps']} env steps on {c['env_id']} with "
         f"{json.dumps(meta['env_kwargs'])}, {meta['n_envs']} envs, in "
         f"{meta['wall_time_s'] / 60:.1f} min ({meta['env_steps_per_s']:.0f} env steps/s).",
@@ -449,7 +450,10 @@ def campaign(
     print((out / "results.md").read_text())
     print(f"campaign wall time {(time.perf_counter() - t0) / 60:.1f} min; {out}/results.md")
     if failed:
-        raise RuntimeError(f"{len(failed)} task(s) failed: {', '.join(failed)}")
+        raise UserError(
+            f"{len(failed)} task(s) failed: {', '.join(failed)}; the table holds the rest, and "
+            "running the command again retries them"
+        )
     if ship_to is not None:
         ship(c, results, ship_to)
     return results

@@ -419,11 +419,18 @@ def train(
         "env_steps_per_s": timesteps / wall,
         "reference_mean_reward": ref_mean,
         "stable_baselines3": stable_baselines3.__version__,
+        "commit": _commit(),
     }
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
     venv.close()
     eval_env.close()
     return model_path
+
+
+def _commit() -> str:
+    from agents.evaluate import commit_id
+
+    return commit_id()
 
 
 def _finish_short_run(eval_cb, ckpt_cb) -> None:
