@@ -158,7 +158,7 @@ class CoverageMap:
         return c / self._block_area
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _stamp_segments(cleaned, start, end, patch_size, cell, radius):
     """Mark cells within ``radius`` of samples (every half cell) along each segment; returns the
     number of cells newly set.  ``cleaned`` (n, n) bool is modified in place."""

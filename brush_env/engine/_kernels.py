@@ -28,7 +28,12 @@ from numba import njit
 #: (scratch memory comes from the caller), and with NRT on numba increfs/decrefs (atomically)
 #: every array view it hands to a helper -- measured with ``perf`` at ~30 % of a whole step.
 #: Without NRT a view is a plain struct.  Kernels that do allocate keep the default options.
-HOT = dict(cache=True, _nrt=False)
+#: ``fastmath=False`` is explicit: numba gives a kernel that does not set the flag the flag of the
+#: first caller that compiles it (numba issue 7168) and caches that version without the flag in its
+#: key, so a strict kernel first reached from the reduced model's fast-math kernels (``PRB``) was
+#: compiled fast-math for the whole process -- the full chain's results then depended on which
+#: level ran first and on which process wrote the cache (the last digits; issue 32's note).
+HOT = dict(cache=True, _nrt=False, fastmath=False)
 
 
 # --------------------------------------------------------------------------- small linear algebra

@@ -67,7 +67,7 @@ def closest_on_triangle(p, a, b, c):
     return q0, q1, q2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def mesh_gap(pt, search, mesh, nrm, cpt):
     """Signed distance from pt to the mesh (>0 on the side the triangle normals point to), the
     contact normal and the closest point, over the triangles of the grid cells within ``search``
@@ -167,7 +167,7 @@ def build_mesh(vertices, triangles, cell: float | None = None):
     return (V, T, n, gf, start, flat)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _mesh_query_many(mesh, P, search):
     d = np.empty(P.shape[0])
     N = np.zeros((P.shape[0], 3))

@@ -348,7 +348,7 @@ class SdfGrid:
         return _query_many(0, sdf, P)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _query_many(g, sdf, P):
     d = np.empty(P.shape[0])
     N = np.zeros((P.shape[0], 3))

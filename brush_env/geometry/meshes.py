@@ -109,7 +109,7 @@ def _check_tooth_size(path, units: str, ext: np.ndarray) -> None:
     )
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _segment_hits(p, q, a, b, c) -> bool:
     """Whether the segment p-q meets the triangle abc (Moeller-Trumbore; parallel: no)."""
     e1 = b - a
@@ -132,7 +132,7 @@ def _segment_hits(p, q, a, b, c) -> bool:
     return 0.0 <= t <= 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def first_crossing(V, T):
     """(a, b): two triangles without a common vertex that cross (an edge of one through the
     other), or (-1, -1).  Sweep and prune along x, then bounding boxes, then the edge tests."""
@@ -163,7 +163,7 @@ def first_crossing(V, T):
     return -1, -1
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _pair_crosses(T, P, i, j) -> bool:
     """Triangles i and j share no vertex and an edge of one passes through the other."""
     for k in range(3):

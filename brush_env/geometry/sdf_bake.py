@@ -41,7 +41,7 @@ __all__ = [
 BAKE_VERSION = 2  # bump when the baking changes: cached grids of older versions are not used
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _splat(V, T, pseudo, lo, h, band, dist, nrm, known):
     """Exact distance and sign at every node within ``band`` of a triangle (node-by-triangle
     minimum); sign and normal from the closest feature's pseudonormal (``pseudo`` = (face, edge,

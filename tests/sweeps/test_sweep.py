@@ -95,12 +95,6 @@ def test_sweep_resumes_without_redoing_finished_runs(tmp_path):
 
 
 @pytest.mark.slow  # Ray (~18 s: a local Ray instance)
-@pytest.mark.xfail(
-    strict=False,
-    reason="known defect (2026-11-26): in full clean-clone runs the two backends differ in the "
-    "14th digit because kernels compiled in different processes differ; passes alone on a cold "
-    "cache. Remove this mark when the compile is deterministic (issue 32)",
-)
 def test_local_pool_and_ray_give_byte_identical_summaries(tmp_path):
     ray = pytest.importorskip("ray")  # the [cluster] extra; CI installs it (.ci/run)
     p = _spec(tmp_path, TINY)
