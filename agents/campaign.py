@@ -7,10 +7,18 @@ Stages (each prints its wall time; the whole run prints its total):
 1. **train** -- every ``[[train]]`` entry at every one of its seeds, with ``agents/train.py``
    (``python -m agents.train ... --no-progress`` in a worker process, its output in
    ``OUT/<algo>/seed_<k>.log``), ``jobs`` runs at a time.
-2. **evaluate** -- the baselines (``reference``, ``random``) and every trained model with
+2. **select** (with a ``[select]`` table) -- each run's checkpoints (``OUT/<algo>/seed_<k>/
+   checkpoints/``, each with its own VecNormalize statistics) and its final model are evaluated
+   on validation episodes (``[select] seed`` + i at ``[select] level``: seeds that are neither
+   the evaluation's nor the training's) and the one with the best mean ``[select] metric`` is
+   the run's policy (``OUT/<algo>/seed_<k>/selected.zip`` with its statistics and
+   ``selected.json``), as the RL Zoo keeps its best evaluated model: PPO's evaluation return
+   swings by tens of points between checkpoints (docs/rl.md), and the last one is not the best.
+   Without ``[select]`` every run's policy is its final ``model.zip``.
+3. **evaluate** -- the baselines (``reference``, ``random``) and every run's policy with
    ``agents/evaluate.py`` on the same fixed-seed episodes (``[evaluate] seed`` + i), at each level
    of ``[evaluate] levels`` (level -> number of episodes), in ``OUT/eval/<level>/<name>/``.
-3. **report** -- ``OUT/results.md`` and ``OUT/results.json``: per level, each policy's coverage,
+4. **report** -- ``OUT/results.md`` and ``OUT/results.json``: per level, each policy's coverage,
    time above the force limit, peak and mean total force, peak tip force and return; for trained
    policies the mean +- std over training seeds of each seed's episode mean, for the baselines the
    mean +- std over episodes.  ``OUT/learning_curves.png``: the evaluation return during training,
@@ -18,7 +26,8 @@ Stages (each prints its wall time; the whole run prints its total):
 
 **Resumable**: a run whose folder holds ``meta.json`` (agents/train.py writes it last) and an
 evaluation whose folder holds ``summary.json`` are kept; an unfinished run is started again from
-its beginning (its folder is cleared first).  Re-running after a crash or Ctrl-C continues.
+its beginning (its folder is cleared first); an evaluation of another model than the run's policy
+now is made again.  Re-running after a crash or Ctrl-C continues.
 """
 
 from __future__ import annotations
@@ -38,7 +47,9 @@ from brush_env.engine.checks import ConfigError, check_keys
 from brush_env.engine.config_files import read_toml
 from brush_env.user_errors import OneLineParser, UserError, add_flag, run_main
 
-TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "evaluate"}
+TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "select", "evaluate"}
+SELECT_KEYS = {"episodes", "seed", "level", "metric"}
+SELECT_METRICS = ("return", "coverage")
 TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
 EVAL_KEYS = {"episodes", "seed", "baselines", "levels"}
 BASELINES = ("reference", "random")
@@ -74,6 +85,8 @@ def load_campaign(path: str | Path) -> dict:
     c["jobs"] = _int(f"{path}: jobs", c.get("jobs", 1))
     _check_train(path, c["train"])
     _check_evaluate(path, c["evaluate"])
+    if "select" in c:
+        _check_select(path, c)
     return c
 
 
@@ -124,6 +137,34 @@ def _check_evaluate(path: Path, ev: dict) -> None:
         _int(f"{path} [evaluate] levels.{level}", n)
 
 
+def _check_select(path: Path, c: dict) -> None:
+    from brush_env.engine.fidelity import LEVELS
+
+    sel = c["select"]
+    where = f"{path} [select]"
+    check_keys(where, sel, sorted(SELECT_KEYS))
+    sel["episodes"] = _int(f"{where} episodes", sel.get("episodes", 10))
+    sel["seed"] = _int(f"{where} seed", sel.get("seed", 2000), 0)
+    sel.setdefault("level", c["env_kwargs"].get("fidelity", "fast"))
+    sel.setdefault("metric", "return")
+    if sel["level"] not in LEVELS:
+        raise ConfigError(
+            f"{where} level = {sel['level']!r} is not a fidelity level (known: {', '.join(LEVELS)})"
+        )
+    if sel["metric"] not in SELECT_METRICS:
+        raise ConfigError(
+            f"{where} metric = {sel['metric']!r} is not allowed: must be one of {SELECT_METRICS}"
+        )
+    ev = c["evaluate"]
+    lo, hi = ev["seed"], ev["seed"] + max(ev["levels"].values())
+    if sel["seed"] < hi and lo < sel["seed"] + sel["episodes"]:
+        raise ConfigError(
+            f"{where} seed = {sel['seed']}: its {sel['episodes']} validation seeds overlap the "
+            f"evaluation's ({lo}..{hi - 1}); a checkpoint chosen on the test episodes would be "
+            "scored on them"
+        )
+
+
 def _runs(c: dict) -> list[tuple[str, int, dict]]:
     out = Path(c["out"])
     return [
@@ -172,17 +213,107 @@ def _run_logged(cmd: list[str], log: Path, threads: int | None) -> tuple[int, fl
     return rc, time.perf_counter() - t0
 
 
+def policy_of(c: dict, t: dict) -> Path:
+    """The run's policy: its selected checkpoint (``select`` stage) if the campaign selects,
+    else its final model."""
+    sel = t["dir"] / "selected.zip"
+    return sel if "select" in c else t["dir"] / "model.zip"
+
+
+def _candidates(t: dict) -> list[tuple[str, Path, Path]]:
+    """(name, model, VecNormalize statistics) of a run's checkpoints and its final model."""
+    d, algo = t["dir"], t["algo"]
+    out = []
+    for z in (d / "checkpoints").glob(f"{algo}_*_steps.zip"):
+        steps = int(z.stem.split("_")[-2])
+        vn = z.with_name(f"{algo}_vecnormalize_{steps}_steps.pkl")
+        out.append((steps, f"steps_{steps}", z, vn))
+    meta = json.loads((d / "meta.json").read_text())
+    out.append((meta.get("timesteps", 0) + 1, "final", d / "model.zip", d / "vecnormalize.pkl"))
+    return [(name, z, vn) for _, name, z, vn in sorted(out)]
+
+
+def _stage(run: Path, model: Path, vn: Path, dest: Path, extra: dict | None = None) -> Path:
+    """Copy a model to ``dest``.zip with ``dest``.meta.json (the run's, plus ``extra``) and
+    ``dest``.vecnormalize.pkl (its own statistics), as agents/evaluate.py finds them."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(model, f"{dest}.zip")
+    meta = json.loads((run / "meta.json").read_text())
+    meta.update(extra or {})
+    Path(f"{dest}.meta.json").write_text(json.dumps(meta, indent=2))
+    if vn.is_file():
+        shutil.copyfile(vn, f"{dest}.vecnormalize.pkl")
+    return Path(f"{dest}.zip")
+
+
+def select_stage(c: dict, jobs: int, dry: bool) -> list[str]:
+    """Evaluate every run's candidates (``_candidates``) on the validation episodes and keep the
+    best as ``selected.zip`` (module docstring)."""
+    if "select" not in c:
+        print("  no [select]: every run's policy is its final model")
+        return []
+    sel = c["select"]
+    tasks, pending = [], []
+    for algo, seed, t in _runs(c):
+        d = t["dir"]
+        if (d / "selected.json").is_file():
+            print(f"  kept {algo} seed {seed}'s choice ({d}/selected.json)")
+            continue
+        if not (d / "meta.json").is_file():
+            print(f"  skip {algo} seed {seed}: not trained")
+            continue
+        pending.append((algo, seed, t))
+        for name, z, vn in _candidates(t):
+            out = d / "select" / name
+            if (out / "summary.json").is_file():
+                continue
+            spec = z if dry else _stage(d, z, vn, d / "select" / "models" / name)
+            cmd = _eval_cmd(c, sel["level"], str(spec), sel["episodes"], out, sel["seed"])
+            tasks.append((f"validate {algo} seed {seed} {name}", cmd, d / "select" / f"{name}.log"))
+    failed = _launch(tasks, jobs, dry)
+    if dry:
+        return failed
+    for algo, seed, t in pending:
+        d = t["dir"]
+        scores = {}
+        for name, z, vn in _candidates(t):
+            f = d / "select" / name / "summary.json"
+            if f.is_file():
+                scores[name] = (json.loads(f.read_text())["mean"][sel["metric"]], z, vn)
+        if len(scores) < len(_candidates(t)):
+            continue  # a validation failed: chosen on the next run
+        best = max(scores, key=lambda k: scores[k][0])
+        _, z, vn = scores[best]
+        choice = {
+            "checkpoint": best,
+            "metric": sel["metric"],
+            "level": sel["level"],
+            "validation_seeds": [sel["seed"], sel["seed"] + sel["episodes"] - 1],
+            "scores": {k: v[0] for k, v in scores.items()},
+        }
+        _stage(d, z, vn, d / "selected", {"selected": choice})
+        (d / "selected.json").write_text(json.dumps(choice, indent=2))
+        print(f"  {algo} seed {seed}: {best} ({sel['metric']} {scores[best][0]:.3f} on validation)")
+    return failed
+
+
 def _evals(c: dict) -> list[tuple[str, str, str, int]]:
     """(level, name, policy spec, episodes) of every evaluation."""
     ev = c["evaluate"]
     policies = [(b, b) for b in ev["baselines"]]
-    policies += [(f"{a}_seed_{s}", str(t["dir"] / "model.zip")) for a, s, t in _runs(c)]
-    return [(level, name, spec, n) for level, n in ev["levels"].items() for name, spec in policies]
+    policies += [(f"{a}_seed_{s}", str(policy_of(c, t))) for a, s, t in _runs(c)]
+    # the most accurate level first: its episodes are the long ones, and two workers finish
+    # together when the long tasks start first
+    levels = list(ev["levels"].items())[::-1]
+    return [(level, name, spec, n) for level, n in levels for name, spec in policies]
 
 
-def _eval_cmd(c: dict, level: str, spec: str, n: int, out: Path) -> list[str]:
+def _eval_cmd(
+    c: dict, level: str, spec: str, n: int, out: Path, seed: int | None = None
+) -> list[str]:
+    seed = c["evaluate"]["seed"] if seed is None else seed
     cmd = [sys.executable, "-W", "ignore", "-m", "agents.evaluate", "--policy", spec]
-    cmd += ["--episodes", str(n), "--seed", str(c["evaluate"]["seed"]), "--out", str(out)]
+    cmd += ["--episodes", str(n), "--seed", str(seed), "--out", str(out)]
     cmd += ["--env", c["env_id"]]
     for k, v in {**c["env_kwargs"], "fidelity": level}.items():
         cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
@@ -240,8 +371,11 @@ def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
     for level, name, spec, n in _evals(c):
         d = root / level / name
         if (d / "summary.json").is_file():
-            print(f"  kept {level}/{name}")
-            continue
+            done = json.loads((d / "summary.json").read_text())
+            if done.get("policy") == spec and done.get("episodes") == n:
+                print(f"  kept {level}/{name}")
+                continue
+            print(f"  {level}/{name}: another model or episode count than asked, evaluating again")
         if spec not in BASELINES and not Path(spec).is_file():
             print(f"  skip {level}/{name}: no model {spec} (its training failed?)")
             continue
@@ -281,6 +415,18 @@ def report(c: dict) -> dict:
             results["runs"][f"{algo}_seed_{seed}"] = {
                 k: m.get(k) for k in ("timesteps", "wall_time_s", "env_steps_per_s", "seed")
             }
+            chosen = t["dir"] / "selected.json"
+            if "select" in c and chosen.is_file():
+                results["runs"][f"{algo}_seed_{seed}"]["selected"] = json.loads(chosen.read_text())
+    picked = {k: r["selected"] for k, r in results["runs"].items() if "selected" in r}
+    if picked:
+        sel = c["select"]
+        lines.append(
+            f"Each run's policy is its checkpoint with the best mean {sel['metric']} over "
+            f"{sel['episodes']} validation episodes (seeds {sel['seed']}..) at `{sel['level']}`: "
+            + ", ".join(f"{k} {v['checkpoint']}" for k, v in picked.items())
+            + "."
+        )
     for level, n in c["evaluate"]["levels"].items():
         rows: dict = {}
         for b in c["evaluate"]["baselines"]:
@@ -392,21 +538,32 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
     dest.mkdir(parents=True, exist_ok=True)
     run = Path(c["out"]) / algo / f"seed_{seed}"
     name = f"{stem}_{algo}"
-    shutil.copyfile(run / "model.zip", dest / f"{name}.zip")
-    meta = json.loads((run / "meta.json").read_text())
-    from agents.evaluate import commit_id
+    t = next(t for a, s_, t in _runs(c) if a == algo and s_ == seed)
+    from agents.evaluate import commit_id, companions
 
-    meta["shipped_from"] = {"run": str(run), "commit": commit_id()}
+    model = policy_of(c, t)
+    meta_path, vn_path = companions(model)
+    shutil.copyfile(model, dest / f"{name}.zip")
+    meta = json.loads(meta_path.read_text())
+    meta["shipped_from"] = {"run": str(run), "model": str(model), "commit": commit_id()}
     (dest / f"{name}.meta.json").write_text(json.dumps(meta, indent=2))
-    if (run / "vecnormalize.pkl").is_file():
-        shutil.copyfile(run / "vecnormalize.pkl", dest / f"{name}.vecnormalize.pkl")
+    if vn_path.is_file():
+        shutil.copyfile(vn_path, dest / f"{name}.vecnormalize.pkl")
+    chosen = meta.get("selected")
+    which = (
+        f"its checkpoint `{chosen['checkpoint']}`, chosen by mean {chosen['metric']} on "
+        f"validation seeds {chosen['validation_seeds'][0]}-{chosen['validation_seeds'][1]} at "
+        f"`{chosen['level']}`"
+        if chosen
+        else "its final model"
+    )
     table = (Path(c["out"]) / "results.md").read_text().split("\n", 4)[-1]
     card = [
         f"## `{name}.zip`",
         "",
         f"{algo.upper()} seed {seed} of the campaign (the best algorithm by mean coverage at "
         f"`{list(c['evaluate']['levels'])[-1]}`, then its best seed), trained with the code of "
-        f"commit `{meta.get('commit', 'unknown')}`.",
+        f"commit `{meta.get('commit', 'unknown')}`; {which}.",
         f"Trained {meta['timesteps']} env steps on {c['env_id']} with "
         f"{json.dumps(meta['env_kwargs'])}, {meta['n_envs']} envs, in "
         f"{meta['wall_time_s'] / 60:.1f} min ({meta['env_steps_per_s']:.0f} env steps/s).",
@@ -427,7 +584,7 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
         "`agents/evaluate.py` loads with it.  Remade by the command in its card.\n\n"
         + "\n".join(cards)
     )
-    print(f"shipped {run}/model.zip as {dest}/{name}.zip (card {dest}/{name}.md)")
+    print(f"shipped {model} as {dest}/{name}.zip (card {dest}/{name}.md)")
     return dest / f"{name}.zip"
 
 
@@ -438,7 +595,8 @@ def campaign(
     jobs = c["jobs"] if jobs is None else _int("--jobs", jobs)
     t0 = time.perf_counter()
     failed = []
-    for name, stage in (("train", train_stage), ("evaluate", evaluate_stage)):
+    stages = (("train", train_stage), ("select", select_stage), ("evaluate", evaluate_stage))
+    for name, stage in stages:
         t = time.perf_counter()
         print(f"[{name}] {jobs} job(s) at a time", flush=True)
         failed += stage(c, jobs, dry_run)

@@ -29,6 +29,9 @@ config = "{tmp_path / "ppo.toml"}"
 timesteps = 32
 n_envs = 1
 seeds = [0, 1]
+[select]
+episodes = 1
+seed = 500
 [evaluate]
 episodes = 1
 seed = 100
@@ -37,15 +40,28 @@ levels = {{ reduced = 1 }}
 """
 
 
-@pytest.mark.slow  # two tiny trainings and six evaluations in worker processes (~25 s)
-def test_tiny_campaign_trains_evaluates_reports_and_resumes(tmp_path, capsys):
+@pytest.mark.slow  # two tiny trainings and ten evaluations in worker processes (~35 s)
+def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, capsys):
     cfg = tmp_path / "campaign.toml"
     cfg.write_text(_campaign_toml(tmp_path))
     results = campaign(cfg)
     out = tmp_path / "out"
     for s in (0, 1):
-        assert (out / "ppo" / f"seed_{s}" / "meta.json").is_file()
-        assert (out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").is_file()
+        run = out / "ppo" / f"seed_{s}"
+        assert (run / "meta.json").is_file()
+        # select: the checkpoint and the final model were scored on the validation seed (500),
+        # and the best by mean return is the run's policy, with its own statistics
+        chosen = json.loads((run / "selected.json").read_text())
+        assert len(chosen["scores"]) == 2 and "final" in chosen["scores"]  # one checkpoint
+        assert chosen["scores"][chosen["checkpoint"]] == max(chosen["scores"].values())
+        for name, score in chosen["scores"].items():
+            v = json.loads((run / "select" / name / "summary.json").read_text())
+            assert v["seed"] == 500 and v["mean"]["return"] == score
+        winner = run / "select" / "models" / f"{chosen['checkpoint']}.zip"
+        assert (run / "selected.zip").read_bytes() == winner.read_bytes()
+        assert (run / "selected.vecnormalize.pkl").is_file()
+        ev = json.loads((out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").read_text())
+        assert ev["policy"] == str(run / "selected.zip")
     table = results["levels"]["reduced"]
     assert set(table) == {"reference", "random", "ppo (2 seeds)"}
     # the trained row is the mean over seeds of each seed's episode mean
@@ -65,10 +81,10 @@ def test_tiny_campaign_trains_evaluates_reports_and_resumes(tmp_path, capsys):
     campaign(cfg, ship_to=str(tmp_path / "models"))
     said = capsys.readouterr().out
     assert "start " not in said
-    assert said.count("kept ") == 2 + 4
+    assert said.count("kept ") == 2 + 2 + 4
     best = max((0, 1), key=lambda s: per_seed[s])
     shipped = tmp_path / "models" / "flat_plate_ppo.zip"
-    assert shipped.read_bytes() == (out / "ppo" / f"seed_{best}" / "model.zip").read_bytes()
+    assert shipped.read_bytes() == (out / "ppo" / f"seed_{best}" / "selected.zip").read_bytes()
     assert (tmp_path / "models" / "flat_plate_ppo.vecnormalize.pkl").is_file()
     assert "ppo (2 seeds)" in (tmp_path / "models" / "README.md").read_text()
     s = evaluate(str(shipped), 1, tmp_path / "ev", seed=100, quiet=True)
@@ -98,6 +114,13 @@ def test_campaign_config_rejects_unknown_level_and_baseline(tmp_path):
         load_campaign(cfg)
     cfg.write_text(text.replace('["reference", "random"]', '["reference", "idle"]'))
     with pytest.raises(ConfigError, match="'idle' is not allowed"):
+        load_campaign(cfg)
+
+
+def test_campaign_config_rejects_validation_seeds_that_overlap_the_evaluation(tmp_path):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_campaign_toml(tmp_path).replace("seed = 500", "seed = 100"))
+    with pytest.raises(ConfigError, match=r"\[select\] seed = 100: .* overlap the evaluation"):
         load_campaign(cfg)
 
 
