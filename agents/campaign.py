@@ -397,6 +397,16 @@ def _cell(values: list[float], key: str) -> str:
     return f"{fmt.format(v.mean())} ± {fmt.format(v.std())}"
 
 
+def _summary(d: Path, spec: str, n: int) -> dict | None:
+    """The evaluation in ``d`` if it is of the policy ``spec`` over ``n`` episodes (a table never
+    mixes in an evaluation of another checkpoint or episode count), else None."""
+    f = d / "summary.json"
+    if not f.is_file():
+        return None
+    done = json.loads(f.read_text())
+    return done if done.get("policy") == spec and done.get("episodes") == n else None
+
+
 def report(c: dict) -> dict:
     """Collect the evaluations into results.json / results.md (module docstring)."""
     out = Path(c["out"])
@@ -430,16 +440,19 @@ def report(c: dict) -> dict:
     for level, n in c["evaluate"]["levels"].items():
         rows: dict = {}
         for b in c["evaluate"]["baselines"]:
-            s = out / "eval" / level / b / "summary.json"
-            if s.is_file():
-                per = json.loads(s.read_text())["per_episode"]
+            done = _summary(out / "eval" / level / b, b, n)
+            if done is not None:
+                per = done["per_episode"]
                 rows[b] = {k: [r[k] for r in per if k in r] for k in METRICS}
         for t in c["train"]:
             seeds = []
             for s in t["seeds"]:
-                f = out / "eval" / level / f"{t['algo']}_seed_{s}" / "summary.json"
-                if f.is_file():
-                    seeds.append(json.loads(f.read_text())["mean"])
+                run = {**t, "dir": out / t["algo"] / f"seed_{s}"}
+                done = _summary(
+                    out / "eval" / level / f"{t['algo']}_seed_{s}", str(policy_of(c, run)), n
+                )
+                if done is not None:
+                    seeds.append(done["mean"])
             if seeds:
                 rows[f"{t['algo']} ({len(seeds)} seeds)"] = {
                     k: [m[k] for m in seeds if k in m] for k in METRICS
@@ -507,15 +520,16 @@ def best_run(c: dict, results: dict) -> tuple[str, int]:
     """(algo, seed) to ship: the algorithm with the highest mean coverage over its seeds at the
     most accurate evaluated level (the last of ``[evaluate] levels``), then its seed with the
     highest coverage there."""
-    level = list(c["evaluate"]["levels"])[-1]
+    level, n = list(c["evaluate"]["levels"].items())[-1]
     root = Path(c["out"]) / "eval" / level
     best = None
     for t in c["train"]:
         covs = {}
         for s in t["seeds"]:
-            f = root / f"{t['algo']}_seed_{s}" / "summary.json"
-            if f.is_file():
-                covs[s] = json.loads(f.read_text())["mean"]["coverage"]
+            run = {**t, "dir": Path(c["out"]) / t["algo"] / f"seed_{s}"}
+            done = _summary(root / f"{t['algo']}_seed_{s}", str(policy_of(c, run)), n)
+            if done is not None:
+                covs[s] = done["mean"]["coverage"]
         if covs:
             mean = float(np.mean(list(covs.values())))
             seed = max(covs, key=lambda k: covs[k])
@@ -589,14 +603,18 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
 
 
 def campaign(
-    config: str | Path, jobs: int | None = None, dry_run: bool = False, ship_to: str | None = None
+    config: str | Path,
+    jobs: int | None = None,
+    dry_run: bool = False,
+    ship_to: str | None = None,
+    report_only: bool = False,
 ) -> dict | None:
     c = load_campaign(config)
     jobs = c["jobs"] if jobs is None else _int("--jobs", jobs)
     t0 = time.perf_counter()
     failed = []
     stages = (("train", train_stage), ("select", select_stage), ("evaluate", evaluate_stage))
-    for name, stage in stages:
+    for name, stage in () if report_only else stages:
         t = time.perf_counter()
         print(f"[{name}] {jobs} job(s) at a time", flush=True)
         failed += stage(c, jobs, dry_run)
@@ -622,6 +640,12 @@ def build_parser() -> OneLineParser:
     p.add_argument("--config", required=True, help="campaign TOML (configs/agents/campaign.toml)")
     p.add_argument("--jobs", type=int, default=None, help="tasks at a time (default: the config's)")
     add_flag(p, "--dry-run", "print what would run, run nothing")
+    add_flag(
+        p,
+        "--report-only",
+        "tabulate (and --ship) what is evaluated so far, run nothing (a row without its "
+        "evaluation at a level is left out there)",
+    )
     p.add_argument(
         "--ship",
         nargs="?",
@@ -635,7 +659,7 @@ def build_parser() -> OneLineParser:
 
 def _main(argv) -> int:
     args = build_parser().parse_args(argv)
-    campaign(args.config, args.jobs, args.dry_run, args.ship)
+    campaign(args.config, args.jobs, args.dry_run, args.ship, args.report_only)
     return 0
 
 

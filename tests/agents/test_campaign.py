@@ -87,6 +87,14 @@ def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, ca
     assert shipped.read_bytes() == (out / "ppo" / f"seed_{best}" / "selected.zip").read_bytes()
     assert (tmp_path / "models" / "flat_plate_ppo.vecnormalize.pkl").is_file()
     assert "ppo (2 seeds)" in (tmp_path / "models" / "README.md").read_text()
+    # --report-only runs nothing; an evaluation of another episode count is left out of the table
+    f = out / "eval" / "reduced" / "random" / "summary.json"
+    done = json.loads(f.read_text())
+    f.write_text(json.dumps({**done, "episodes": 2}))
+    capsys.readouterr()
+    again = campaign(cfg, report_only=True)
+    assert "start " not in capsys.readouterr().out
+    assert set(again["levels"]["reduced"]) == {"reference", "ppo (2 seeds)"}
     s = evaluate(str(shipped), 1, tmp_path / "ev", seed=100, quiet=True)
     assert s["env_kwargs"]["brush"] == "tiny_env"  # the meta beside it gave the env settings
     assert s["per_episode"][0]["steps"] == 8
