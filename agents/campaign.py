@@ -370,11 +370,10 @@ def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
     root = Path(c["out"]) / "eval"
     for level, name, spec, n in _evals(c):
         d = root / level / name
+        if _summary(d, spec, n) is not None:
+            print(f"  kept {level}/{name}")
+            continue
         if (d / "summary.json").is_file():
-            done = json.loads((d / "summary.json").read_text())
-            if done.get("policy") == spec and done.get("episodes") == n:
-                print(f"  kept {level}/{name}")
-                continue
             print(f"  {level}/{name}: another model or episode count than asked, evaluating again")
         if spec not in BASELINES and not Path(spec).is_file():
             print(f"  skip {level}/{name}: no model {spec} (its training failed?)")
