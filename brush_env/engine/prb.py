@@ -50,9 +50,10 @@ class PRBGeometry:
     """The brush as the reduced model holds it (the seam's ``model``): two bodies (the links) per
     bristle, ``bstart`` (nb+1,), roots ``root_p`` (nb, 3) [mm] and frames ``root_R`` (nb, 3, 3) in
     the TCP frame, ``length`` (nb,) [mm], ``tip_radius`` (nb,) [mm], ``seg_len`` (2 nb,) [mm] the
-    links' lengths, ``prm`` (nb, 9) the joints (s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad],
-    beta [s], c3 [1/rad^2]: the springs' torque is k (e + c3 e^3), e = q - q_rest; q_rest (4,)
-    [rad] the rest angles: ``prb_calibration.rest_angles``)."""
+    links' lengths, ``prm`` (nb,) ``prb_kernels.JOINT`` the joints (s0, l1, l2 [mm], k_a1, k_b1,
+    k_a2, k_b2, k_t [N mm/rad], beta [s], c3 [1/rad^2]: the bending springs' torque is
+    k (e + c3 e^3), e = q - q_rest; q_rest (5,) [rad] the rest angles:
+    ``prb_calibration.rest_angles``)."""
 
     bstart: np.ndarray
     root_p: np.ndarray
@@ -75,7 +76,8 @@ class PRBGeometry:
 class PRBState:
     """The reduced model's complete state; ``copy()`` and ``set_state`` restore it exactly.
 
-    q (nb, 4) [rad] joint angles, qp (nb, 4) those of one solver step before; tips (nb, 7) tip
+    q (nb, 5) [rad] joint angles (a1, b1, a2, b2, twist), qp (nb, 5) those of one solver step
+    before; tips (nb, 7) tip
     node [mm], velocity [mm/s], radius [mm];
     tip_state (nb,) ``records.TIP_STATE``; pos (2 nb, 3) [mm] / rot (2 nb, 3, 3) the links as
     bodies (derived, for drawing); tcp_p (4, 3) / tcp_R (4, 3, 3) the drive (row 1 now, row 0 one
@@ -118,7 +120,7 @@ def build_geometry(brush: BrushConfig) -> PRBGeometry:
     lean = float(brush.effective_lean)
     for j, br in enumerate(brush.bristles):
         v = joint_parameters(br, lean)
-        prm[j] = (v[0:3], v[3:7], v[7], v[8:10], v[10:14])
+        prm[j] = (v[0:3], v[3:8], v[8], v[9:11], v[11:16])
     seg = np.stack([prm["geo"][:, 1], prm["geo"][:, 2]], axis=1).reshape(-1)
     return PRBGeometry(
         np.arange(0, 2 * nb + 1, 2, dtype=np.int64),

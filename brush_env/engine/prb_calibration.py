@@ -33,10 +33,21 @@ from .beam import first_bending_omega
 DEFAULT = (0.07, 0.32, 4.2, 2.9, -0.13, -0.13)
 
 
+#: the twist spring k_t = TWIST G J / L [N mm/rad] (G J the section's torsion stiffness, the
+#: full chain's eq 1-3).  The planar fit never twists the chain, so this one constant is set
+#: against the full chain (12 mid-element bodies) dragging each default type, pressed L / 4,
+#: toward its wide side (``bench drag``): 1 gave -25 % / -52 % (inner / outer normal force),
+#: 4 -9 % / -6 %, 6.5 -1.5 % / -0.2 %, 8 +37 % (the inner strip no longer turns its bend over).
+#: 6.5 is a fit, not derived: the full chain twists mostly in its root third (0.15 of its
+#: 0.22 rad within 3 of 12 bodies) and shares the turn between twist and bending along its
+#: length, where the joint turns both links rigidly.  A brush of other sections uses it untested
+TWIST = 6.5
+
+
 def joint_parameters(br, lean: float) -> tuple:
-    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2 [N mm/rad], beta [s], c31, c32 [1/rad^2], the four
-    rest angles [rad], ``rest_angles``) of ``br`` (``BristleConfig``) on a brush of effective
-    lean ``lean`` [rad], with its type's fitted constants (``constants_for``)."""
+    """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2, k_t [N mm/rad], beta [s], c31, c32 [1/rad^2],
+    the five rest angles [rad], ``rest_angles``) of ``br`` (``BristleConfig``) on a brush of
+    effective lean ``lean`` [rad], with its type's fitted constants (``constants_for``)."""
     g0, g1, c1, c2, c31, c32, sz = constants_for(br, lean)
     L = br.length
     E = br.material.E
@@ -58,6 +69,7 @@ def joint_parameters(br, lean: float) -> tuple:
         sz * c1 * E * Iz / L,
         c2 * E * Iy / L,
         sz * c2 * E * Iz / L,
+        TWIST * br.material.G * sec.J / L,
         beta,
         c31,
         c32,
@@ -71,7 +83,7 @@ REST_BEND = 0.05
 
 
 def rest_angles(l1: float, l2: float, lean: float) -> tuple:
-    """The joints' rest angles (a1, b1, a2, b2) [rad]: a bend of REST_BEND at joint 1 and the
+    """The joints' rest angles (a1, b1, a2, b2, t) [rad]: a bend of REST_BEND at joint 1 and the
     turn at joint 2 that keeps the tip on the bristle's axis (to first order; it shortens by
     ~0.01 mm), toward the side the full chain and the rod buckle to (the elbow away from the lean:
     ``prb_kernels._bow_side``).  Why: a two-link chain pressed slowly from straight takes the
@@ -79,9 +91,9 @@ def rest_angles(l1: float, l2: float, lean: float) -> tuple:
     rest bend makes it take the continuum's (tests/engine/test_prb.py presses one against the
     full chain).  No lean: no bend (a straight bristle picks its side when it buckles)."""
     if lean == 0.0:
-        return (0.0, 0.0, 0.0, 0.0)
+        return (0.0, 0.0, 0.0, 0.0, 0.0)
     e = math.copysign(REST_BEND, lean)
-    return (e, 0.0, -e * (l1 + l2) / l2, 0.0)
+    return (e, 0.0, -e * (l1 + l2) / l2, 0.0, 0.0)
 
 
 # --------------------------------------------------------------------------- the cache

@@ -3,9 +3,17 @@
 Each bristle is a rigid stub of length s0 clamped at its root, then two rigid links (l1, l2)
 joined by two bending joints.  Joint i turns its link by a_i about the bristle's local y (the
 deflection along local z, the section's thin direction: stiffness from I_y) and then by b_i
-about local z (deflection along y: I_z).  In the bristle frame (x = axis):
+about local z (deflection along y: I_z).  Joint 1 also twists everything beyond it by t about
+the bristle's axis (torsion, G J): a flat section bent toward its thin side and pushed toward
+its wide side turns its bend over instead of bending the stiff way (the full chain twists
+~0.2 rad, most of it in the root half; without this joint the reduced chain carried 3x the full
+chain's normal force on such a drag: docs/benchmarks.md, ``bench drag``).  In the bristle frame
+(x = axis):
 
-    R1 = Ry(a1) Rz(b1),  R2 = R1 Ry(a2) Rz(b2),  tip = s0 e1 + l1 R1 e1 + l2 R2 e1.
+    R1 = Rx(t) Ry(a1) Rz(b1),  R2 = R1 Ry(a2) Rz(b2),  tip = s0 e1 + l1 R1 e1 + l2 R2 e1.
+
+The coordinates are q = (a1, b1, a2, b2, t); the chain's factors, in order, are those of
+(t, a1, b1, a2, b2) (``_qi``).
 
 The model has no mass: in every solver step of length h it is in equilibrium between the joint
 springs (k, calibrated against the rod: ``prb_calibration.py``), the joints' stiffness-
@@ -14,7 +22,7 @@ and the load on its tip sphere -- the dead load, the surfaces' eq 6 normal force
 stick-slip friction of eq 7-10 and the neighbouring tips of Table 3, all from ``contact.tip_load``
 (the full model's own tip-load kernel, every surface kind):
 
-    r(q) = K q + (C / h)(q - q_n) - J(q)^T F(tip(q)) = 0,   q = (a1, b1, a2, b2),
+    r(q) = K q + (C / h)(q - q_n) - J(q)^T F(tip(q)) = 0,   q = (a1, b1, a2, b2, t),
 
 solved per bristle by Newton with the exact tangent K + C/h - sum_a F_a d2 tip_a/dq2 - J^T Kt J
 (the middle term is the geometric stiffness that makes a pressed column buckle).  The joint
@@ -39,14 +47,19 @@ from .surfaces import surface_gap
 #: multiply-add; results stay deterministic for one build on one machine)
 PRB = dict(HOT, fastmath=True)
 
-#: joint coordinates per bristle
-NQ = 4
+#: joint coordinates per bristle: four bending angles and the twist
+NQ = 5
+#: the bending ones (q[0:4]): the tolerances, the saddle checks and the escape's floor are theirs
+NBEND = 4
+#: the chain's factors that turn link 1 (Rx(t) Ry(a1) Rz(b1)) and link 2 (all five)
+NF1 = 3
 #: one bristle's joints (``prb.build_geometry`` fills them from ``prb_calibration``): geo = (s0,
-#: l1, l2) [mm] the stub and the links, k (4,) [N mm/rad] the springs (joint 1 about y, about z,
-#: joint 2 about y, about z), beta [s] their damping time, c3 (2,) [1/rad^2] the cubic of the
-#: springs' torque k (e + c3 e^3), one per joint, rest (4,) [rad] their rest angles (e = q - rest)
+#: l1, l2) [mm] the stub and the links, k (5,) [N mm/rad] the springs (joint 1 about y, about z,
+#: joint 2 about y, about z, the twist), beta [s] their damping time, c3 (2,) [1/rad^2] the cubic
+#: of the bending springs' torque k (e + c3 e^3), one per joint (the twist's is linear), rest (5,)
+#: [rad] their rest angles (e = q - rest)
 JOINT = np.dtype(
-    [("geo", "f8", 3), ("k", "f8", 4), ("beta", "f8"), ("c3", "f8", 2), ("rest", "f8", 4)]
+    [("geo", "f8", 3), ("k", "f8", NQ), ("beta", "f8"), ("c3", "f8", 2), ("rest", "f8", NQ)]
 )
 #: what every kernel of a solver step reads: the joints (JOINT, nb), the step (records.Substep),
 #: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
@@ -112,9 +125,15 @@ SETTLED = 1e-6
 @njit(**PRB, inline="always")
 def _rot_apply(kind, order, c, s, v, out):
     """out <- Rk(angle)^... : the factor k applied to v, differentiated ``order`` times (0-2);
-    kind 0: about y, 1: about z.  d/dt R = R G and d2 R = R G G (G the generator)."""
+    kind 0: about y, 1: about z, 2: about x.  d/dt R = R G and d2 R = R G G (G the generator)."""
     w0, w1, w2 = v[0], v[1], v[2]
-    if kind == 0:  # generator of y: G v = (v2, 0, -v0)
+    if kind == 2:  # generator of x: G v = (0, -v2, v1)
+        for _ in range(order):
+            w0, w1, w2 = 0.0, -w2, w1
+        out[0] = w0
+        out[1] = c * w1 - s * w2
+        out[2] = s * w1 + c * w2
+    elif kind == 0:  # generator of y: G v = (v2, 0, -v0)
         for _ in range(order):
             w0, w1, w2 = w2, 0.0, -w0
         out[0] = c * w0 + s * w2
@@ -128,31 +147,51 @@ def _rot_apply(kind, order, c, s, v, out):
         out[2] = w2
 
 
+@njit(**PRB, inline="always")
+def _qi(f):
+    """The coordinate (index into q) of the chain's factor f: factor 0 is the twist (q[4]),
+    factors 1-4 the bends (q[0:4])."""
+    return NQ - 1 if f == 0 else f - 1
+
+
+@njit(**PRB, inline="always")
+def _kind(f):
+    """The axis of the chain's factor f (``_rot_apply``): x, then y, z, y, z."""
+    return 2 if f == 0 else (f - 1) % 2
+
+
+@njit(**PRB, inline="always")
+def _c3(c3, i):
+    """The cubic of coordinate i's spring: the bending joints' fitted ones, the twist linear."""
+    return c3[i // 2] if i < NBEND else 0.0
+
+
 @njit(**PRB)
 def _chain_vec(cs, nf, orders, out, tmp):
-    """out <- F_1 F_2 ... F_nf e1 with F_k the k-th joint factor (Ry, Rz, Ry, Rz) differentiated
-    orders[k] times; cs (4, 2) the cosines and sines."""
+    """out <- F_1 F_2 ... F_nf e1 with F_k the k-th factor of the chain (Rx, Ry, Rz, Ry, Rz)
+    differentiated orders[k] times; cs (5, 2) the factors' cosines and sines."""
     out[0], out[1], out[2] = 1.0, 0.0, 0.0
     for k in range(nf - 1, -1, -1):
-        _rot_apply(k % 2, orders[k], cs[k, 0], cs[k, 1], out, tmp)
+        _rot_apply(_kind(k), orders[k], cs[k, 0], cs[k, 1], out, tmp)
         out[0], out[1], out[2] = tmp[0], tmp[1], tmp[2]
 
 
 @njit(**PRB)
 def kinematics(q, geo, x, J, cs, orders, v, tmp):
-    """Tip of one bristle in its local frame x (3,) [mm] and J = dx/dq (3, 4) [mm/rad];
-    geo = (s0, l1, l2) [mm].  Leaves the cosines and sines of q in cs (4, 2)."""
+    """Tip of one bristle in its local frame x (3,) [mm] and J = dx/dq (3, 5) [mm/rad];
+    geo = (s0, l1, l2) [mm].  Leaves the cosines and sines of the chain's factors in cs (5, 2)."""
     for k in range(NQ):
-        cs[k, 0] = np.cos(q[k])
-        cs[k, 1] = np.sin(q[k])
+        qk = q[_qi(k)]
+        cs[k, 0] = np.cos(qk)
+        cs[k, 1] = np.sin(qk)
         orders[k] = 0
     s0, l1, l2 = geo[0], geo[1], geo[2]
     x[0], x[1], x[2] = s0, 0.0, 0.0
     for i in range(NQ):
         for a in range(3):
             J[a, i] = 0.0
-    for t in range(2):  # term 1: l1 R1 e1 (factors 0, 1); term 2: l2 R2 e1 (factors 0-3)
-        nf = 2 if t == 0 else 4
+    for t in range(2):  # term 1: l1 R1 e1 (factors 0-2); term 2: l2 R2 e1 (factors 0-4)
+        nf = NF1 if t == 0 else NQ
         ln = l1 if t == 0 else l2
         _chain_vec(cs, nf, orders, v, tmp)
         for a in range(3):
@@ -161,13 +200,14 @@ def kinematics(q, geo, x, J, cs, orders, v, tmp):
             orders[i] = 1
             _chain_vec(cs, nf, orders, v, tmp)
             orders[i] = 0
+            qi = _qi(i)
             for a in range(3):
-                J[a, i] += ln * v[a]
+                J[a, qi] += ln * v[a]
 
 
 @njit(**PRB)
 def geometric_stiffness(geo, Fl, G, cs, orders, v, tmp):
-    """G_ij = sum_a Fl_a d2x_a/dq_i dq_j (4, 4) [N mm] for the local tip load Fl (3,) [N], with
+    """G_ij = sum_a Fl_a d2x_a/dq_i dq_j (5, 5) [N mm] for the local tip load Fl (3,) [N], with
     the cosines and sines cs of ``kinematics``: the load's share of the tangent (negative for a
     column pressed along its axis: what makes it buckle)."""
     for i in range(NQ):
@@ -175,18 +215,20 @@ def geometric_stiffness(geo, Fl, G, cs, orders, v, tmp):
         for j in range(NQ):
             G[i, j] = 0.0
     for t in range(2):
-        nf = 2 if t == 0 else 4
+        nf = NF1 if t == 0 else NQ
         ln = geo[1] if t == 0 else geo[2]
         for i in range(nf):
             orders[i] = 1
+            qi = _qi(i)
             for j in range(i, nf):
                 orders[j] += 1
                 _chain_vec(cs, nf, orders, v, tmp)
                 orders[j] -= 1
                 g = ln * (Fl[0] * v[0] + Fl[1] * v[1] + Fl[2] * v[2])
-                G[i, j] += g
+                qj = _qi(j)
+                G[qi, qj] += g
                 if j != i:
-                    G[j, i] += g
+                    G[qj, qi] += g
             orders[i] = 0
 
 
@@ -291,7 +333,7 @@ def _friction(b, x, con, wk, fric):
 
 @njit(**PRB)
 def _evaluate(b, q, qn, damp, pose, ctx):
-    """Residual wk.s = K (e + c3 e^3) + damp K (q - qn) - J^T F (4,) [N mm] of bristle b at the
+    """Residual wk.s = K (e + c3 e^3) + damp K (q - qn) - J^T F (5,) [N mm] of bristle b at the
     angles q (e = q - q_rest), its tip (wk.x local, wk.xw world), tip load (wk.F world, wk.Fl
     local: ``contact.tip_load`` with the scene's friction off, then ``_friction``) and the load's
     tangent (wk.Kt, world).  Returns max |s|."""
@@ -312,7 +354,7 @@ def _evaluate(b, q, qn, damp, pose, ctx):
     for i in range(NQ):
         qi = q[i]
         ei = qi - wk.qr[i]  # the spring's turn from its rest angle
-        si = kq[i] * (_spring(ei, c3[i // 2])[0] + damp * (qi - qn[i]))
+        si = kq[i] * (_spring(ei, _c3(c3, i))[0] + damp * (qi - qn[i]))
         for a in range(3):
             si -= J[a, i] * Fl[a]
         wk.s[i] = si
@@ -347,12 +389,12 @@ def _tangent(q, geo, kq, c3, damp, B, wk):
                 t -= J[a, i] * JK[a, j]
             A[i, j] = t
         ei = q[i] - wk.qr[i]
-        A[i, i] += kq[i] * (_spring(ei, c3[i // 2])[1] + damp)
+        A[i, i] += kq[i] * (_spring(ei, _c3(c3, i))[1] + damp)
 
 
 @njit(**PRB)
 def _stable(A, S):
-    """True if the symmetric part of A (4, 4) is positive definite (Cholesky on S, scratch)."""
+    """True if the symmetric part of A (5, 5) is positive definite (Cholesky on S, scratch)."""
     for i in range(NQ):
         for j in range(NQ):
             S[i, j] = 0.5 * (A[i, j] + A[j, i])
@@ -380,7 +422,10 @@ def _along(q, dq, alpha, out):
 
 @njit(**PRB, inline="always")
 def _slope(s, dq):
-    return s[0] * dq[0] + s[1] * dq[1] + s[2] * dq[2] + s[3] * dq[3]
+    t = 0.0
+    for i in range(NQ):
+        t += s[i] * dq[i]
+    return t
 
 
 @njit(**PRB)
@@ -408,8 +453,8 @@ def _jacobi_rotate(S, V, p, r):
 
 @njit(**PRB)
 def _sym_min_eig(A, S, V, w):
-    """Smallest eigenvalue of the symmetric part of A (4, 4) and its eigenvector (left in w) by
-    cyclic Jacobi rotations on S (scratch); V scratch (4, 4)."""
+    """Smallest eigenvalue of the symmetric part of A (5, 5) and its eigenvector (left in w) by
+    cyclic Jacobi rotations on S (scratch); V scratch (5, 5)."""
     for i in range(NQ):
         for j in range(NQ):
             S[i, j] = 0.5 * (A[i, j] + A[j, i])
@@ -435,7 +480,7 @@ def _sym_min_eig(A, S, V, w):
 
 @njit(**PRB)
 def _bow_side(q, geo, wk):
-    """+1 or -1: the sign of the buckling mode wk.w (4,) that takes the branch of a leaning
+    """+1 or -1: the sign of the buckling mode wk.w (5,) that takes the branch of a leaning
     bristle: the elbow (joint 2) moves across the load away from the side the tip stands off the
     load's line through the root.  That is the branch the full chain and the rod take (their tip
     pushes the plate toward the lean; checked in tests/engine/test_prb.py against the full chain,
@@ -453,16 +498,17 @@ def _bow_side(q, geo, wk):
     # the elbow's motion along w: l1 d(R1 e1)/dq . w, i.e. J's first link part
     l1 = geo[1]
     e0 = e1 = e2 = 0.0
-    for i in range(2):
-        wk.orders[0] = 0
-        wk.orders[1] = 0
+    for i in range(NF1):
+        for f in range(NF1):
+            wk.orders[f] = 0
         wk.orders[i] = 1
-        _chain_vec(wk.cs, 2, wk.orders, wk.v, wk.tmp)
-        e0 += l1 * wk.v[0] * wk.w[i]
-        e1 += l1 * wk.v[1] * wk.w[i]
-        e2 += l1 * wk.v[2] * wk.w[i]
-    wk.orders[0] = 0
-    wk.orders[1] = 0
+        _chain_vec(wk.cs, NF1, wk.orders, wk.v, wk.tmp)
+        wi = wk.w[_qi(i)]
+        e0 += l1 * wk.v[0] * wi
+        e1 += l1 * wk.v[1] * wi
+        e2 += l1 * wk.v[2] * wi
+    for f in range(NF1):
+        wk.orders[f] = 0
     eo = e0 * o0 + e1 * o1 + e2 * o2
     if abs(eo) > 1e-12 * l1 * l1:
         return -1.0 if eo > 0.0 else 1.0
@@ -486,7 +532,9 @@ def _escape(q, s, A, kq, geo, wk, dq, push):
     for i in range(NQ):
         dq[i] = 0.0
     for m in range(NQ):
-        vs = wk.V[0, m] * s[0] + wk.V[1, m] * s[1] + wk.V[2, m] * s[2] + wk.V[3, m] * s[3]
+        vs = 0.0
+        for i in range(NQ):
+            vs += wk.V[i, m] * s[i]
         c = vs / max(abs(wk.S[m, m]), floor)
         for i in range(NQ):
             dq[i] -= c * wk.V[i, m]
@@ -847,7 +895,7 @@ def _free_step(b, pose, ctx):
             en = wk.qn[i] - wk.qr[i]
             ei = wk.qt[i] - wk.qr[i]
             for _ in range(3):
-                t, dt = _spring(ei, c3[i // 2])
+                t, dt = _spring(ei, _c3(c3, i))
                 ei -= (t + damp * (ei - en) - g) / (dt + damp)
             wk.qt[i] = ei + wk.qr[i]
     kinematics(wk.qt, geo, x, J, wk.cs, wk.orders, wk.v, wk.tmp)
@@ -1181,16 +1229,17 @@ def link_poses(q, prm, rootpos, Bw, pos, rot, wk):
         s0, l1, l2 = geo[0], geo[1], geo[2]
         c = wk.cs
         for k in range(NQ):
-            c[k, 0] = np.cos(q[b, k])
-            c[k, 1] = np.sin(q[b, k])
+            qk = q[b, _qi(k)]
+            c[k, 0] = np.cos(qk)
+            c[k, 1] = np.sin(qk)
         for link in range(2):
-            nf = 2 * (link + 1)
+            nf = NF1 if link == 0 else NQ
             for col in range(3):  # the link's frame in the bristle frame: F_1..F_nf e_col
                 v = wk.v
                 v[0], v[1], v[2] = 0.0, 0.0, 0.0
                 v[col] = 1.0
                 for k in range(nf - 1, -1, -1):
-                    _rot_apply(k % 2, 0, c[k, 0], c[k, 1], v, wk.tmp)
+                    _rot_apply(_kind(k), 0, c[k, 0], c[k, 1], v, wk.tmp)
                     v[0], v[1], v[2] = wk.tmp[0], wk.tmp[1], wk.tmp[2]
                 for a in range(3):
                     rot[2 * b + link, a, col] = (
