@@ -187,12 +187,14 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
     inside another surface is hidden in their union); adds them to F, Kt, stores the total in
     state.fn, the deepest in state.pen, .cpt, .surf.  Leaves the resultant's direction in tw.nrm and
-    d|R|/dpt's negative in tw.gres for friction and returns its magnitude |R| (0: no friction)."""
+    d|R|/dpt's negative in tw.gres for friction, R itself in tw.res, and returns its magnitude |R|
+    (0: no friction)."""
     surf = con.surf
     cp = con.cp[0]
     vt = tw.vt
     nrm = tw.pnrm
     cpt = tw.pcpt
+    tw.res[0], tw.res[1], tw.res[2] = 0.0, 0.0, 0.0
     best = FAR
     ibest = -1
     touched = 0  # bit s: surface s is within R (only those are evaluated again below)
@@ -257,6 +259,7 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
         for bb in range(3):
             Kt[a, bb] += A[a, bb]
     state.fn = total
+    tw.res[0], tw.res[1], tw.res[2] = r0, r1, r2
     f_res = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if f_res <= 0.0:
         return 0.0

@@ -40,7 +40,7 @@ from numba import njit
 
 from ._kernels import HOT, lu_dense, lus_dense
 from .contact import PEN_STEP_MIN, penetration_step_limit, step10, step10_dx, tip_load
-from .records import Substep
+from .records import SURF_MESH, SURF_PLANE, Substep
 from .surfaces import surface_gap
 
 #: the reduced model's kernels: as HOT, strict floating point.  Fast-math (reassociation and
@@ -269,6 +269,34 @@ def _spring(e, c3):
 
 
 @njit(**PRB)
+def _normal_coupling(b, con, wk):
+    """(Fn, c): the normal force friction presses against [N] and its coupling to the tip's
+    position, -dFn/dx = c v with v left in wk.tw.gd, from the last ``tip_load`` (friction off)
+    of a touching tip.  One plane or mesh: the tip's normal force, c = kk = -n^T Kt n, v = n.
+    Several or curved surfaces (a tooth row): the resultant R of their normal forces, |R|, with
+    c = 1, v = -d|R|/dx (tw.gres), as the full model's friction (``contact._surface_load``): a
+    tip wedged between two crowns presses with |R|, not with the sum of its two walls' forces.
+    Before (2026-11-26) the sum and kk n were used there too: the friction's tangent did not
+    match its force where the walls' normals differ."""
+    n = wk.tw.nrm
+    v = wk.tw.gd
+    surf = con.surf
+    if surf.shape[0] > 1 or (surf[0].kind != SURF_PLANE and surf[0].kind != SURF_MESH):
+        r = wk.tw.res
+        for a in range(3):
+            v[a] = wk.tw.gres[a]
+        return np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]), 1.0
+    Kt = wk.Kt
+    kk = 0.0
+    for a in range(3):
+        for c in range(3):
+            kk -= n[a] * Kt[a, c] * n[c]
+    for a in range(3):
+        v[a] = n[a]
+    return con.tip_state[b].fn, kk
+
+
+@njit(**PRB)
 def _friction(b, x, con, wk, fric):
     """Friction on bristle b's tip at x (world) for a massless tip, as a return mapping: the
     stiction deformation Delta = P_t (Delta_n + x - p_n) (eq 8's, in the contact's tangent plane)
@@ -281,15 +309,14 @@ def _friction(b, x, con, wk, fric):
     Adds the force and its tangent (with its dependence on Fn, dFn = -kk n^T dx) to wk.F and
     wk.Kt; stores the trial state (dnew, bnew, ft, slide).  fric = (mu_s, mu_d, Delta_max)."""
     st = con.tip_state[b]
-    fn = st.fn
-    if fn <= 0.0:
+    if st.fn <= 0.0:
         return
     n = wk.tw.nrm
     Kt = wk.Kt
-    kk = 0.0  # the normal stiffness [N/mm] (tip_load's tangent holds no friction here)
-    for a in range(3):
-        for c in range(3):
-            kk -= n[a] * Kt[a, c] * n[c]
+    gc = wk.tw.gd  # with ck: -dFn/dx [N/mm], friction's coupling to the normal force
+    fn, ck = _normal_coupling(b, con, wk)
+    if fn <= 0.0:
+        return
     d = wk.dn3
     for a in range(3):
         d[a] = st.delta[a] + x[a] - st.pn[a]
@@ -330,7 +357,7 @@ def _friction(b, x, con, wk, fric):
             uc = d[c] / dmag
             pac = (1.0 if a == c else 0.0) - n[a] * n[c]
             Kt[a, c] -= fp * ua * uc + fr * (pac - ua * uc)
-            Kt[a, c] -= kk * (st.ft[a] / fn) * n[c]
+            Kt[a, c] -= ck * (st.ft[a] / fn) * gc[c]
 
 
 @njit(**PRB)
@@ -572,7 +599,7 @@ def _direction(b, q, geo, kq, B, con, wk, dq, escape, push):
 @njit(**PRB)
 def _conservative_part(b, con, B, wk):
     """wk.A2 <- the Newton matrix without friction's dependence on the normal force (the rank-one
-    term -kk F_t n^T / F_n of ``contact._surface_load``, kk = -n^T Kt n): what is left is the
+    term -F_t g^T / F_n of ``_friction``, ``_normal_coupling``): what is left is the
     tangent of an energy (springs, the load's geometric stiffness, the normal contact, the
     stiction spring and the sliding force's turn), whose definiteness says whether the
     equilibrium is stable.  (The coupling's symmetric part is indefinite, of the order of the
@@ -580,18 +607,14 @@ def _conservative_part(b, con, B, wk):
     st = con.tip_state[b]
     if st.fn <= 0.0:
         return
-    n = wk.tw.nrm
-    Kt = wk.Kt
-    kk = 0.0
-    for a in range(3):
-        for c in range(3):
-            kk -= n[a] * Kt[a, c] * n[c]
-    if kk <= 0.0:
+    fn, ck = _normal_coupling(b, con, wk)
+    g = wk.tw.gd
+    if fn <= 0.0 or ck <= 0.0:
         return
-    for a in range(3):  # the friction force and the normal in the bristle frame, through J
+    for a in range(3):  # the friction force and the coupling in the bristle frame, through J
         wk.tmp[a] = B[0, a] * st.ft[0] + B[1, a] * st.ft[1] + B[2, a] * st.ft[2]
-        wk.v[a] = B[0, a] * n[0] + B[1, a] * n[1] + B[2, a] * n[2]
-    c = kk / st.fn
+        wk.v[a] = B[0, a] * g[0] + B[1, a] * g[1] + B[2, a] * g[2]
+    c = ck / fn
     for i in range(NQ):
         fi = wk.J[0, i] * wk.tmp[0] + wk.J[1, i] * wk.tmp[1] + wk.J[2, i] * wk.tmp[2]
         for j in range(NQ):

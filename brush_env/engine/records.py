@@ -261,10 +261,11 @@ ElementScratch = namedtuple(
 #: deformation in the tangent plane; ft: friction force; pnrm, pcpt: normal and contact point of
 #: one surface in a loop over surfaces; gd: grad of a gap; J (3, 3): a surface's dn/dpt [1/mm];
 #: A (3, 3): d(sum_s Fn_s n_s)/dpt [N/mm]; gres (3,) = -d|R|/dpt [N/mm], R = sum_s Fn_s n_s:
-#: friction's Newton coupling to the normal forces of several surfaces
+#: friction's Newton coupling to the normal forces of several surfaces; res (3,) that R [N]
+#: (several or curved surfaces only: what the reduced model's friction presses against)
 TipScratch = namedtuple(
     "TipScratch",
-    ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A", "gres"],
+    ["vt", "nrm", "cpt", "vs", "dn", "ft", "pnrm", "pcpt", "gd", "J", "A", "gres", "res"],
 )
 #: scratch of the shaft contact (shaft.py): D6 (nmax, 6, 6) each body's block of the Newton
 #: matrix from its shaft contacts, on (nmax,) 1 where a body's block is set; F (3,), K (3, 3) one

@@ -314,3 +314,51 @@ def test_pressed_bristle_dragged_slides_as_the_full_chain(group, direction):
     got = D.drag_bristle(red, br.length, direction)
     assert got["fn_N"] == pytest.approx(ref["fn_N"], rel=0.05)
     assert got["ft_N"] == pytest.approx(ref["ft_N"], rel=0.05)
+
+
+@pytest.mark.parametrize("model", ["prb", "dfm"])
+def test_tip_sliding_along_a_groove_rubs_with_mu_d_times_the_walls_resultant(model):
+    """A default inner bristle pressed into a 90° V-groove (two planes) and dragged along it: the
+    friction presses against the resultant R of the two walls' normal forces (design.md,
+    ``contact._surface_load``), so once the tip slides the TCP force along the groove is
+    mu_d |R| -- not mu_d (Fn_1 + Fn_2), 1.41x as much, which the reduced model's friction took
+    before 2026-11-26 -- in both models.  Quasi-static, no gravity: the TCP force is the tip's
+    load, R its part across the groove."""
+    from brush_env.bench import drag as D
+    from brush_env.engine import load_brush
+    from brush_env.engine.scene import ContactParams, Plane
+    from brush_env.validation.buckling import R_DOWN
+
+    types = pc.bristle_types(load_brush("default")).values()
+    br, lean = next((b, ln) for b, ln in types if b.group == "inner")
+    s = math.sqrt(0.5)
+    bodies, dt = (2, 4e-3) if model == "prb" else (8, 5e-4)
+    scene = D.bristle_scene(br, lean, bodies)
+    settings = SimSettings(dt=dt, model=model, gravity=(0.0, 0.0, 0.0))
+    top = 30.0
+    probe = Simulator(dataclasses.replace(scene, surfaces=()), settings)
+    probe.reset(np.array([0.0, 0.0, top]), R_DOWN)
+    tip0 = probe.tip_positions()[0]
+    # the groove's floor line under the tip, along y; the tip sphere touches both walls with its
+    # centre r / cos 45° above it
+    x0 = float(tip0[0])
+    groove = (Plane((x0, 0.0, 0.0), (s, 0.0, s)), Plane((x0, 0.0, 0.0), (-s, 0.0, s)))
+    sim = Simulator(dataclasses.replace(scene, surfaces=groove), settings)
+    z_touch = top - (tip0[2] - br.tip_radius / s)
+    sim.reset(np.array([0.0, 0.0, z_touch]), R_DOWN)
+    press = 0.2 * br.length
+    t_press, t_hold, speed, travel = 0.25, 0.05, 10.0, 8.0
+    n = int(round((t_press + t_hold + travel / speed) / dt))
+    F = []
+    for k in range(1, n + 1):
+        t = k * dt
+        y = max(t - t_press - t_hold, 0.0) * speed
+        z = z_touch - press * D._min_jerk(t / t_press)
+        out = sim.step(np.array([0.0, y, z]), R_DOWN)
+        if y > travel - 2.0:
+            assert out.tip_sliding[0]
+            F.append(out.tcp_force.copy())
+    F = np.mean(F, axis=0)
+    across = math.hypot(F[0], F[2])
+    assert across > 0.005  # pressed into both walls
+    assert abs(F[1]) / across == pytest.approx(ContactParams().mu_d, rel=0.02)
