@@ -111,6 +111,13 @@ ROUGH_TOL = 1e-1
 LOOSE_PEN = 0.1
 #: the iteration count's offset that marks such a step
 LOOSE = 1000
+#: a bristle-step whose best iterate pushes the tip toward the root harder than this times the
+#: softest joint over the links' length [N mm / (N mm/rad)] is never taken loose
+#: (``_take_best``).  The fixed-pinned Euler load of the default types is ~11 of it (0.18 N for
+#: the inner bristle) and a pressed tip carries about that on the post-buckling plateau; the
+#: reference circle at `reduced` (seed 1019, step 51) took 20 straight bristles at 55 of it
+#: (0.93 N each, 19 N for the brush, 2 N at `balanced`) as loose steps for one engine step
+SADDLE_LOAD = 25.0
 #: halvings of a Newton step whose residual rose (``_line_search``)
 BACKTRACKS = 4
 #: passes of the free bristle's joint-by-joint solve (``_free_step``)
@@ -880,15 +887,21 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
 
 @njit(**PRB)
 def _take_best(b, q, qn, damp, pose, ctx, small):
-    """After Newton ran out: q <- the best iterate (ctx.wk.qb) if its residual was ``small`` and
-    its contact shallow (a force along the links turns no joint, so a tip deep in a surface can
-    leave a small residual); True if taken."""
+    """After Newton ran out: q <- the best iterate (ctx.wk.qb) if its residual was ``small``, its
+    contact shallow and its push along the bristle below SADDLE_LOAD (a force along the links
+    turns no joint, so a tip deep in a surface, or a column held straight far past its buckling
+    load, leaves a small residual); True if taken."""
     if not small:
         return False
     for i in range(NQ):
         q[i] = ctx.wk.qb[i]
     _evaluate(b, q, qn, damp, pose, ctx)
     con = ctx.con
+    kq = ctx.prm[b].k
+    geo = ctx.prm[b].geo
+    kmin = min(kq[0], kq[1], kq[2], kq[3])
+    if -ctx.wk.Fl[0] * (geo[1] + geo[2]) > SADDLE_LOAD * kmin:
+        return False
     return con.tip_state[b].pen <= LOOSE_PEN * con.tip_args[b].radius
 
 

@@ -37,3 +37,34 @@ def test_pressed_s_bent_bristles_buckle_instead_of_holding_the_penalty_load():
         if terminated or truncated:
             break
     assert peak < limit / 2  # [N] the full model's peak on this episode is 3.6 N
+
+
+def test_straight_bristles_are_not_taken_loose_far_past_their_euler_load():
+    """The reference circle at `reduced`, seed 1019: at step 51 twenty bristles whose Newton
+    ran out were taken at their best iterate, nearly straight with 0.93 N on each tip -- five
+    times the fixed-pinned Euler load of the inner type, 19 N for the brush, where `balanced`
+    gives 1.5 N on that step.  A straight column of rigid links holds any load along them with
+    no residual; ``prb_kernels._take_best`` refuses such an iterate (SADDLE_LOAD).  Bound: no
+    tip above 3 x its bristle's Euler load pi^2 E I_min / (0.699 L)^2 (fixed root, pinned tip)
+    over the first 55 steps."""
+    from agents.reference import ReferencePolicy
+
+    env = gym.make("brush_env/FlatPlate-v0", fidelity="reduced", action_mode="3d")
+    obs, _ = env.reset(seed=1019)
+    u = env.unwrapped
+    brush = u.scene.brush
+    euler = np.array(
+        [
+            np.pi**2 * b.material.E * min(b.section.I_y, b.section.I_z) / (0.699 * b.length) ** 2
+            for b in brush.bristles
+        ]
+    )
+    policy = ReferencePolicy.for_env(u)
+    worst = 0.0
+    for _ in range(55):
+        obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
+        assert info["termination"] != "force_limit", f"{info['peak_normal_force']:.1f} N"
+        worst = max(worst, float(np.max(u._last.tip_normal_force / euler)))
+        if terminated or truncated:
+            break
+    assert worst < 3.0
