@@ -68,3 +68,25 @@ def test_straight_bristles_are_not_taken_loose_far_past_their_euler_load():
         if terminated or truncated:
             break
     assert worst < 3.0
+
+
+def test_bent_column_far_past_its_euler_load_is_checked_for_stability():
+    """The shipped PPO policy at `reduced`, seed 1019 (actions stored): at step 154 nine bristles
+    converged bent 0.1 rad at joint 1, just past the straight-saddle window (SADDLE_TURN), with
+    up to 1.7 N on a tip -- nine times the inner type's Euler load -- and the brush read 15.5 N,
+    ending the episode on the hard limit; the next 4 ms step they had buckled (0.28 N).  A
+    converged equilibrium that carries more than SADDLE_LOAD is now checked for stability
+    whatever its bend."""
+    env = gym.make(
+        "brush_env/FlatPlate-v0", config="flat_plate", fidelity="reduced", action_mode="3d"
+    )
+    env.reset(seed=1019)
+    limit = env.unwrapped.config.hard_force_limit
+    peak = 0.0
+    for a in np.load(Path(__file__).parents[1] / "data" / "reduced_saddle_actions_1019.npy"):
+        _, _, terminated, truncated, info = env.step(a)
+        peak = max(peak, info["peak_normal_force"])
+        assert info["termination"] != "force_limit", f"peak {peak:.1f} N"
+        if terminated or truncated:
+            break
+    assert peak < limit / 2
