@@ -125,6 +125,15 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
 
 
 @njit(**HOT, inline="always")
+def presses_on_resultant(surf) -> bool:
+    """True for several surfaces or one curved one (``_several_surfaces``): friction presses
+    against the resultant of their normal forces (tw.res, tw.gres); False for one plane or mesh."""
+    return surf.shape[0] > 1 or (
+        surf.shape[0] == 1 and surf[0].kind != SURF_PLANE and surf[0].kind != SURF_MESH
+    )
+
+
+@njit(**HOT, inline="always")
 def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     """Tip-surface contact: the penalty normal force of eq 6 and its tangent, then friction
     (eq 7-10, ``_friction_load``).
@@ -142,9 +151,7 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     vt = tw.vt
     nrm = tw.nrm
     cpt = tw.cpt
-    if surf.shape[0] > 1 or (
-        surf.shape[0] == 1 and surf[0].kind != SURF_PLANE and surf[0].kind != SURF_MESH
-    ):
+    if presses_on_resultant(surf):
         Fn = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
         if Fn > 0.0 and (cp.mu_s > 0.0 or cp.mu_d > 0.0):
             # friction ~ |R|: its Newton coupling dF_t = (F_t / |R|) d|R|, d|R| = -g^T dpt with

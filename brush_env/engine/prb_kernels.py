@@ -39,8 +39,15 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT, lu_dense, lus_dense
-from .contact import PEN_STEP_MIN, penetration_step_limit, step10, step10_dx, tip_load
-from .records import SURF_MESH, SURF_PLANE, Substep
+from .contact import (
+    PEN_STEP_MIN,
+    penetration_step_limit,
+    presses_on_resultant,
+    step10,
+    step10_dx,
+    tip_load,
+)
+from .records import Substep
 from .surfaces import surface_gap
 
 #: the reduced model's kernels: as HOT, strict floating point.  Fast-math (reassociation and
@@ -287,8 +294,7 @@ def _normal_coupling(b, con, wk):
     match its force where the walls' normals differ."""
     n = wk.tw.nrm
     v = wk.tw.gd
-    surf = con.surf
-    if surf.shape[0] > 1 or (surf[0].kind != SURF_PLANE and surf[0].kind != SURF_MESH):
+    if presses_on_resultant(con.surf):
         r = wk.tw.res
         for a in range(3):
             v[a] = wk.tw.gres[a]
