@@ -858,7 +858,7 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
             and axial > 0.1 * kmin
             and (
                 max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])) < SADDLE_TURN
-                or axial > SADDLE_LOAD * kmin
+                or _past_saddle_load(j, wk.Fl)
             )
         )
         if converged and not check:
@@ -898,6 +898,14 @@ def solve_bristle(b, q, qn, pose, ctx, loose):
     return -1
 
 
+@njit(**PRB, inline="always")
+def _past_saddle_load(j, Fl):
+    """True if the local tip load Fl [N] pushes the tip of the bristle with joints j toward its
+    root harder than SADDLE_LOAD times its softest bending joint over the links' length."""
+    k, geo = j.k, j.geo
+    return -Fl[0] * (geo[1] + geo[2]) > SADDLE_LOAD * min(k[0], k[1], k[2], k[3])
+
+
 @njit(**PRB)
 def _take_best(b, q, qn, damp, pose, ctx, small):
     """After Newton ran out: q <- the best iterate (ctx.wk.qb) if its residual was ``small``, its
@@ -910,10 +918,7 @@ def _take_best(b, q, qn, damp, pose, ctx, small):
         q[i] = ctx.wk.qb[i]
     _evaluate(b, q, qn, damp, pose, ctx)
     con = ctx.con
-    kq = ctx.prm[b].k
-    geo = ctx.prm[b].geo
-    kmin = min(kq[0], kq[1], kq[2], kq[3])
-    if -ctx.wk.Fl[0] * (geo[1] + geo[2]) > SADDLE_LOAD * kmin:
+    if _past_saddle_load(ctx.prm[b], ctx.wk.Fl):
         return False
     return con.tip_state[b].pen <= LOOSE_PEN * con.tip_args[b].radius
 
