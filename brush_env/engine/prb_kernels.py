@@ -55,6 +55,14 @@ from .surfaces import surface_gap
 #: process that compiled these kernels gave other results than one that loaded them from the
 #: cache (observations of 3 in 5 random episodes differed; ``tests/envs/test_cache_determinism.py``)
 PRB = HOT
+# Every function below called only from other kernels is ``inline="always"`` (numba inlines it
+# into its callers before compiling them) except the few whose call sites would copy a large
+# body many times (``_evaluate``, ``solve_bristle``, ``_solve_one``, ``_contact_limit``,
+# ``kinematics``): a call between two compiled functions passes the context's many arrays by
+# value, and each function compiled on its own costs ~1 s of a cold start.  66 -> 38 kernels
+# compiled, 53 -> 43 s CPU for a cold ``gym.make`` + reset + step at ``reduced``, +20-29 % env
+# steps/s, results bit for bit unchanged (docs/benchmarks.md, "Inlining the reduced kernels");
+# inlining those five too gained 2-8 % more speed for 54-118 s of compile.
 
 #: joint coordinates per bristle: four bending angles and the twist
 NQ = 5
@@ -282,7 +290,7 @@ def _spring(e, c3):
     return sg * (em * (1.0 + c3 * em * em) + 0.5 * (abs(e) - em)), 0.5
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _normal_coupling(b, con, wk):
     """(Fn, c): the normal force friction presses against [N] and its coupling to the tip's
     position, -dFn/dx = c v with v left in wk.tw.gd, from the last ``tip_load`` (friction off)
@@ -309,7 +317,7 @@ def _normal_coupling(b, con, wk):
     return con.tip_state[b].fn, kk
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _friction(b, x, con, wk, fric):
     """Friction on bristle b's tip at x (world) for a massless tip, as a return mapping: the
     stiction deformation Delta = P_t (Delta_n + x - p_n) (eq 8's, in the contact's tangent plane)
@@ -405,7 +413,7 @@ def _evaluate(b, q, qn, damp, pose, ctx):
     return smax
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _tangent(q, geo, kq, c3, damp, B, wk):
     """wk.A <- the Newton matrix K (1 + 3 c3 q^2 + damp) - G - J^T Kt J at the last
     ``_evaluate`` (at q)."""
@@ -434,7 +442,7 @@ def _tangent(q, geo, kq, c3, damp, B, wk):
         A[i, i] += kq[i] * (_spring(ei, _c3(c3, i))[1] + damp)
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _stable(A, S):
     """True if the symmetric part of A (5, 5) is positive definite (Cholesky on S, scratch)."""
     for i in range(NQ):
@@ -470,7 +478,7 @@ def _slope(s, dq):
     return t
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _jacobi_rotate(S, V, p, r):
     """One Jacobi rotation zeroing S[p, r] (S <- J^T S J, V <- V J)."""
     if abs(S[p, r]) < 1e-300:
@@ -493,7 +501,7 @@ def _jacobi_rotate(S, V, p, r):
         V[k, r] = sn * vkp + c * vkr
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _sym_min_eig(A, S, V, w):
     """Smallest eigenvalue of the symmetric part of A (5, 5) and its eigenvector (left in w) by
     cyclic Jacobi rotations on S (scratch); V scratch (5, 5)."""
@@ -520,7 +528,7 @@ def _sym_min_eig(A, S, V, w):
     return S[m, m]
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _bow_side(q, geo, wk):
     """+1 or -1: the sign of the buckling mode wk.w (5,) that takes the branch of a leaning
     bristle: the elbow (joint 2) moves across the load away from the side the tip stands off the
@@ -557,7 +565,7 @@ def _bow_side(q, geo, wk):
     return 1.0 if _slope(q, wk.w) >= 0.0 else -1.0
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _escape(q, s, A, kq, geo, wk, dq, push):
     """dq <- a step off a saddle when the Newton matrix is not positive definite (a column
     pressed past its buckling load, held straight by the last Newton iterates): the saddle-free
@@ -591,7 +599,7 @@ def _escape(q, s, A, kq, geo, wk, dq, push):
     return lam
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _direction(b, q, geo, kq, B, con, wk, dq, escape, push):
     """dq <- the Newton direction -A^-1 s from wk.A (kept in wk.A2), or, with ``escape`` and A
     not positive definite, the step off the saddle (``_escape``).  Returns (ok, escaped)."""
@@ -609,7 +617,7 @@ def _direction(b, q, geo, kq, B, con, wk, dq, escape, push):
     return True, False
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _conservative_part(b, con, B, wk):
     """wk.A2 <- the Newton matrix without friction's dependence on the normal force (the rank-one
     term -F_t g^T / F_n of ``_friction``, ``_normal_coupling``): what is left is the
@@ -635,7 +643,7 @@ def _conservative_part(b, con, B, wk):
             wk.A2[i, j] -= c * fi * nj
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _partner_limit(b, x, dp, R, con, amax):
     """The fraction (at most amax) of the tip step dp from x [mm] that keeps the tip out of every
     partner tip by more than twice its overlap now (at least PEN_STEP_MIN), along the whole
@@ -687,7 +695,7 @@ def _contact_limit(b, B, dq, con, wk):
     return _partner_limit(b, wk.xw, dp, R, con, a_pen)
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _step_limit(b, B, dq, static, sub, con, wk, leaving):
     """(fraction of dq to take, max |dq|, held): the cap MAX_DQ on the angles, the full model's
     contact limits on the tip's (linearised) step (``penetration_step_limit``,
@@ -736,7 +744,7 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
     return alpha, dmax, False
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _line_search(b, q, qn, damp, pose, ctx, dq, alpha, smax0, descend):
     """Move to q + alpha dq if the residual falls there (max |s| below smax0, the current one)
     and ``descend`` is False; else, where the slope g(a) = dq . s(q + a dq) turned positive, to
@@ -906,7 +914,7 @@ def _past_saddle_load(j, Fl):
     return -Fl[0] * (geo[1] + geo[2]) > SADDLE_LOAD * min(k[0], k[1], k[2], k[3])
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _take_best(b, q, qn, damp, pose, ctx, small):
     """After Newton ran out: q <- the best iterate (ctx.wk.qb) if its residual was ``small``, its
     contact shallow and its push along the bristle below SADDLE_LOAD (a force along the links
@@ -923,7 +931,7 @@ def _take_best(b, q, qn, damp, pose, ctx, small):
     return con.tip_state[b].pen <= LOOSE_PEN * con.tip_args[b].radius
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _free_step(b, pose, ctx):
     """The step of a bristle that touches nothing: every joint on its own, e + c3 e^3 +
     damp (q - q_n) = g / k (e = q - q_rest, g the torque of the weight lumped at the tip), solved
@@ -965,7 +973,7 @@ def _free_step(b, pose, ctx):
     return True
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _frame_at(b, s, rw0, B0, rw1, B1, rw, B):
     """The root (rw [mm]) and frame (B) of bristle b at the fraction s of the step: linear
     between its start and end, the frame's columns re-orthonormalised (Gram-Schmidt)."""
@@ -983,7 +991,7 @@ def _frame_at(b, s, rw0, B0, rw1, B1, rw, B):
             B[a, c] /= t
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _halved(b, ctx, gtip, x0, frames):
     """Bristle b's step as 2, 4, ... 2**MAX_HALVINGS equal sub-steps (the root moving linearly
     through them) after the whole step failed: the joints' damping (C / h) grows as the step
@@ -1069,7 +1077,7 @@ def _solve_one(b, joints, frames, ctx, gtip):
     return n
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _accept(b, joints, frames, ctx, gtip, rootw):
     """Bristle b's solved step taken: its angles, stiction state (eq 7-10), tip (position,
     velocity) and root wrench (its tip load and weight, force [N] and moment [N mm] about the
@@ -1097,7 +1105,7 @@ def _accept(b, joints, frames, ctx, gtip, rootw):
     rootw[b, 5] = d0 * F[1] - d1 * F[0]
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _keep_start(b, joints, con, wk, restore):
     """wk.start[b] <- bristle b's state at the step's start (angles now and before, tip position
     and velocity, stiction deformation and sliding flag), or back from it with ``restore``."""
@@ -1124,7 +1132,7 @@ def _keep_start(b, joints, con, wk, restore):
     keep[2 * NQ + 9] = st.beta
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _step_one(b, joints, frames, ctx, gtip, rootw):
     """Bristle b's solver step from its state at the step's start (``_solve_one``), taken
     (``_accept``) or, if it failed even halved, left as it was with ctx.out.status[b] = 1."""
@@ -1153,7 +1161,7 @@ def _step_one(b, joints, frames, ctx, gtip, rootw):
     _accept(b, joints, frames, ctx, gtip, rootw)
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _all_settled(q, qp, con):
     """True if no bristle touches anything, carries a dead load or turned its joints by more
     than SETTLED in its last step (``_rigid_step``)."""
@@ -1170,7 +1178,7 @@ def _all_settled(q, qp, con):
     return True
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _rigid_tips(frames, con, wk, new):
     """new (nb, 3) <- every tip moved with its root from the step's start (wk.rp0, wk.B0) to its
     end (frames); False as soon as one of them reaches a surface."""
@@ -1195,7 +1203,7 @@ def _rigid_tips(frames, con, wk, new):
     return True
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _rigid_step(joints, frames, ctx, gtip, rootw):
     """The step of a brush none of whose bristles touches anything or moves against its root
     (all settled: joints turned less than SETTLED in their last step, no dead load) and none of

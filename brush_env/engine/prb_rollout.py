@@ -90,14 +90,14 @@ def _left(dR, R, out):
             out[a, b] = dR[a, 0] * R[0, b] + dR[a, 1] * R[1, b] + dR[a, 2] * R[2, b]
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _copy2(src, dst):
     for i in range(src.shape[0]):
         for j in range(src.shape[1]):
             dst[i, j] = src[i, j]
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _save(q, qp, tips, ts, rootw, bk, restore):
     """bk <- the bristles' state (q, tips, tip states, root wrenches), or back from bk with
     ``restore`` (the wrenches too: a failed step has written those of the bristles before the
@@ -120,7 +120,7 @@ def _save(q, qp, tips, ts, rootw, bk, restore):
             c[i] = a[i]
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _head_clearance(drv, p, R, con):
     """Smallest distance [mm] of the head's outline (TCP frame) to the surfaces at pose (p, R)."""
     pts = drv.headw
@@ -135,7 +135,7 @@ def _head_clearance(drv, p, R, con):
     return clearance(con.surf, con.mesh, con.sdf, pts, drv.Rtmp[0], drv.Rtmp[1])
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _solver_step(drv, Rs, geo, joints, frames, ctx, gtip, rootw, lim, rec):
     """One solver step from the pose (drv.pp, drv.Rp) to (drv.ps, Rs); records its penetration
     peak in row drv.k[0] of ``rec``; False if a bristle failed."""
@@ -158,7 +158,7 @@ def _solver_step(drv, Rs, geo, joints, frames, ctx, gtip, rootw, lim, rec):
     return True
 
 
-@njit(**PRB)
+@njit(**PRB, inline="always")
 def _record_step(k, con, rec):
     """Row k of the record: the tips' normal forces, contact points and surfaces; returns the
     total normal force [N]."""
