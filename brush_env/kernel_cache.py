@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sys
 from collections.abc import Iterable
 from importlib.metadata import PackageNotFoundError, version
@@ -52,6 +53,45 @@ def kernels_compiled(groups: Iterable[str] | None = None) -> bool:
     ``groups`` (names of ``engine.warmup`` kernel groups) are given, compiled every one of them."""
     key, done = _stamp()
     return key == sources_key() and (groups is None or set(groups) <= done)
+
+
+def engine_cache_dirs() -> list[Path]:
+    """Where numba keeps the engine's cached kernels: beside the sources, and under
+    ``NUMBA_CACHE_DIR`` when it is set (numba's user-provided locator names the directory
+    ``<parent dir name>_<sha1 of the source directory's absolute path>``)."""
+    dirs = [ENGINE / "__pycache__"]
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if user:
+        src = os.path.abspath(ENGINE)
+        dirs.append(Path(user) / f"{ENGINE.name}_{hashlib.sha1(src.encode()).hexdigest()}")
+    return dirs
+
+
+def purge_stale_kernels() -> int:
+    """Delete the engine's cached kernels (``*.nbi``, ``*.nbc`` in ``engine_cache_dirs``) if the
+    engine sources changed since the stamp was written, then stamp the sources as they are now;
+    returns the number of files deleted.
+
+    numba checks a cached kernel against its own source file's timestamp only.  A kernel that
+    calls into another module carries the callee's machine code in its own cache entry
+    (``prb_rollout.rollout`` -> ``prb_kernels``, ``sweeps`` -> ``newton`` -> ``_kernels``), so
+    after the callee's module alone changed, a cached caller kept running the old physics, with
+    nothing said (found twice while editing the reduced model; a ``git pull`` into an editable
+    install does the same).  The price: any change to the engine's sources compiles every
+    engine kernel again."""
+    key, _ = _stamp()
+    if key == sources_key():
+        return 0
+    removed = 0
+    for d in engine_cache_dirs():
+        for p in sorted(d.glob("*.nb[ic]")):
+            try:
+                p.unlink()
+                removed += 1
+            except OSError:  # another process deleted it, or a read-only install
+                pass
+    write_stamp()
+    return removed
 
 
 def read_profile() -> tuple[dict, str]:

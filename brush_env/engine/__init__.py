@@ -4,6 +4,8 @@ Nothing here imports gymnasium, torch or matplotlib.  Entry points: ``Simulator`
 ``load_brush``/``load_scene``.  Robot motions (trajectories) live in ``brush_env.motion``.
 """
 
+from ..kernel_cache import purge_stale_kernels
+
 # the bristle models register themselves by name (bristles.register_bristle_model): the full
 # chain "dfm" through simulator -> chain, the reduced model "prb" here
 from . import prb as _prb  # noqa: E402,F401
@@ -51,3 +53,8 @@ __all__ = [
     "Scene",
     "load_scene",
 ]
+
+# before any kernel loads from numba's cache (none runs at import; numba loads a kernel's cache
+# at its first call): a cached kernel may carry the old code of a callee in another module that
+# changed since (kernel_cache.purge_stale_kernels)
+purge_stale_kernels()

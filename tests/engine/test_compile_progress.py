@@ -188,3 +188,35 @@ def test_the_line_names_the_innermost_kernel_being_compiled():
     assert "; now engine.contact.tip_load;" in p.status()
     p.kernel_done("brush_env.engine.contact.tip_load")
     assert "; now engine.step.step_bristles;" in p.status()
+
+
+def test_edited_engine_sources_purge_the_cached_kernels_once(tmp_path, monkeypatch):
+    """A cached caller keeps a changed callee's old code (numba checks only the caller's own
+    file), so an edit to any engine source deletes every cached engine kernel, beside the sources
+    and under NUMBA_CACHE_DIR, and stamps the sources; unchanged sources delete nothing."""
+    engine = tmp_path / "src" / "engine"
+    (engine / "__pycache__").mkdir(parents=True)
+    (engine / "kernels.py").write_text("x = 1\n")
+    user = tmp_path / "numba_cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(user))
+    monkeypatch.setattr(kernel_cache, "ENGINE", engine)
+    monkeypatch.setattr(kernel_cache, "STAMP", engine / "__pycache__" / "stamp")
+    beside, elsewhere = kernel_cache.engine_cache_dirs()
+    assert beside == engine / "__pycache__" and elsewhere.parent == user
+    assert elsewhere.name.startswith("engine_")
+    elsewhere.mkdir(parents=True)
+    cached = [beside / "kernels.f-3.py311.nbi", beside / "kernels.f-3.py311.1.nbc"]
+    cached.append(elsewhere / "kernels.g-9.py311.nbi")
+    for p in cached:
+        p.write_bytes(b"old machine code")
+    (beside / "kernels.cpython-311.pyc").write_bytes(b"not numba's")
+    assert kernel_cache.purge_stale_kernels() == 3  # no stamp yet: the cache's sources unknown
+    assert not any(p.exists() for p in cached)
+    assert (beside / "kernels.cpython-311.pyc").exists()
+    for p in cached:
+        p.write_bytes(b"compiled on these sources")
+    assert kernel_cache.purge_stale_kernels() == 0  # stamped: kept
+    assert all(p.exists() for p in cached)
+    (engine / "kernels.py").write_text("x = 2\n")  # an edit
+    assert kernel_cache.purge_stale_kernels() == 3
+    assert not any(p.exists() for p in cached)
