@@ -203,7 +203,12 @@ def test_edited_engine_sources_purge_the_cached_kernels_once(tmp_path, monkeypat
     monkeypatch.setattr(kernel_cache, "STAMP", engine / "__pycache__" / "stamp")
     beside, elsewhere = kernel_cache.engine_cache_dirs()
     assert beside == engine / "__pycache__" and elsewhere.parent == user
-    assert elsewhere.name.startswith("engine_")
+    # the directory numba itself picks for a source file there (its user-provided locator)
+    from numba.core.caching import UserProvidedCacheLocator
+
+    assert elsewhere.name == UserProvidedCacheLocator.get_suitable_cache_subpath(
+        str(engine / "kernels.py")
+    )
     elsewhere.mkdir(parents=True)
     cached = [beside / "kernels.f-3.py311.nbi", beside / "kernels.f-3.py311.1.nbc"]
     cached.append(elsewhere / "kernels.g-9.py311.nbi")
