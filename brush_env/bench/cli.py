@@ -7,7 +7,8 @@ force at every step size), ``branch`` (hold direction and jamming angles over st
 ``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``teeth``
 (tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
 iterations, instructions under callgrind), ``drag`` (a pressed brush dragged toward the
-bristles' wide and thin sides), ``compile``
+bristles' wide and thin sides), ``episodes`` (how far env episodes run and why they end),
+``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -27,6 +28,7 @@ from . import (
     element,
     engine,
     env,
+    episodes,
     fidelity,
     planar,
     press,
@@ -111,6 +113,12 @@ TARGETS = {
         planar.add_arguments,
         "pymunk planar bristle row against the 3-D engine on the same stroke: force and tip "
         "errors per phase, speed, pymunk's largest stable step, overlay plot",
+    ),
+    "episodes": (
+        episodes.bench_episodes,
+        episodes.add_arguments,
+        "ToothRow-v0 under its scrub reference and FlatPlate-v0 under random actions at one "
+        "fidelity: how many env steps each episode runs and why it ends",
     ),
     "compile": (
         compile.bench_compile,

@@ -1,0 +1,118 @@
+"""``bench episodes``: how far whole env episodes run at one fidelity level before they end, and
+why (issue 29: the reduced model's Newton failures on a tooth row; issue 30: training needs
+episodes that end for the policy's reasons, not the solver's).
+
+Two runs, each over ``--seeds`` (reset seed = the seed), ``action_mode = "3d"``, up to
+``--steps`` env steps per episode:
+
+* ``ToothRow-v0`` under its scrub reference (``agents.reference.ReferencePolicy``, the policy
+  the tooth row's reward is judged against): a policy that never leaves the workspace, so an
+  episode ends early only on the engine (divergence) or the force limits;
+* ``FlatPlate-v0`` under uniform random actions in [-1, 1]^3 (``numpy.random.default_rng(seed)``):
+  the guard that a change for the tooth row costs the plate nothing.
+
+Per episode: the env steps run and ``info["termination"]`` (None: it ran to ``--steps``); per
+scene: the steps in all, the episodes that ended on divergence, CPU time.
+
+    brush-env bench episodes [--fidelity reduced] [--seeds 0 1 ... 9] [--steps 300] [--json]
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from .harness import emit, markdown_table, open_log
+
+SCENES = ("brush_env/ToothRow-v0", "brush_env/FlatPlate-v0")
+
+
+def run_episode(env_id: str, fidelity: str, seed: int, steps: int) -> dict:
+    """One episode of ``env_id`` at ``fidelity`` (see module): steps run, termination reason."""
+    import gymnasium as gym
+
+    import brush_env  # noqa: F401  (registers the env ids)
+
+    from ..envs.action import make_action_type
+    from ..envs.reference import ScrubReference
+
+    env = gym.make(env_id, fidelity=fidelity, action_mode="3d", max_episode_steps=steps)
+    obs, _ = env.reset(seed=seed)
+    u = env.unwrapped
+    if "ToothRow" in env_id:
+        # the scrub reference as agents.reference.ReferencePolicy runs it (one plan per episode)
+        scrub = ScrubReference(u.layout, make_action_type(u.config), u.dt, steps)
+
+        def act(o):
+            p, R = u.layout.tcp_pose(o[None])
+            return scrub.act(u.layout.elapsed_steps(o[None], steps)[0], p[0], R[0])
+    else:
+        rng = np.random.default_rng(seed)
+
+        def act(o):
+            return rng.uniform(-1.0, 1.0, 3).astype(np.float32)
+
+    info: dict = {}
+    n = 0
+    t0 = time.process_time()
+    while n < steps:
+        obs, _r, terminated, truncated, info = env.step(act(obs))
+        n += 1
+        if terminated or truncated:
+            break
+    env.close()
+    return {
+        "env": env_id.split("/")[-1],
+        "fidelity": fidelity,
+        "seed": seed,
+        "steps": n,
+        "termination": info.get("termination"),
+        "cpu_s": time.process_time() - t0,
+    }
+
+
+def bench_episodes(args) -> int:
+    """``brush-env bench episodes``: see the module docstring."""
+    log = open_log(args)
+    warnings.simplefilter("ignore")
+    totals = []
+    for env_id in SCENES:
+        rows = []
+        for seed in args.seeds:
+            r = emit(args, run_episode(env_id, args.fidelity, seed, args.steps))
+            rows.append(r)
+            print(f"{r['env']} seed {seed}: {r['steps']} steps, {r['termination']}", file=log)
+        totals.append(
+            {
+                "env": env_id.split("/")[-1],
+                "fidelity": args.fidelity,
+                "episodes": len(rows),
+                "steps": sum(r["steps"] for r in rows),
+                "divergences": sum(r["termination"] == "divergence" for r in rows),
+                "cpu_s": sum(r["cpu_s"] for r in rows),
+            }
+        )
+    if not args.json:
+        cols = [
+            ("scene", lambda r: r["env"]),
+            ("level", lambda r: r["fidelity"]),
+            ("episodes", lambda r: str(r["episodes"])),
+            (f"env steps (of {args.steps} each)", lambda r: str(r["steps"])),
+            ("ended on divergence", lambda r: str(r["divergences"])),
+            ("CPU [s]", lambda r: f"{r['cpu_s']:.1f}"),
+        ]
+        print(markdown_table(totals, cols))
+    return 0
+
+
+def add_arguments(p) -> None:
+    from ..user_errors import add_flag
+
+    p.add_argument("--fidelity", default="reduced", help="fidelity level (default reduced)")
+    p.add_argument(
+        "--seeds", type=int, nargs="+", default=list(range(10)), help="reset seeds (default 0-9)"
+    )
+    p.add_argument("--steps", type=int, default=300, help="env steps per episode at most (300)")
+    add_flag(p, "--json", "one JSON object per episode on stdout (machine info on stderr)")
