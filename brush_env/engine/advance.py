@@ -145,7 +145,11 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
             extrap = WARM
         elif whole and not sub.static and hist_ok > 0:
             extrap = 3 if hist_ok >= 2 else 2
-        ok, it = newton_solve(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap)
+        # a tip that meets a surface within the (sub)step has it halved, down to the smallest
+        split = level < maxlev and not sub.static
+        ok, it = newton_solve(
+            br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap, split
+        )
         tot += it
         if ok:
             s += ds
