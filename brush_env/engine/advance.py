@@ -16,7 +16,7 @@ from numba import njit
 from ._kernels import HOT, local_rot_into, rotate_left
 from .newton import newton_solve
 from .predict import WARM
-from .records import METHOD_BDF2, Substep
+from .records import METHOD_BDF2, Attempt, Substep
 
 # status codes per bristle (step_bristles' ``out.status``)
 OK = 0
@@ -147,9 +147,8 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
             extrap = 3 if hist_ok >= 2 else 2
         # a tip that meets a surface within the (sub)step has it halved, down to the smallest
         split = level < maxlev and not sub.static
-        ok, it = newton_solve(
-            br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], extrap, split
-        )
+        attempt = Attempt(extrap, split)
+        ok, it = newton_solve(br, model, chain, sub, ws.base, con, jc, ws, out.rootw[b], attempt)
         tot += it
         if ok:
             s += ds

@@ -308,7 +308,7 @@ def _met_within(br, con, ws):
 
 
 @njit(**HOT)
-def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, extrap, split):
+def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
     """One implicit (sub)step of one bristle, in place.  Returns (converged, iterations).
 
     Start-of-step values are in chain.pos/rot/vel/omg (t_n) and chain.ppos/... (t_{n-1}); the
@@ -317,12 +317,14 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, extrap, split)
     across steps (simplified Newton), rebuilt when the step size or scheme changes (key c0/h),
     when older than sub.jage steps, and whenever old factors converge slowly or fail their line
     search: the converged state is always set by the residual, the factors' age only changes the
-    iteration count.  Stages: start -> predict -> [factors -> direction -> cap -> line search]*
-    -> commit (or restore).
+    iteration count.  ``attempt`` (``records.Attempt``): the predictor's order, and whether a
+    converged step whose tip dived into a surface is refused (``_met_within``) so that the
+    caller halves it.  Stages: start -> predict -> [factors -> direction -> cap -> line search]*
+    -> check -> commit (or restore).
     """
     b = br.b
     start_step(br, model, chain, sub, base, con, ws)
-    nrm = predict_start(br, model, chain, sub, base, con, ws, rootw, extrap)
+    nrm = predict_start(br, model, chain, sub, base, con, ws, rootw, attempt.extrap)
     rtol = sub.rtol
     it = 0
     ok = nrm <= rtol
@@ -373,7 +375,7 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, extrap, split)
             ok = True
             break
         ok = nrm <= rtol
-    if not ok or (split and _met_within(br, con, ws)):
+    if not ok or (attempt.split and _met_within(br, con, ws)):
         start_state(br, chain, ws.it, False)  # restore (a contact met within: halved)
         return False, it
     _commit(br, chain, sub, con, ws)

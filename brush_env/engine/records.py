@@ -44,6 +44,9 @@ record              fields [unit]
 ``Node``            one element end: c (3,) body centre [mm], R (3, 3), half (body half length)
 ``Trial``           a Newton correction to search along: capped step alpha, slope g0 = dq . r,
                     residual norm nrm at its start
+``Attempt``         how ``newton_solve`` starts and ends one (sub)step: extrap (the predictor's
+                    order, or WARM) and split (True: a converged step whose tip dived into a
+                    surface is refused, to be halved: ``newton._met_within``)
 ``Damp``            element rate terms: ehist (6,), gs, hs (see ``_kernels.element_force``)
 ``History``         constants of a (sub)step (``predict._prepare``): cm, vm, Lm, thp (n, 3),
                     Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
@@ -249,6 +252,7 @@ Substep = namedtuple(
 Base = namedtuple("Base", ["pAs", "RAs", "pAe", "RAe", "pAp", "RAp", "pAq", "RAq"])
 Node = namedtuple("Node", ["c", "R", "half"])
 Trial = namedtuple("Trial", ["alpha", "g0", "nrm"])
+Attempt = namedtuple("Attempt", ["extrap", "split"])
 Damp = namedtuple("Damp", ["ehist", "gs", "hs"])
 History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "hs"])
 
