@@ -10,7 +10,8 @@ when it ends.  Per row: divergences, episode ends, the largest per-step peak tip
 the last engine step of each env step [um], wall time.  Runs with the same seed see the same
 actions, so the rows of the smallest limit are the small-step run the others are held to.
 
-    brush-env bench random [--steps 500] [--seeds 0 1 2] [--substeps 0.004 0.001 0.00025] [--json]
+    brush-env bench random [--steps 500] [--seeds 0 1 2] [--substeps 0.004 0.001 0.00025]
+        [--fidelity balanced] [--json]
 """
 
 from __future__ import annotations
@@ -25,13 +26,15 @@ ENV_ID = "brush_env/FlatPlate-v0"
 DEFAULTS = {"steps": 500, "seeds": [0, 1, 2], "substeps": [0.004, 0.001, 0.00025]}
 
 
-def random_run(max_substep: float, seed: int, steps: int) -> dict:
-    """One seed's random-action run at ``max_substep = max_substep`` (see module)."""
+def random_run(max_substep: float, seed: int, steps: int, fidelity: str | None = None) -> dict:
+    """One seed's random-action run at ``max_substep = max_substep`` (see module), at the env's
+    default fidelity level or ``fidelity``."""
     import gymnasium as gym
 
     import brush_env  # noqa: F401  (registers the env ids)
 
-    env = gym.make(ENV_ID, engine_settings={"max_substep": max_substep})
+    kw = {} if fidelity is None else {"fidelity": fidelity}
+    env = gym.make(ENV_ID, engine_settings={"max_substep": max_substep}, **kw)
     u = env.unwrapped
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
@@ -53,6 +56,7 @@ def random_run(max_substep: float, seed: int, steps: int) -> dict:
     env.close()
     peaks = np.asarray(peaks)
     return {
+        "fidelity": u.config.fidelity,
         "max_substep": max_substep,
         "seed": seed,
         "steps": steps,
@@ -71,7 +75,7 @@ def run(args) -> int:
     rows = []
     for sub in args.substeps:
         for seed in args.seeds:
-            row = random_run(sub, seed, args.steps)
+            row = random_run(sub, seed, args.steps, args.fidelity)
             rows.append(row)
             if args.json:
                 print(json.dumps({k: v for k, v in row.items() if k != "peaks"}), flush=True)
@@ -112,4 +116,10 @@ def add_arguments(p) -> None:
         nargs="+",
         default=DEFAULTS["substeps"],
         help="max_substep values [s]; the smallest is the small-step reference",
+    )
+    p.add_argument(
+        "--fidelity",
+        default=None,
+        help="fidelity level (configs/fidelity; default: the env's, `fast`); its other settings "
+        "stay, max_substep is the row's",
     )

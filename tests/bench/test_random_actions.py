@@ -20,3 +20,10 @@ def test_same_seed_same_actions_and_the_table():
     table = format_table([fake, b])
     assert table.count("\n") == 3
     assert "| 0.002 | 0 | 0 | 0 |" in table and "| 1 | 1 |" in table
+
+
+def test_the_level_is_the_one_asked_for():
+    """``--fidelity``: the run is made at that level (issue 32 asks its line of `balanced`), and
+    the row says which."""
+    assert random_run(0.001, 0, 1)["fidelity"] == "fast"  # the env's default
+    assert random_run(0.001, 0, 1, "balanced")["fidelity"] == "balanced"
