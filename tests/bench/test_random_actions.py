@@ -24,6 +24,7 @@ def test_same_seed_same_actions_and_the_table():
 
 def test_the_level_is_the_one_asked_for():
     """``--fidelity``: the run is made at that level (issue 32 asks its line of `balanced`), and
-    the row says which."""
+    the row says which.  (`reduced` here: its kernels are in the warm-up, so this test compiles
+    nothing while ``bench compile``'s test checks that the engine's cache did not change.)"""
     assert random_run(0.001, 0, 1)["fidelity"] == "fast"  # the env's default
-    assert random_run(0.001, 0, 1, "balanced")["fidelity"] == "balanced"
+    assert random_run(0.001, 0, 1, "reduced")["fidelity"] == "reduced"
