@@ -5,9 +5,10 @@ episodes that end for the policy's reasons, not the solver's).
 Two runs, each over ``--seeds`` (reset seed = the seed), ``action_mode = "3d"``, up to
 ``--steps`` env steps per episode:
 
-* ``ToothRow-v0`` under its scrub reference (``agents.reference.ReferencePolicy``, the policy
-  the tooth row's reward is judged against): a policy that never leaves the workspace, so an
-  episode ends early only on the engine (divergence) or the force limits;
+* ``ToothRow-v0`` under its scrub reference (``envs.reference.ScrubReference``, tracked as
+  ``agents.reference.ReferencePolicy`` tracks it; the policy the tooth row's reward is judged
+  against): it never leaves the workspace, so an episode ends early only on the engine
+  (divergence) or the force limits;
 * ``FlatPlate-v0`` under uniform random actions in [-1, 1]^3 (``numpy.random.default_rng(seed)``):
   the guard that a change for the tooth row costs the plate nothing.
 

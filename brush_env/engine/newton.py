@@ -21,10 +21,10 @@ from .residual import bristle_residual, rebuild_factors, tip_refactor
 from .shaft import commit_shaft, shaft_step_limit
 from .surfaces import surface_gap
 
-#: [mm] a tip that touched no surface at its (sub)step's start and ends it deeper than this has
-#: met the surface within the step: the step is split (``_met_within``).  On the plate eq 6 gives
-#: 0.24 N there (above the env's 0.2 N tip limit); the 0.25 ms run's tips stay below it under
-#: random actions
+#: [mm] a tip that ends its (sub)step this much deeper in a surface than it started, having met
+#: the surface within the step or ending it sliding, has the step split (``_met_within``).  On
+#: the plate eq 6 gives 0.24 N at this depth (above the env's 0.2 N tip limit); the 0.25 ms run's
+#: tips stay below it under random actions
 ONSET_PEN = 1e-2
 
 STAGNATION = 100.0  # accept a stagnating Newton within this factor of the tolerance
