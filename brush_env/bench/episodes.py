@@ -15,7 +15,17 @@ Two runs, each over ``--seeds`` (reset seed = the seed), ``action_mode = "3d"``,
 Per episode: the env steps run and ``info["termination"]`` (None: it ran to ``--steps``); per
 scene: the steps in all, the episodes that ended on divergence, CPU time.
 
-    brush-env bench episodes [--fidelity reduced] [--seeds 0 1 ... 9] [--steps 300] [--json]
+``--against LEVEL`` also runs the tooth row's episodes at LEVEL (e.g. ``balanced``, the full
+chain) and measures the level against it, as issue 29 asks of a fast model on the tooth row:
+per episode the coverage at its end (points, ``info["coverage"]``) and the gum force
+(``info["gum_force"]`` [N], the normal force the gum takes, per env step); over the episodes the
+mean and largest |coverage difference| and the gum force's pooled RMS error,
+``sqrt(sum (g - g_ref)^2 / sum g_ref^2)`` over the env steps both runs reached.  The scrub
+reference steers by the TCP pose it observes, so both levels brush the same strokes.  The
+plate's random episodes are not compared here (``bench fidelity`` does, with its own seeds).
+
+    brush-env bench episodes [--fidelity reduced] [--seeds 0 1 ... 9] [--steps 300]
+                             [--against balanced] [--json]
 """
 
 from __future__ import annotations
@@ -57,12 +67,15 @@ def run_episode(env_id: str, fidelity: str, seed: int, steps: int) -> dict:
 
     info: dict = {}
     n = 0
+    gum = []
     t0 = time.process_time()
     while n < steps:
         obs, _r, terminated, truncated, info = env.step(act(obs))
         n += 1
+        gum.append(float(info.get("gum_force", np.nan)))
         if terminated or truncated:
             break
+    solver = u.sim.bristles.solver_info()
     env.close()
     return {
         "env": env_id.split("/")[-1],
@@ -71,6 +84,34 @@ def run_episode(env_id: str, fidelity: str, seed: int, steps: int) -> dict:
         "steps": n,
         "termination": info.get("termination"),
         "cpu_s": time.process_time() - t0,
+        "coverage": float(info.get("coverage", np.nan)),
+        "rough_steps": solver.get("rough_steps", 0),
+        "gum_force": gum,
+    }
+
+
+def compare(runs: list[dict], refs: list[dict]) -> dict:
+    """Tooth-row episodes at one level against the same seeds at another (module docstring):
+    coverage difference [points] (mean of |d|, largest |d|, mean signed), the gum force's
+    pooled RMS error [-] over the steps both reached, and the mean gum force of each [N]."""
+    from .fidelity_metrics import pooled_rms_error
+
+    dcov = [100.0 * (r["coverage"] - f["coverage"]) for r, f in zip(runs, refs, strict=True)]
+    pairs = []
+    for r, f in zip(runs, refs, strict=True):
+        n = min(len(r["gum_force"]), len(f["gum_force"]))
+        pairs.append((np.asarray(r["gum_force"][:n]), np.asarray(f["gum_force"][:n])))
+    return {
+        "env": runs[0]["env"],
+        "fidelity": runs[0]["fidelity"],
+        "against": refs[0]["fidelity"],
+        "episodes": len(runs),
+        "coverage_diff_mean_abs": float(np.mean(np.abs(dcov))),
+        "coverage_diff_max_abs": float(np.max(np.abs(dcov))),
+        "coverage_diff_mean": float(np.mean(dcov)),
+        "gum_force_rms_error": pooled_rms_error(pairs),
+        "gum_force_mean": float(np.mean(np.concatenate([p[0] for p in pairs]))),
+        "gum_force_mean_ref": float(np.mean(np.concatenate([p[1] for p in pairs]))),
     }
 
 
@@ -79,12 +120,20 @@ def bench_episodes(args) -> int:
     log = open_log(args)
     warnings.simplefilter("ignore")
     totals = []
+    tooth: list[dict] = []
     for env_id in SCENES:
         rows = []
         for seed in args.seeds:
-            r = emit(args, run_episode(env_id, args.fidelity, seed, args.steps))
+            r = run_episode(env_id, args.fidelity, seed, args.steps)
+            emit(args, {k: v for k, v in r.items() if k != "gum_force"})
             rows.append(r)
-            print(f"{r['env']} seed {seed}: {r['steps']} steps, {r['termination']}", file=log)
+            print(
+                f"{r['env']} seed {seed}: {r['steps']} steps, {r['termination']}, "
+                f"{r['rough_steps']} rough bristle sub-steps",
+                file=log,
+            )
+        if "ToothRow" in env_id:
+            tooth = rows
         totals.append(
             {
                 "env": env_id.split("/")[-1],
@@ -105,6 +154,34 @@ def bench_episodes(args) -> int:
             ("CPU [s]", lambda r: f"{r['cpu_s']:.1f}"),
         ]
         print(markdown_table(totals, cols))
+    if args.against:
+        refs = []
+        for seed in args.seeds:
+            r = run_episode(SCENES[0], args.against, seed, args.steps)
+            emit(args, {k: v for k, v in r.items() if k != "gum_force"})
+            refs.append(r)
+            print(f"{r['env']} at {args.against}, seed {seed}: {r['steps']} steps", file=log)
+        c = emit(args, compare(tooth, refs))
+        if not args.json:
+            cols = [
+                ("scene", lambda r: r["env"]),
+                ("level", lambda r: r["fidelity"]),
+                ("against", lambda r: r["against"]),
+                ("episodes", lambda r: str(r["episodes"])),
+                (
+                    "coverage diff, mean / largest [points]",
+                    lambda r: (
+                        f"{r['coverage_diff_mean_abs']:.1f} / {r['coverage_diff_max_abs']:.1f}"
+                    ),
+                ),
+                ("mean signed [points]", lambda r: f"{r['coverage_diff_mean']:+.1f}"),
+                ("gum force RMS err", lambda r: f"{100 * r['gum_force_rms_error']:.1f} %"),
+                (
+                    "mean gum force [N]",
+                    lambda r: f"{r['gum_force_mean']:.3f} / {r['gum_force_mean_ref']:.3f}",
+                ),
+            ]
+            print(markdown_table([c], cols))
     return 0
 
 
@@ -116,4 +193,9 @@ def add_arguments(p) -> None:
         "--seeds", type=int, nargs="+", default=list(range(10)), help="reset seeds (default 0-9)"
     )
     p.add_argument("--steps", type=int, default=300, help="env steps per episode at most (300)")
+    p.add_argument(
+        "--against",
+        default=None,
+        help="also run the tooth row's episodes at this level and compare (e.g. balanced)",
+    )
     add_flag(p, "--json", "one JSON object per episode on stdout (machine info on stderr)")

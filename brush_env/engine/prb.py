@@ -175,7 +175,7 @@ class PRBBristles(BristleModel):
         self._wk = _work(nb)
         cp = self.contact_params[0]
         self._wk.fric[:] = (cp["mu_s"], cp["mu_d"], cp["delta_max"])
-        self._out = _Out(np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64))
+        self._out = _Out(*(np.zeros(nb, np.int64) for _ in range(4)))
         self._head = (
             head_outline(scene.brush, _PairModel(m))
             if getattr(scene, "head_contact", False) and len(self.surfaces)
@@ -237,6 +237,7 @@ class PRBBristles(BristleModel):
         )
         self.root_wrench[:] = 0.0
         self._out.loose[:] = 0
+        self._out.rough[:] = 0
         self._links()
 
     def _links(self) -> None:
@@ -401,12 +402,16 @@ class PRBBristles(BristleModel):
         return float(shf.clearance(self.surfaces, self.mesh, self.sdf, pts, g[0], g[1]))
 
     def solver_info(self) -> dict:
-        """Newton's largest iteration count over the bristles of the last solver step, and how
-        many bristle-steps since reset were taken at a loose tolerance (prb_kernels.LOOSE_TOL)."""
+        """Newton's largest iteration count over the bristles of the last solver step; how many
+        bristle-steps since reset were taken at a loose tolerance (prb_kernels.LOOSE_TOL, or a
+        sub-step of them at ROUGH_TOL), and how many bristle sub-steps since reset only the last
+        resort's ROUGH_TOL took (residual above LOOSE_TOL: a tip-force imbalance of ~1e-3 to
+        ~0.1 N on a light contact)."""
         it = self._out.iters
         return {
             "newton_max": int(it.max() % K.LOOSE) if it.size else 0,
             "loose_steps": int(self._out.loose.sum()),
+            "rough_steps": int(self._out.rough.sum()),
         }
 
     @property
@@ -439,7 +444,7 @@ class _PairModel:
 
 from collections import namedtuple  # noqa: E402
 
-_Out = namedtuple("_Out", ["iters", "status", "loose"])
+_Out = namedtuple("_Out", ["iters", "status", "loose", "rough"])
 _Work = namedtuple(
     "_Work",
     [
