@@ -21,6 +21,7 @@ valgrind runs (docs/benchmarks.md, "Instruction counts").
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import time
@@ -38,6 +39,15 @@ def add_arguments(p) -> None:
     p.add_argument("--scene", default="tooth_row", help="scene name or file (default tooth_row)")
     p.add_argument("--fidelity", default="fast", help="fidelity level (default fast)")
     p.add_argument("--strokes", type=int, default=1, help="18 mm strokes after the press (1-8)")
+    p.add_argument(
+        "--bodies", type=int, default=None, help="bodies per bristle (default: the level's)"
+    )
+    p.add_argument(
+        "--sweeps",
+        type=int,
+        default=None,
+        help="tip-tip sweeps per step, 1 = one sweep, more = coupled (default: the level's)",
+    )
 
 
 def _toggle(on: bool) -> None:
@@ -59,7 +69,13 @@ def bench_steps(args) -> int:
         raise UserError(f"--strokes = {args.strokes}: must be in [1, 8]")
     log = open_log(args)
     dt = DEFAULTS["dt"]  # run_tooth_row's step (the level's max_substep splits it)
-    sim = Simulator(resolve_scene(None, args.scene, None), level_settings(args.fidelity, dt=dt))
+    over = {}
+    if args.bodies is not None:
+        over["bodies_per_bristle"] = args.bodies
+    if args.sweeps is not None:
+        over["tip_tip_sweeps"] = args.sweeps
+    settings = dataclasses.replace(level_settings(args.fidelity, dt=dt), **over)
+    sim = Simulator(resolve_scene(None, args.scene, None), settings)
     traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": args.strokes})
     ts = np.arange(int(traj.duration / dt)) * dt
     P, R, _, _ = traj.sample(ts)
@@ -79,6 +95,8 @@ def bench_steps(args) -> int:
         dict(
             scene=str(args.scene),
             fidelity=args.fidelity,
+            bodies=settings.bodies_per_bristle,
+            sweeps=settings.tip_tip_sweeps,
             strokes=args.strokes,
             steps=len(ts) - 2,
             newton_iterations=iterations,
@@ -92,6 +110,8 @@ def bench_steps(args) -> int:
                 [
                     ("scene", lambda r: r["scene"]),
                     ("fidelity", lambda r: r["fidelity"]),
+                    ("bodies", lambda r: str(r["bodies"])),
+                    ("sweeps", lambda r: str(r["sweeps"])),
                     ("strokes", lambda r: str(r["strokes"])),
                     ("steps", lambda r: str(r["steps"])),
                     ("Newton iterations", lambda r: str(r["newton_iterations"])),
