@@ -194,6 +194,8 @@ def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
         "--seed",
         str(seed),
         "--no-progress",
+        "--env",
+        c["env_id"],
     ]
     for k, v in c["env_kwargs"].items():
         cmd += ["--env-kw", f"{k}={json.dumps(v)}"]

@@ -171,6 +171,27 @@ def _is_brush_env(env_id: str) -> bool:
     return entry.startswith(("brush_env.envs.flat_plate", "brush_env.envs.tooth_row"))
 
 
+def _default_env_config(env_id: str) -> str | None:
+    """The ``config`` keyword's default of the env class registered as ``env_id`` (None if it
+    has none, or the id is not registered: its own error comes from gym.make later)."""
+    import importlib
+    import inspect
+
+    import gymnasium as gym
+
+    import brush_env  # noqa: F401  (registers the ids)
+
+    spec = gym.registry.get(env_id)
+    if spec is None or not isinstance(spec.entry_point, str):
+        return None
+    module, _, name = spec.entry_point.partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    par = inspect.signature(cls.__init__).parameters.get("config")
+    if par is None or not isinstance(par.default, str):
+        return None
+    return par.default
+
+
 def check_inputs(
     algo: str,
     config,
@@ -178,10 +199,16 @@ def check_inputs(
     n_envs: int,
     env_kwargs: dict | None,
     vec_env: str = "auto",
+    env_id: str | None = None,
 ) -> dict:
     """Validate everything the run needs in this process (nothing written, no worker started);
     returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train,
-    vec_env (``batched`` or ``subproc``, ``auto`` resolved)."""
+    vec_env (``batched`` or ``subproc``, ``auto`` resolved).
+
+    ``env_id`` (``--env``) trains on another id than the config's ``[env] id``; the config's
+    ``[env] config`` names that id's env file, so the other id gets its own default (ToothRow-v0:
+    ``tooth_row``) unless ``env_kwargs`` names one.  (The campaign passes its ``env_id`` here:
+    before, a tooth-row campaign trained on the plate of configs/agents/ppo.toml.)"""
     from brush_env.envs.config import load_env_config
 
     if algo not in ALGOS:
@@ -197,15 +224,22 @@ def check_inputs(
     cfg = load_agent_config(config)
     if cfg["algo"] != algo:
         raise ConfigError(f"--algo {algo!r} does not match algo = {cfg['algo']!r} in {config}")
-    envc = cfg.get("env", {})
-    env_id = envc.get("id", "brush_env:brush_env/FlatPlate-v0")
+    envc = dict(cfg.get("env", {}))
+    toml_id = envc.get("id", "brush_env:brush_env/FlatPlate-v0")
+    if env_id is None:
+        env_id = toml_id
+    elif env_id.split(":", 1)[-1] != toml_id.split(":", 1)[-1]:
+        envc.pop("config", None)  # the config's env file is for its own id
+    if env_id.startswith("brush_env/"):  # SubprocVecEnv workers import the package by the prefix
+        env_id = "brush_env:" + env_id
     if env_id.split(":", 1)[-1].startswith("brush_env/"):  # ours: a misspelt id gets a hint
         from agents.evaluate import check_env_id
 
         check_env_id(env_id, f"{config}: [env] id")
     if _is_brush_env(env_id):
+        own = envc.get("config") or _default_env_config(env_id.split(":", 1)[-1])
         kwargs = {
-            "config": envc.get("config", "flat_plate"),
+            "config": own or "flat_plate",
             **envc.get("kwargs", {}),
             **(env_kwargs or {}),
         }
@@ -355,6 +389,7 @@ def train(
     progress: bool = True,
     verbose: int = 0,
     vec_env: str = "auto",
+    env_id: str | None = None,
 ) -> Path:
     """Train and save; returns the path of ``model.zip`` (see the module docstring).
 
@@ -363,7 +398,7 @@ def train(
     from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.vec_env import VecNormalize
 
-    run = check_inputs(algo, config, timesteps, n_envs, env_kwargs, vec_env)
+    run = check_inputs(algo, config, timesteps, n_envs, env_kwargs, vec_env, env_id)
     tr = run["train"]
     seed = tr.get("seed", 0) if seed is None else seed
     n_eval = tr.get("eval_episodes", 3)
@@ -459,6 +494,11 @@ def build_parser() -> OneLineParser:
     )
     p.add_argument("--out", required=True, help="output directory (model, logs, checkpoints)")
     p.add_argument("--seed", type=int, default=None, help="default: [train] seed of the config")
+    p.add_argument(
+        "--env",
+        default=None,
+        help="env id to train on (default: the config's [env] id), e.g. brush_env/ToothRow-v0",
+    )
     add_env_kw(p, "TOML values")
     add_flag(p, "--no-progress", "no phase lines, bar or ETA")
     p.add_argument(
@@ -485,6 +525,7 @@ def _main(argv) -> int:
         progress=not args.no_progress,
         verbose=args.verbose,
         vec_env=args.vec_env,
+        env_id=args.env,
     )
     print(f"saved {path}")
     return 0

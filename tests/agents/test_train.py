@@ -168,3 +168,30 @@ def test_batched_two_env_ppo_run(tmp_path):
     model = train("ppo", cfg, 128, 2, tmp_path / "run", progress=False)
     meta = json.loads((tmp_path / "run" / "meta.json").read_text())
     assert model.exists() and meta["vec_env"] == "batched" and meta["n_envs"] == 2
+
+
+def test_env_flag_trains_on_that_id_with_its_own_env_file():
+    """``--env`` (the campaign's env_id) overrides the agent config's ``[env] id``; the config's
+    ``[env] config`` ("flat_plate") names the plate's env file, so the tooth row gets its own
+    ("tooth_row").  Before, a tooth-row campaign trained on the plate without a word."""
+    from agents.train import check_inputs
+
+    cfg = "configs/agents/ppo.toml"
+    run = check_inputs("ppo", cfg, 10, 2, None, env_id="brush_env/ToothRow-v0")
+    assert run["env_id"] == "brush_env:brush_env/ToothRow-v0"
+    assert run["kwargs"]["config"] == "tooth_row"
+    # the config's own id keeps its env file; an explicit config keyword wins over both
+    assert check_inputs("ppo", cfg, 10, 2, None)["kwargs"]["config"] == "flat_plate"
+    same = check_inputs("ppo", cfg, 10, 2, None, env_id="brush_env/FlatPlate-v0")
+    assert same["kwargs"]["config"] == "flat_plate"
+    kw = {"config": "tooth_row", "fidelity": "reduced"}
+    assert check_inputs("ppo", cfg, 10, 2, kw, env_id="brush_env/ToothRow-v0")["kwargs"] == kw
+
+
+def test_campaign_trains_on_its_env_id():
+    from agents.campaign import _train_cmd
+
+    c = {"env_id": "brush_env/ToothRow-v0", "env_kwargs": {"fidelity": "reduced"}}
+    t = {"algo": "ppo", "config": "configs/agents/ppo.toml", "timesteps": 10, "n_envs": 2}
+    cmd = _train_cmd(c, {**t, "dir": "runs/x"}, 0)
+    assert cmd[cmd.index("--env") + 1] == "brush_env/ToothRow-v0"
