@@ -8,7 +8,7 @@ force at every step size), ``branch`` (hold direction and jamming angles over st
 (tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
 iterations, instructions under callgrind), ``drag`` (a pressed brush dragged toward the
 bristles' wide and thin sides), ``episodes`` (how far env episodes run and why they end),
-``compile``
+``cost`` (one bristle-step split into its parts by callgrind instruction counts), ``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -24,6 +24,7 @@ from . import (
     compile,
     contact,
     convergence,
+    cost,
     drag,
     element,
     engine,
@@ -107,6 +108,12 @@ TARGETS = {
         steps.add_arguments,
         "one scene's press-and-scrub motion (bench teeth's): steps, Newton iterations, wall; "
         "--callgrind counts the step loop's instructions under valgrind",
+    ),
+    "cost": (
+        cost.bench_cost,
+        cost.add_arguments,
+        "one bristle-step of the full chain split into Jacobian, factorisation, solve, contact, "
+        "residual, coupling by callgrind instruction counts, beside each part's arithmetic",
     ),
     "planar": (
         planar.bench_planar,

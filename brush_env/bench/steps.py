@@ -36,6 +36,11 @@ def add_arguments(p) -> None:
 
     add_flag(p, "--json", "one JSON object on stdout (machine info on stderr)")
     add_flag(p, "--callgrind", "toggle callgrind's instrumentation around the step loop")
+    p.add_argument(
+        "--symbols",
+        default=None,
+        help="write {address: kernel} of the compiled engine kernels here (bench cost's map)",
+    )
     p.add_argument("--scene", default="tooth_row", help="scene name or file (default tooth_row)")
     p.add_argument("--fidelity", default="fast", help="fidelity level (default fast)")
     p.add_argument("--strokes", type=int, default=1, help="18 mm strokes after the press (1-8)")
@@ -90,11 +95,19 @@ def bench_steps(args) -> int:
     wall = time.perf_counter() - t0
     if args.callgrind:
         _toggle(False)
+    if args.symbols:
+        import json
+
+        from .cost import kernel_symbols
+
+        with open(args.symbols, "w") as fh:
+            json.dump(kernel_symbols(), fh)
     row = emit(
         args,
         dict(
             scene=str(args.scene),
             fidelity=args.fidelity,
+            bristles=sim.model.n_bristles,
             bodies=settings.bodies_per_bristle,
             sweeps=settings.tip_tip_sweeps,
             strokes=args.strokes,

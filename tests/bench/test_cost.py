@@ -1,0 +1,108 @@
+"""``bench cost``: the callgrind reader and the split into parts, on a call graph written here
+(no valgrind in the tests), and the symbol names of numba's mangled kernels."""
+
+from __future__ import annotations
+
+import pytest
+
+from brush_env.bench import cost as C
+
+# a callgrind file as callgrind writes it (name compression, one event): step_bristles calls
+# newton_solve, which calls the Jacobian, the factorisation, the solve, the tip load and the
+# element; the coupling kernel is called by step_bristles; python's frame calls step_bristles
+CALLGRIND = """\
+version: 1
+creator: callgrind-3.19.0
+events: Ir
+fl=(1) ???
+fn=(1) python_frame
+0 1000
+cfn=(2) 0x00000000000000a0
+calls=1 0
+0 98000
+fn=(2)
+0 500
+cfn=(3) 0x00000000000000b0
+calls=10 0
+0 90000
+cfn=(8) 0x0000000000000100
+calls=3 0
+0 7500
+fn=(3)
+0 20000
+cfn=(4) 0x00000000000000c0
+calls=2 0
+0 30000
+cfn=(5) 0x00000000000000d0
+calls=2 0
+0 8000
+cfn=(6) 0x00000000000000e0
+calls=10 0
+0 6000
+cfn=(7) 0x00000000000000f0
+calls=10 0
+0 4000
+cfn=(9) 0x0000000000000110
+calls=60 0
+0 22000
+fn=(8)
+0 7500
+fn=(4)
+0 30000
+fn=(5)
+0 8000
+fn=(6)
+0 6000
+fn=(7)
+0 4000
+fn=(9)
+0 22000
+"""
+SYMBOLS = {
+    "0xa0": "step.step_bristles",
+    "0xb0": "newton.newton_solve",
+    "0xc0": "residual._jacobian_chain",
+    "0xd0": "_kernels.block_factor_head",
+    "0xe0": "_kernels.block_solve",
+    "0xf0": "contact.tip_load",
+    "0x100": "coupling._solve_group",
+    "0x110": "_kernels._element_mid",
+}
+
+
+def test_split_sums_to_the_total_and_names_each_part(tmp_path):
+    f = tmp_path / "callgrind.out"
+    f.write_text(CALLGRIND)
+    self_cost, arcs = C.read_callgrind(f)
+    assert sum(self_cost.values()) == 99000  # every function's own cost, as written
+    assert arcs[("0x00000000000000b0", "0x00000000000000c0")] == 30000
+    parts = C.split(self_cost, arcs, SYMBOLS)
+    assert parts["Jacobian"] == 30000
+    assert parts["factorisation"] == 8000
+    assert parts["solve"] == 6000
+    assert parts["contact"] == 4000
+    assert parts["residual"] == 22000
+    assert parts["Newton's own"] == 20000
+    assert parts["coupling"] == 7500
+    assert parts["sweep and step"] == 500
+    assert parts["outside the bristle kernel"] == 1000
+    assert sum(parts.values()) == 99000  # the parts add up to the whole run
+
+
+@pytest.mark.parametrize(
+    "mangled, short",
+    [
+        (
+            "_ZN9brush_env6engine6sweeps14sweep_bristlesB3v41B40c8tJTIeFIjxB2IKSgI4CrvSCKgE5Model",
+            "sweeps.sweep_bristles",
+        ),
+        (
+            "_ZN9brush_env6engine8_kernels3lu6B4v201B36c8tJTIeFIjxE5ArrayIdLi2E1C7mutabl",
+            "_kernels.lu6",
+        ),
+        ("cfunc._ZN9brush_env6engine4step13step_bristlesB3v35B40c8tE5", "cfunc.step.step_bristles"),
+        ("atan2", "atan2"),
+    ],
+)
+def test_short_name_of_numba_symbols(mangled, short):
+    assert C.short_name(mangled) == short
