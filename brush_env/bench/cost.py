@@ -4,9 +4,11 @@ item 1).
 
 For each setting (``--bodies`` x ``--sweeps``: 3 and 6 mid-element bodies, one sweep and the
 coupled solve, at 1 ms), ``bench steps``' motion on the plate (2 mm press, hold, one 18 mm
-stroke: 1,589 steps of 1 ms, 40 bristles) runs twice: natively (the wall time of the loop, and
-numba's cache compiled for valgrind's CPU) and under callgrind with the instrumentation on for the
-loop only, writing where every engine kernel sits in memory (``--symbols``).  The call graph is
+stroke: 1,589 steps of 1 ms, 40 bristles) runs twice: natively (the wall time of the measured
+steps, and numba's cache compiled for valgrind's CPU) and under callgrind with the
+instrumentation on for the measured steps only (``--window``: by default 300 steps from step 900,
+mid-stroke, every tip sliding; the whole motion under callgrind takes ~1 h per setting at 6
+bodies), writing where every engine kernel sits in memory (``--symbols``).  The call graph is
 then split into parts by the kernels that are compiled as functions of their own:
 
 * **Jacobian**: ``residual._jacobian_chain`` (the chain's blocks by forward differences: 13
@@ -276,10 +278,12 @@ def _valgrind_cpu() -> tuple[str, str]:
     return name, feats
 
 
-def _run_setting(bodies: int, sweeps: int, env: dict, keep: Path) -> dict:
+def _run_setting(bodies: int, sweeps: int, env: dict, keep: Path, window) -> dict:
     steps = [sys.executable, "-m", "brush_env.cli", "bench", "steps", "--scene", "flat_plate"]
     steps += ["--fidelity", "balanced", "--bodies", str(bodies), "--sweeps", str(sweeps)]
     steps += ["--json"]
+    if window:
+        steps += ["--window", str(window[0]), str(window[1])]
     native = subprocess.run(steps, env=env, capture_output=True, text=True, check=True)
     row = json.loads(native.stdout.strip().splitlines()[-1])
     out = keep / f"callgrind_{bodies}_{sweeps}.out"
@@ -334,6 +338,15 @@ def add_arguments(p) -> None:
         help="numba cache compiled for valgrind's CPU (kept between runs)",
     )
     p.add_argument("--keep", default=None, help="keep callgrind's files in this folder")
+    p.add_argument(
+        "--window",
+        type=int,
+        nargs=2,
+        default=[900, 300],
+        metavar=("START", "COUNT"),
+        help="the steps measured (default 900 300: mid-stroke, every tip sliding on the plate; "
+        "0 0 for the whole motion)",
+    )
 
 
 def bench_cost(args) -> int:
@@ -348,7 +361,8 @@ def bench_cost(args) -> int:
     for bodies in args.bodies:
         for sweeps in args.sweeps:
             print(f"{bodies} bodies, {sweeps} sweep(s): native, then callgrind ...", file=log)
-            r = emit(args, _run_setting(bodies, sweeps, env, keep))
+            window = None if args.window == [0, 0] else args.window
+            r = emit(args, _run_setting(bodies, sweeps, env, keep, window))
             rows += table_rows(r, r["bristles"])
     if not args.json:
         cols = [

@@ -37,6 +37,14 @@ def add_arguments(p) -> None:
     add_flag(p, "--json", "one JSON object on stdout (machine info on stderr)")
     add_flag(p, "--callgrind", "toggle callgrind's instrumentation around the step loop")
     p.add_argument(
+        "--window",
+        type=int,
+        nargs=2,
+        default=None,
+        metavar=("START", "COUNT"),
+        help="measure only COUNT steps from step START (the motion before runs unmeasured)",
+    )
+    p.add_argument(
         "--symbols",
         default=None,
         help="write {address: kernel} of the compiled engine kernels here (bench cost's map)",
@@ -86,11 +94,22 @@ def bench_steps(args) -> int:
     P, R, _, _ = traj.sample(ts)
     sim.reset(P[0], R[0])
     sim.step(P[1], R[1])  # numba's first call, outside the measurement
+    first, last = 2, len(ts)
+    if args.window is not None:
+        first, count = args.window
+        if not 2 <= first < len(ts) or not 1 <= count <= len(ts) - first:
+            raise UserError(
+                f"--window {first} {count}: the motion has steps 2..{len(ts) - 1} "
+                f"(start >= 2, count >= 1, start + count <= {len(ts)})"
+            )
+        last = first + count
+        for k in range(2, first):  # the motion up to the window, unmeasured
+            sim.step(P[k], R[k])
     iterations = 0
     if args.callgrind:
         _toggle(True)
     t0 = time.perf_counter()
-    for k in range(2, len(ts)):
+    for k in range(first, last):
         iterations += sim.step(P[k], R[k]).iterations
     wall = time.perf_counter() - t0
     if args.callgrind:
@@ -111,7 +130,8 @@ def bench_steps(args) -> int:
             bodies=settings.bodies_per_bristle,
             sweeps=settings.tip_tip_sweeps,
             strokes=args.strokes,
-            steps=len(ts) - 2,
+            steps=last - first,
+            first_step=first,
             newton_iterations=iterations,
             wall_s=wall,
         ),

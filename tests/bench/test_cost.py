@@ -106,3 +106,21 @@ def test_split_sums_to_the_total_and_names_each_part(tmp_path):
 )
 def test_short_name_of_numba_symbols(mangled, short):
     assert C.short_name(mangled) == short
+
+
+def test_bench_steps_window_measures_only_its_steps(capsys):
+    """``bench steps --window START COUNT`` (bench cost's measured steps) reports COUNT steps from
+    START; a window outside the motion names the flag, its value and the range."""
+    import json
+
+    from brush_env import cli
+
+    assert (
+        cli.main(["bench", "steps", "--scene", "flat_plate", "--window", "900", "3", "--json"]) == 0
+    )
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert (row["first_step"], row["steps"]) == (900, 3)
+    assert row["newton_iterations"] > 0  # mid-stroke every bristle is in contact
+    assert cli.main(["bench", "steps", "--scene", "flat_plate", "--window", "1", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "--window 1 3" in err and "start >= 2" in err
