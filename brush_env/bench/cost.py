@@ -17,10 +17,13 @@ then split into parts by the kernels that are compiled as functions of their own
   block's ``lu6`` called by ``newton_solve`` itself (``residual.tip_refactor``);
 * **solve**: ``_kernels.block_solve`` and ``lus6`` called by ``newton_solve``;
 * **contact**: ``contact.tip_load`` (eq 6-10 and Table 3 at the tip, with its tangent);
+* **shaft contact**: ``shaft.*`` called by ``newton_solve`` (every body's capsule against the
+  surfaces, issue 28);
 * **residual**: the element evaluations ``newton_solve`` makes itself (``_element_mid``,
   ``_element_paper`` and the libm calls under them);
-* **Newton's own**: the rest of ``newton_solve`` (inertia residual, update, line search, caps,
-  convergence tests: inlined, so not separable);
+* **predictor**: ``predict.*`` (the first guess);
+* **Newton's own**: the rest of ``newton_solve`` (inertia residual, the rotation update and its
+  libm calls, line search, caps, convergence tests: inlined, so not separable);
 * **coupling**: ``coupling.*`` (the coupled tip-tip solve, partner placement) and
   ``sweeps._partner_move``;
 * **sweep and step**: the rest of ``step.step_bristles`` (sub-step halving, backups, predictors);
@@ -65,6 +68,8 @@ OPS = {
     "factorisation": lambda n: n * 1008,
     "solve": lambda n: n * 220,
     "contact": lambda n: 200,
+    "shaft contact": lambda n: n * 60,  # a capsule against the plate per body
+    "predictor": lambda n: n * 60,  # extrapolated pose per body (2nd/3rd order)
 }
 #: the parts, in the table's order
 PARTS = (
@@ -72,7 +77,9 @@ PARTS = (
     "factorisation",
     "solve",
     "contact",
+    "shaft contact",
     "residual",
+    "predictor",
     "Newton's own",
     "coupling",
     "sweep and step",
@@ -218,6 +225,27 @@ def _jit_name(raw: str, symbols: dict[str, str]) -> str:
     return symbols.get("0x" + m.group(1), raw) if m else raw
 
 
+#: the part of a kernel called by newton_solve, by its name's ending or start (module docstring)
+_CALLEE_PARTS = (
+    (("_jacobian_chain", "residual.jacobian"), "Jacobian"),
+    (("block_factor_head", "block_factor", ".lu6"), "factorisation"),
+    (("block_solve", ".lus6"), "solve"),
+    (("contact.tip_load",), "contact"),
+    (("_element_mid", "_element_paper"), "residual"),
+)
+
+
+def _part_of(callee: str) -> str | None:
+    for ends, part in _CALLEE_PARTS:
+        if callee.endswith(ends):
+            return part
+    if callee.startswith("shaft."):
+        return "shaft contact"
+    if callee.startswith("predict."):
+        return "predictor"
+    return None
+
+
 def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int]:
     """Instructions per part (module docstring) of one callgrind run."""
     sc: dict[str, int] = defaultdict(int)
@@ -238,17 +266,10 @@ def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int
     newton = incl("newton.newton_solve")
     out = dict.fromkeys(PARTS, 0)
     for g, c in callees.get("newton.newton_solve", {}).items():
-        if g.endswith("_jacobian_chain") or g.endswith("residual.jacobian"):
-            out["Jacobian"] += c
-        elif g.endswith("block_factor_head") or g.endswith("block_factor") or g.endswith(".lu6"):
-            out["factorisation"] += c
-        elif g.endswith("block_solve") or g.endswith(".lus6"):
-            out["solve"] += c
-        elif g.endswith("contact.tip_load"):
-            out["contact"] += c
-        elif "_element_" in g:
-            out["residual"] += c
-    out["Newton's own"] = newton - sum(out[p] for p in PARTS[:5])
+        part = _part_of(g)
+        if part is not None:
+            out[part] += c
+    out["Newton's own"] = newton - sum(out[p] for p in PARTS[:7])
     coupling = 0
     for f in sc:
         if f.startswith("coupling.") or f == "sweeps._partner_move":
@@ -297,8 +318,17 @@ def _run_setting(bodies: int, sweeps: int, env: dict, keep: Path, window) -> dic
         text=True,
         check=True,
     )
-    self_cost, arcs = read_callgrind(out)
-    parts = split(self_cost, arcs, json.loads(sym.read_text()))
+    (keep / f"native_{bodies}_{sweeps}.json").write_text(json.dumps(row))
+    return _from_files(bodies, sweeps, keep)
+
+
+def _from_files(bodies: int, sweeps: int, keep: Path) -> dict:
+    """One setting's row from its files in ``keep`` (the native run's row, callgrind's output and
+    the symbol map)."""
+    row = json.loads((keep / f"native_{bodies}_{sweeps}.json").read_text())
+    self_cost, arcs = read_callgrind(keep / f"callgrind_{bodies}_{sweeps}.out")
+    symbols = json.loads((keep / f"symbols_{bodies}_{sweeps}.json").read_text())
+    parts = split(self_cost, arcs, symbols)
     return {"bodies": bodies, "sweeps": sweeps, **row, "parts": parts}
 
 
@@ -339,6 +369,12 @@ def add_arguments(p) -> None:
     )
     p.add_argument("--keep", default=None, help="keep callgrind's files in this folder")
     p.add_argument(
+        "--from",
+        dest="from_dir",
+        default=None,
+        help="no runs: split the files a run kept (--keep DIR) again",
+    )
+    p.add_argument(
         "--window",
         type=int,
         nargs=2,
@@ -352,18 +388,28 @@ def add_arguments(p) -> None:
 def bench_cost(args) -> int:
     """``brush-env bench cost``: see the module docstring."""
     log = open_log(args)
+    rows = []
+    if args.from_dir:
+        for bodies in args.bodies:
+            for sweeps in args.sweeps:
+                r = emit(args, _from_files(bodies, sweeps, Path(args.from_dir)))
+                rows += table_rows(r, r["bristles"])
+        return _print(args, rows)
     name, feats = _valgrind_cpu()
     env = dict(os.environ)
     env.update(NUMBA_CPU_NAME=name, NUMBA_CPU_FEATURES=feats, NUMBA_CACHE_DIR=args.cache_dir)
     keep = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="brush_cost_"))
     keep.mkdir(parents=True, exist_ok=True)
-    rows = []
     for bodies in args.bodies:
         for sweeps in args.sweeps:
             print(f"{bodies} bodies, {sweeps} sweep(s): native, then callgrind ...", file=log)
             window = None if args.window == [0, 0] else args.window
             r = emit(args, _run_setting(bodies, sweeps, env, keep, window))
             rows += table_rows(r, r["bristles"])
+    return _print(args, rows)
+
+
+def _print(args, rows: list[dict]) -> int:
     if not args.json:
         cols = [
             ("setting", lambda r: r["setting"]),

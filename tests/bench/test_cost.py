@@ -82,6 +82,7 @@ def test_split_sums_to_the_total_and_names_each_part(tmp_path):
     assert parts["solve"] == 6000
     assert parts["contact"] == 4000
     assert parts["residual"] == 22000
+    assert parts["shaft contact"] == parts["predictor"] == 0
     assert parts["Newton's own"] == 20000
     assert parts["coupling"] == 7500
     assert parts["sweep and step"] == 500
