@@ -85,7 +85,15 @@ def _by_bench_steps(level):
 
     return bench_steps(
         argparse.Namespace(
-            json=True, callgrind=False, scene="flat_plate", fidelity=level, strokes=1
+            json=True,
+            callgrind=False,
+            scene="flat_plate",
+            fidelity=level,
+            strokes=1,
+            bodies=None,
+            sweeps=None,
+            window=None,
+            symbols=None,
         )
     )
 
