@@ -147,12 +147,14 @@ def kernel_symbols() -> dict[str, str]:
         for d in vars(mod).values():
             if not isinstance(d, CPUDispatcher) or not d.overloads:
                 continue
-            names: list[str] = []
+            cached: list[str] | None = None  # the cache file's names, read once per kernel
             for cres in d.overloads.values():
                 fm = cres.library._final_module
                 names = [f.name for f in fm.functions if not f.is_declaration] if fm else []
                 if not names and d._cache is not None:
-                    names = _cached_names(d)
+                    if cached is None:
+                        cached = _cached_names(d)
+                    names = cached
                 for n in names:
                     try:
                         a = cres.library.get_pointer_to_function(n)
@@ -246,6 +248,10 @@ def _part_of(callee: str) -> str | None:
     return None
 
 
+def _is_coupling(f: str) -> bool:
+    return f.startswith("coupling.") or f == "sweeps._partner_move"
+
+
 def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int]:
     """Instructions per part (module docstring) of one callgrind run."""
     sc: dict[str, int] = defaultdict(int)
@@ -265,22 +271,16 @@ def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int
     step = incl("step.step_bristles")
     newton = incl("newton.newton_solve")
     out = dict.fromkeys(PARTS, 0)
+    named = 0  # what newton_solve's named callees take
     for g, c in callees.get("newton.newton_solve", {}).items():
         part = _part_of(g)
         if part is not None:
             out[part] += c
-    out["Newton's own"] = newton - sum(out[p] for p in PARTS[:7])
-    coupling = 0
-    for f in sc:
-        if f.startswith("coupling.") or f == "sweeps._partner_move":
-            coupling += sc[f]
-            coupling += sum(c for g, c in callees.get(f, {}).items() if g != f)
+            named += c
+    out["Newton's own"] = newton - named
+    coupling = sum(incl(f) for f in sc if _is_coupling(f))
     # calls from one coupling kernel into another are counted once: only arcs from outside
-    for (f, g), c in ar.items():
-        if (f.startswith("coupling.") or f == "sweeps._partner_move") and (
-            g.startswith("coupling.") or g == "sweeps._partner_move"
-        ):
-            coupling -= c
+    coupling -= sum(c for (f, g), c in ar.items() if _is_coupling(f) and _is_coupling(g))
     out["coupling"] = coupling
     out["sweep and step"] = step - newton - coupling
     out["outside the bristle kernel"] = total - step
