@@ -88,6 +88,7 @@ def _by_bench_steps(level):
             json=True,
             callgrind=False,
             scene="flat_plate",
+            motion="scrub",
             fidelity=level,
             strokes=1,
             bodies=None,

@@ -8,7 +8,8 @@ force at every step size), ``branch`` (hold direction and jamming angles over st
 (tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
 iterations, instructions under callgrind), ``drag`` (a pressed brush dragged toward the
 bristles' wide and thin sides), ``episodes`` (how far env episodes run and why they end),
-``cost`` (one bristle-step split into its parts by callgrind instruction counts), ``compile``
+``cost`` (one bristle-step split into its parts by callgrind instruction counts), ``coupled``
+(the coupled tip-tip solve's cost and error on the paper turn), ``compile``
 (the first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
@@ -25,6 +26,7 @@ from . import (
     contact,
     convergence,
     cost,
+    coupled,
     drag,
     element,
     engine,
@@ -114,6 +116,12 @@ TARGETS = {
         cost.add_arguments,
         "one bristle-step of the full chain split into Jacobian, factorisation, solve, contact, "
         "residual, coupling by callgrind instruction counts, beside each part's arithmetic",
+    ),
+    "coupled": (
+        coupled.bench_coupled,
+        coupled.add_arguments,
+        "the paper turn at one sweep and coupled against the same bodies at 0.125 ms: CPU, "
+        "Newton iterations, sweeps, RMS error, phase means and stick-slip event times",
     ),
     "planar": (
         planar.bench_planar,

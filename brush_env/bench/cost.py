@@ -299,8 +299,11 @@ def _valgrind_cpu() -> tuple[str, str]:
     return name, feats
 
 
-def _run_setting(bodies: int, sweeps: int, env: dict, keep: Path, window) -> dict:
+def _run_setting(
+    bodies: int, sweeps: int, env: dict, keep: Path, window, motion: str = "scrub"
+) -> dict:
     steps = [sys.executable, "-m", "brush_env.cli", "bench", "steps", "--scene", "flat_plate"]
+    steps += ["--motion", motion]
     steps += ["--fidelity", "balanced", "--bodies", str(bodies), "--sweeps", str(sweeps)]
     steps += ["--json"]
     if window:
@@ -375,6 +378,13 @@ def add_arguments(p) -> None:
         help="no runs: split the files a run kept (--keep DIR) again",
     )
     p.add_argument(
+        "--motion",
+        choices=("scrub", "turn"),
+        default="scrub",
+        help="bench steps' motion: scrub (press and one stroke, no tip-tip contact) or turn (the "
+        "paper turn, where the coupled tip-tip solve works; e.g. --window 4000 100)",
+    )
+    p.add_argument(
         "--window",
         type=int,
         nargs=2,
@@ -404,7 +414,7 @@ def bench_cost(args) -> int:
         for sweeps in args.sweeps:
             print(f"{bodies} bodies, {sweeps} sweep(s): native, then callgrind ...", file=log)
             window = None if args.window == [0, 0] else args.window
-            r = emit(args, _run_setting(bodies, sweeps, env, keep, window))
+            r = emit(args, _run_setting(bodies, sweeps, env, keep, window, args.motion))
             rows += table_rows(r, r["bristles"])
     return _print(args, rows)
 

@@ -1,10 +1,12 @@
-"""``brush-env bench steps``: one scene's press-and-scrub motion, stepped, for A/B comparisons
-by Newton iterations and by instruction counts.
+"""``brush-env bench steps``: one scene's press-and-scrub motion (or the paper turn on the plate),
+stepped, for A/B comparisons by Newton iterations and by instruction counts.
 
 Wall time drifts by up to 30 % on a shared VM; the Newton iterations are deterministic and the
 instructions retired by the step loop drift by < 0.1 %.  The motion is ``bench teeth``'s (2 mm
 press, hold, ``--strokes`` 18 mm strokes at 20 mm/s) on ``--scene`` at ``--fidelity``; it prints
-the steps, the Newton iterations summed over the bristles and the wall time of the loop.
+the steps, the Newton iterations summed over the bristles and the wall time of the loop.  With
+``--motion turn`` it is the paper turn of ``bench element`` on the plate instead (1 ms steps), the
+motion on which buckled tips touch their neighbours and the coupled tip-tip solve works.
 
 ``--callgrind`` switches valgrind callgrind's instrumentation on just before the loop and off after
 it (``callgrind_control -i on|off``), so that callgrind's "Collected" total is the loop alone
@@ -49,6 +51,14 @@ def add_arguments(p) -> None:
         default=None,
         help="write {address: kernel} of the compiled engine kernels here (bench cost's map)",
     )
+    p.add_argument(
+        "--motion",
+        choices=("scrub", "turn"),
+        default="scrub",
+        help="scrub: the press and strokes on --scene (4 ms steps); turn: the paper turn on the "
+        "flat_plate scene (bench element's: 3 mm press in 0.5 s, 0.25 s hold, one 20 mm circle; "
+        "1 ms steps to t = 7.233 s), where buckled tips touch and the coupled solve works",
+    )
     p.add_argument("--scene", default="tooth_row", help="scene name or file (default tooth_row)")
     p.add_argument("--fidelity", default="fast", help="fidelity level (default fast)")
     p.add_argument("--strokes", type=int, default=1, help="18 mm strokes after the press (1-8)")
@@ -71,6 +81,18 @@ def _toggle(on: bool) -> None:
     )
 
 
+def _turn(sim, scene):
+    """The paper turn's trajectory (bench element's motion, ``bench.contact.CONTACT_GRID_FULL``):
+    tips touching the plate at t = 0, 3 mm press, hold, one turn of the 20 mm circle."""
+    from ..experiments.plan import plate_height
+    from ..motion import R0
+    from .contact import CONTACT_GRID_FULL as G
+    from .contact import press_and_circle
+
+    traj, _ = press_and_circle(sim.touch_height(R0, plate_height(scene)), G["press"], G["hold"])
+    return traj
+
+
 def bench_steps(args) -> int:
     from ..engine import Simulator
     from ..engine.fidelity import level_settings
@@ -81,16 +103,24 @@ def bench_steps(args) -> int:
     if not 1 <= args.strokes <= 8:
         raise UserError(f"--strokes = {args.strokes}: must be in [1, 8]")
     log = open_log(args)
-    dt = DEFAULTS["dt"]  # run_tooth_row's step (the level's max_substep splits it)
+    turn = args.motion == "turn"
+    # the scrub: run_tooth_row's step (the level's max_substep splits it); the turn: bench
+    # element's 1 ms
+    dt = 1e-3 if turn else DEFAULTS["dt"]
     over = {}
     if args.bodies is not None:
         over["bodies_per_bristle"] = args.bodies
     if args.sweeps is not None:
         over["tip_tip_sweeps"] = args.sweeps
     settings = dataclasses.replace(level_settings(args.fidelity, dt=dt), **over)
-    sim = Simulator(resolve_scene(None, args.scene, None), settings)
-    traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": args.strokes})
-    ts = np.arange(int(traj.duration / dt)) * dt
+    scene = resolve_scene(None, "flat_plate" if turn else args.scene, None)
+    sim = Simulator(scene, settings)
+    if turn:
+        traj = _turn(sim, scene)
+        ts = np.arange(int(round(traj.duration / dt)) + 1) * dt
+    else:
+        traj, _ = scrub_motion(sim, {**DEFAULTS, "strokes": args.strokes})
+        ts = np.arange(int(traj.duration / dt)) * dt
     P, R, _, _ = traj.sample(ts)
     sim.reset(P[0], R[0])
     sim.step(P[1], R[1])  # numba's first call, outside the measurement
@@ -124,7 +154,8 @@ def bench_steps(args) -> int:
     row = emit(
         args,
         dict(
-            scene=str(args.scene),
+            scene="flat_plate" if turn else str(args.scene),
+            motion=args.motion,
             fidelity=args.fidelity,
             bristles=sim.model.n_bristles,
             bodies=settings.bodies_per_bristle,

@@ -328,7 +328,8 @@ Backup = namedtuple("Backup", ["v3", "R", "tip_state", "shaft"])
 #: [N/mm], its tip node and velocity before it was placed xs (nb, 6) and where the first sweep
 #: holds it tips0 (nb, 6); groups (parent, grouped, slot, members); the dense system A, x, piv
 #: (3 rows per bristle of a group); scratch: one tip node's stiffness H (3, 3) [N/mm], A6, piv6,
-#: W3, Fc, Kc, f, C, e6
+#: W3, Fc, Kc, f, C, e6; shaft (the bodies' shaft states at the step's start); lead (nb,): the
+#: fraction of h v_n each tip is moved on for the first sweep (``sweeps.lead_partners``)
 Sweeps = namedtuple(
     "Sweeps",
     [
@@ -361,6 +362,7 @@ Sweeps = namedtuple(
         "C",
         "e6",
         "shaft",
+        "lead",
     ],
 )
 Work = namedtuple(
@@ -429,6 +431,7 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         v(3, 3),
         v(6),
         np.zeros(n_bodies, SHAFT),
+        v(n_bristles),
     )
     sh = ShaftScratch(
         v(nmax, 6, 6),

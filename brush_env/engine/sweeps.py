@@ -14,7 +14,7 @@ from numba import njit
 
 from ._kernels import HOT
 from .advance import advance_bristle, scheme_coefficients
-from .coupling import place_partners, store_tip_load
+from .coupling import PLACE_OVERLAP, place_partners, store_tip_load
 from .predict import save_chain
 from .records import Bristle
 
@@ -25,6 +25,11 @@ SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at t
 #: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
 #: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
 FALLBACK_MOVE = 1e-4
+#: halvings of a tip's lead before it is held at its start (``lead_partners``)
+LEAD_HALVINGS = 6
+#: the longest lead, in tip radii: the penalty law's range (eq 6 is fitted to 10 % of the radius);
+#: the paper turn's tips move ~5 % of theirs per 1 ms step, a 300 mm/s press ~70 %
+LEAD_MAX = 0.1
 
 
 @njit(**HOT)
@@ -163,6 +168,67 @@ def tip_node_state(b, il, bp, pos, rot, vel, omg, out):
     out[b, 5] = vel[il, 2] + omg[il, 0] * r1 - omg[il, 1] * r0
 
 
+@njit(**HOT)
+def lead_partners(con, sw, h):
+    """The coupled solve's first guess: every tip with tip-tip partners is held, for the first
+    sweep, where it is heading, con.tips[b] <- p_b + lead_b h v_b (v_b its tip velocity at t_n,
+    lead_b h |v_b| at most LEAD_MAX tip radii),
+    so that a bristle solved before its partners sees them near their end-of-step tips rather
+    than a step behind: on the paper turn the brush carries every tip ~20 um per 1 ms step, and a
+    partner held at its start sends the first placement (``coupling``) 20 um off, more than its
+    safe fraction lets it take.  lead_b starts at 1 and is halved (both tips of a pair, up to
+    LEAD_HALVINGS times, then 0: held at the start) while a pair of tips within contact reach
+    would, both moved on, reverse its line of centres (pass through each other) or overlap by
+    more than it does now plus ``coupling.PLACE_OVERLAP``: the guess may not create the deep
+    overlaps that made the unclipped h v_n guess push tips through each other under random
+    actions (docs/model.md).  It only steers the sweeps: every bristle is then solved against its
+    partners' own solutions."""
+    tips = con.tips
+    nb = tips.shape[0]
+    lead = sw.lead
+    for b in range(nb):
+        lead[b] = 0.0
+        if con.pair_ptr[b + 1] > con.pair_ptr[b]:
+            move = h * np.sqrt(tips[b, 3] ** 2 + tips[b, 4] ** 2 + tips[b, 5] ** 2)
+            lead[b] = min(1.0, LEAD_MAX * tips[b, 6] / move) if move > 0.0 else 0.0
+    for _round in range(LEAD_HALVINGS + 1):
+        bad = False
+        for b in range(nb):
+            for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+                j = con.pair_idx[q]
+                if j < b or (lead[b] == 0.0 and lead[j] == 0.0):
+                    continue  # each pair once (the lists are symmetric)
+                if _lead_unsafe(b, j, lead[b] * h, lead[j] * h, tips):
+                    bad = True
+                    for t in (b, j):
+                        lead[t] = 0.0 if _round == LEAD_HALVINGS else 0.5 * lead[t]
+        if not bad:
+            break
+    for b in range(nb):
+        for a in range(3):
+            tips[b, a] += lead[b] * h * tips[b, 3 + a]
+
+
+@njit(**HOT, inline="always")
+def _lead_unsafe(b, j, fb, fj, tips):
+    """True if moving tip b by fb v_b and tip j by fj v_j [s x mm/s] (``lead_partners``)
+    reverses their line of centres or overlaps them by more than now plus PLACE_OVERLAP [mm]."""
+    reach = tips[b, 6] + tips[j, 6]
+    d2 = 0.0
+    dot = 0.0
+    e2 = 0.0
+    for a in range(3):
+        d0 = tips[b, a] - tips[j, a]
+        d1 = d0 + fb * tips[b, 3 + a] - fj * tips[j, 3 + a]
+        d2 += d0 * d0
+        dot += d0 * d1
+        e2 += d1 * d1
+    now = reach - np.sqrt(d2)
+    if now <= 0.0 and reach - np.sqrt(e2) <= 0.0 and dot > 0.0:
+        return False  # apart before and after
+    return dot <= 0.0 or reach - np.sqrt(e2) > max(now, 0.0) + PLACE_OVERLAP
+
+
 @njit(**HOT, inline="always")
 def start_sweeps(model, chain, drive, prm, con, ws, out):
     """Before the first sweep: no Newton iterations yet, every tip's start (sw.tips0) and, if
@@ -176,6 +242,8 @@ def start_sweeps(model, chain, drive, prm, con, ws, out):
             sw.tips0[b, a] = con.tips[b, a]
     if sweeps > 1:
         _save_all(chain, con, drive, sw)
+        if not prm.static:
+            lead_partners(con, sw, prm.h)
     sw.count[0] = 1
     sw.count[1] = 0
     sw.count[2] = 0

@@ -125,3 +125,18 @@ def test_bench_steps_window_measures_only_its_steps(capsys):
     assert cli.main(["bench", "steps", "--scene", "flat_plate", "--window", "1", "3"]) == 2
     err = capsys.readouterr().err
     assert "--window 1 3" in err and "start >= 2" in err
+
+
+def test_bench_steps_runs_the_paper_turn(capsys):
+    """``bench steps --motion turn`` steps bench element's turn on the plate at 1 ms: t = 0 ..
+    7.233 s (0.5 s press, 0.25 s hold, the circle with its ramps), whatever ``--scene`` says."""
+    import json
+
+    from brush_env import cli
+
+    args = ["bench", "steps", "--motion", "turn", "--fidelity", "fast", "--window", "7230", "3"]
+    assert cli.main(args + ["--json"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert (row["scene"], row["motion"], row["steps"]) == ("flat_plate", "turn", 3)
+    assert cli.main(args[:-2] + ["7233", "3"]) == 2  # past the turn's last step
+    assert "start + count <= 7234" in capsys.readouterr().err

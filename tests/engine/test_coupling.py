@@ -68,3 +68,51 @@ def test_one_sweep_lags_and_breaks_action_reaction():
     r = _pair_run(sweeps=1)
     fa, fb = r[:, 0], r[:, 1]
     assert np.max(np.abs(fa - fb)) > 0.2 * P
+
+
+def _lead(tips, pairs, h=DT):
+    """sweeps.lead_partners on the tips (nb, 7: position [mm], velocity [mm/s], radius [mm]) with
+    the symmetric pair lists of ``pairs``; returns (the moved tips, each tip's lead)."""
+    from collections import namedtuple
+
+    from brush_env.engine.sweeps import lead_partners
+
+    nb = len(tips)
+    lists = [[j for a, b in pairs for i, j in ((a, b), (b, a)) if i == k] for k in range(nb)]
+    ptr = np.cumsum([0] + [len(x) for x in lists]).astype(np.int64)
+    idx = np.array([j for x in lists for j in x], np.int64)
+    Con = namedtuple("Con", ["tips", "pair_ptr", "pair_idx"])
+    Sw = namedtuple("Sw", ["lead"])
+    con = Con(np.array(tips, float), ptr, idx)
+    sw = Sw(np.zeros(nb))
+    lead_partners(con, sw, h)
+    return con.tips, sw.lead
+
+
+def test_first_guess_moves_tips_that_travel_together_by_h_v():
+    """Two touching tips (overlap 1 um) carried sideways together at 20 mm/s, as the brush carries
+    them on the paper turn: each is held where it heads, p + h v (20 um on)."""
+    r = 0.44
+    tips = [[0, 0, 0, 20, 0, 0, r], [2 * r - 1e-3, 0, 0, 20, 0, 0, r]]
+    moved, lead = _lead(tips, [(0, 1)])
+    assert np.allclose(lead, 1.0)
+    assert np.allclose(moved[:, 0], [0.02, 2 * r - 1e-3 + 0.02])
+
+
+def test_first_guess_never_pushes_tips_into_each_other():
+    """Head-on at 100 mm/s each (a 0.2 mm closing in one step, against a 1 um overlap): the
+    guess may deepen an overlap by at most PLACE_OVERLAP, and never moves a tip more than
+    LEAD_MAX radii, however fast it moves (a 300 mm/s press)."""
+    from brush_env.engine.coupling import PLACE_OVERLAP
+    from brush_env.engine.sweeps import LEAD_MAX
+
+    r = 0.44
+    tips = [[0, 0, 0, 100, 0, 0, r], [2 * r - 1e-3, 0, 0, -100, 0, 0, r], [5, 0, 0, 0, 0, 300, r]]
+    moved, lead = _lead(tips, [(0, 1), (1, 2)])
+    overlap = 2 * r - np.linalg.norm(moved[0, :3] - moved[1, :3])
+    assert overlap <= 1e-3 + PLACE_OVERLAP + 1e-12
+    assert 0.0 < lead[0] < 1.0 and 0.0 < lead[1] < 1.0
+    assert np.linalg.norm(moved[2, :3] - np.array(tips[2][:3])) <= LEAD_MAX * r + 1e-12
+    # a tip without partners is not moved
+    alone, lead = _lead([[0, 0, 0, 50, 0, 0, r]], [])
+    assert lead[0] == 0.0 and alone[0, 0] == 0.0

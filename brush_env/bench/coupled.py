@@ -1,0 +1,244 @@
+"""``brush-env bench coupled``: what the coupled tip-tip solve costs and how close it lands, on
+the paper turn (issue 32, items 3 and the first done-line).
+
+The motion is ``bench element``'s flat-plate turn (default brush, 40 bristles, tips touching the
+plate at t = 0, 3 mm press in 0.5 s, 0.25 s hold, one turn of the 20 mm circle: 7.234 s) at
+``--bodies`` mid-element bodies, BDF2.  Every row runs it at a step (``--dt``) with a number of
+tip-tip sweeps (1: one sweep, partners lagged; more: the coupled solve) and a partner tolerance
+(``tip_tip_tol``), against the same bodies at 0.125 ms, coupled (the done-line's "same bodies
+at 0.125 ms"; computed first, or read back from ``--reference FILE`` when that file holds a run
+of the same bodies).  Per row, by the measures of ``fidelity_metrics`` (docs/benchmarks.md):
+
+* CPU time of the stepping loop [s] (``time.process_time``, after a short run that compiles)
+  and its real-time factor (simulated seconds per CPU second);
+* Newton iterations per bristle-step; sweeps and bristle re-solves per step (``solver_info``),
+  and the share of steps that ran out of sweeps or fell back to the plain sweep;
+* the TCP force's pooled RMS error on the 5 ms grid, the same outside +-10 ms of the reference's
+  stick->slip events, its phase means (press, hold, sliding) and the event-time error (median and
+  largest |dt| of the matched events, matched / reference events).
+
+    brush-env bench coupled [--bodies 6] [--dt 0.001] [--sweeps 1 8] [--tol 1e-6]
+        [--reference FILE] [--write-reference FILE] [--json]
+
+The reference at 0.125 ms takes ~3 min of one core at 6 bodies; a row at 1 ms 10-45 s.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import fidelity_metrics as fm
+from .harness import emit, markdown_table, open_log, print_machine
+
+REFERENCE_DT = 1.25e-4  # [s] the done-line's "same bodies at 0.125 ms"
+REFERENCE_SWEEPS = 8
+REFERENCE_TOL = 1e-6  # [mm]
+SAMPLE = 5e-3  # [s] comparison grid (bench element's)
+
+
+def turn_run(bodies: int, dt: float, sweeps: int, tol: float) -> dict:
+    """One turn (module docstring): times [s], TCP force [N] (n, 3), per engine step the tips'
+    sliding and in-contact flags (n, 40), the CPU time of the loop [s], Newton iterations,
+    sweeps, re-solves, unsettled and fallen-back steps, and the status."""
+    from .contact import CONTACT_GRID_FULL as G
+    from .contact import arc_seconds, simulate_contact
+
+    extra = dict(tip_tip_sweeps=sweeps, tip_tip_tol=tol)
+    simulate_contact(bodies, dt, "bdf2", True, 0.01, 0.0, 0.0, **extra)  # compile outside
+    flags: dict[str, list] = {"sl": [], "ic": []}
+    solver = np.zeros(4)
+    sims = []
+
+    def observe(t, out):
+        flags["sl"].append(out.tip_sliding.copy())
+        flags["ic"].append(out.tip_in_contact.copy())
+        e = out.extra
+        solver[:] += [
+            e.get("sweeps", 1),
+            e.get("resolves", 0),
+            not e.get("tip_tip_settled", True),
+            e.get("tip_tip_fallback", False),
+        ]
+        sims.append(t)
+
+    t0 = time.process_time()
+    run = simulate_contact(
+        bodies, dt, "bdf2", True, G["press"], G["hold"], arc_seconds(G), observe=observe, **extra
+    )
+    cpu = time.process_time() - t0
+    n = max(len(sims), 1)
+    return {
+        "bodies": bodies,
+        "dt": dt,
+        "sweeps": sweeps,
+        "tol": tol,
+        "t": run.t,
+        "F": run.F,
+        "event_t": np.asarray(sims),
+        "sliding": np.asarray(flags["sl"]),
+        "in_contact": np.asarray(flags["ic"]),
+        "cpu_s": cpu,
+        "newton_per_bristle_step": run.newton / max(run.steps, 1) / run.n_bristles,
+        "sweeps_per_step": solver[0] / n,
+        "resolves_per_step": solver[1] / n,
+        "unsettled_share": solver[2] / n,
+        "fallback_share": solver[3] / n,
+        "status": run.status,
+    }
+
+
+def save_reference(path: Path, ref: dict) -> None:
+    np.savez_compressed(
+        path,
+        **{k: np.asarray(ref[k]) for k in ("t", "F", "event_t", "sliding", "in_contact")},
+        bodies=ref["bodies"],
+        dt=ref["dt"],
+        cpu_s=ref["cpu_s"],
+    )
+
+
+def load_reference(path: Path, bodies: int) -> dict | None:
+    """The reference stored at ``path`` if it is a run of ``bodies`` bodies, else None."""
+    if not path.exists():
+        return None
+    z = np.load(path)
+    if int(z["bodies"]) != bodies:
+        return None
+    return {k: z[k] for k in z.files}
+
+
+def compare(run: dict, ref: dict) -> dict:
+    """The row's errors against the reference (module docstring)."""
+    grid = np.arange(0.0, float(ref["t"][-1]) + 1e-12, SAMPLE)
+    Fr = fm.on_grid(grid, ref["t"], ref["F"])
+    if run["status"] != "ok":
+        return {"status": run["status"]}
+    F = fm.on_grid(grid, run["t"], run["F"])
+    phases = {"press": (0.0, 0.5), "hold": (0.5, 0.75), "sliding": (0.75, float(grid[-1]))}
+    pe = fm.phase_mean_errors(fm.phase_means(grid, F, phases), fm.phase_means(grid, Fr, phases))
+    rev = fm.long_stick_events(
+        fm.stick_slip_events(ref["event_t"], ref["sliding"], ref["in_contact"])
+    )
+    ev = fm.long_stick_events(
+        fm.stick_slip_events(run["event_t"], run["sliding"], run["in_contact"])
+    )
+    m = fm.match_events(rev, ev)
+    mask = fm.event_mask(grid, rev[1], fm.EVENT_HALF_WIDTH)
+    return {
+        "rms": fm.pooled_rms_error([(F, Fr)]),
+        "rms_outside_events": fm.rms_error_outside(F, Fr, mask),
+        "phase_press": pe["press"],
+        "phase_hold": pe["hold"],
+        "phase_sliding": pe["sliding"],
+        "event_median_ms": m["median_abs_ms"],
+        "event_max_ms": m["max_abs_ms"],
+        "events_matched": m["n_matched"],
+        "events_ref": m["n_ref"],
+    }
+
+
+def add_arguments(p) -> None:
+    from ..user_errors import add_flag
+
+    add_flag(p, "--json", "one JSON object per row on stdout (machine info on stderr)")
+    p.add_argument("--bodies", type=int, default=6, help="bodies per bristle (default 6)")
+    p.add_argument("--dt", type=float, nargs="+", default=[1e-3], help="steps [s] (1e-3)")
+    p.add_argument("--sweeps", type=int, nargs="+", default=[1, 8], help="tip-tip sweeps (1 8)")
+    p.add_argument("--tol", type=float, nargs="+", default=[1e-6], help="tip_tip_tol [mm]")
+    p.add_argument(
+        "--reference",
+        default=None,
+        help="read the 0.125 ms reference from this .npz (computed and not kept if absent)",
+    )
+    p.add_argument(
+        "--write-reference", default=None, help="compute the reference and store it here (.npz)"
+    )
+
+
+def bench_coupled(args) -> int:
+    """``brush-env bench coupled``: see the module docstring."""
+    from ..user_errors import UserError
+
+    if args.bodies < 1:
+        raise UserError(f"--bodies = {args.bodies}: must be >= 1")
+    for dt in args.dt:
+        if not 0.0 < dt <= 4e-3:
+            raise UserError(f"--dt {dt}: must be in (0, 0.004] s")
+    log = open_log(args)
+    ref = load_reference(Path(args.reference), args.bodies) if args.reference else None
+    if ref is None:
+        print(f"reference: {args.bodies} bodies at 0.125 ms, coupled ...", file=log, flush=True)
+        ref = turn_run(args.bodies, REFERENCE_DT, REFERENCE_SWEEPS, REFERENCE_TOL)
+        if ref["status"] != "ok":
+            raise RuntimeError(f"the reference run did not finish: {ref['status']}")
+        out = args.write_reference or args.reference
+        if out:
+            save_reference(Path(out), ref)
+    rows = []
+    for dt in args.dt:
+        for sweeps in args.sweeps:
+            for tol in args.tol if sweeps > 1 else args.tol[:1]:
+                print(f"  dt {dt:g} s, {sweeps} sweep(s), tol {tol:g} mm ...", file=log, flush=True)
+                run = turn_run(args.bodies, dt, sweeps, tol)
+                row = {k: v for k, v in run.items() if not isinstance(v, np.ndarray)} | compare(
+                    run, ref
+                )
+                row["rtf_cpu"] = (
+                    float(run["t"][-1]) / row["cpu_s"] if row["cpu_s"] > 0 else math.nan
+                )
+                rows.append(emit(args, row))
+    if not args.json:
+        print_machine(log)
+        print(_table(rows), file=log)
+    return 0
+
+
+def _table(rows: list[dict]) -> str:
+    def pct(k, signed=False):
+        fmt = "{:+.2f} %" if signed else "{:.2f} %"
+        return lambda r: "—" if k not in r else fmt.format(100 * r[k])
+
+    return markdown_table(
+        rows,
+        [
+            ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
+            ("sweeps", lambda r: str(r["sweeps"])),
+            ("tol [mm]", lambda r: f"{r['tol']:g}" if r["sweeps"] > 1 else "—"),
+            ("CPU [s]", lambda r: f"{r['cpu_s']:.1f}"),
+            ("sim s / CPU s", lambda r: f"{r['rtf_cpu']:.2f}"),
+            ("Newton it. / bristle-step", lambda r: f"{r['newton_per_bristle_step']:.2f}"),
+            ("sweeps / step", lambda r: f"{r['sweeps_per_step']:.2f}"),
+            ("re-solves / step", lambda r: f"{r['resolves_per_step']:.1f}"),
+            ("fallback", pct("fallback_share")),
+            ("RMS F", pct("rms")),
+            ("RMS outside events", pct("rms_outside_events")),
+            (
+                "press / hold / sliding",
+                lambda r: (
+                    "—"
+                    if "rms" not in r
+                    else (
+                        f"{100 * r['phase_press']:+.2f} / {100 * r['phase_hold']:+.2f} / "
+                        f"{100 * r['phase_sliding']:+.2f} %"
+                    )
+                ),
+            ),
+            (
+                "event |dt| median / max [ms]",
+                lambda r: (
+                    "—"
+                    if "rms" not in r
+                    else (f"{r['event_median_ms']:.2f} / {r['event_max_ms']:.2f}")
+                ),
+            ),
+            (
+                "events matched",
+                lambda r: "—" if "rms" not in r else (f"{r['events_matched']}/{r['events_ref']}"),
+            ),
+            ("status", lambda r: r["status"]),
+        ],
+    )

@@ -1,0 +1,48 @@
+"""``bench coupled``: its comparison against the 0.125 ms reference, on signals written here
+(the measures are fidelity_metrics', tested in test_fidelity_metrics.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from brush_env.bench.coupled import compare
+
+
+def _run(scale=1.0, slip_at=1.0):
+    """A 2 s run of 2 tips on a 1 ms grid: |F| = 1 + t [N], scaled; tip 0 sticks from 0.6 s and
+    slips at ``slip_at`` [s]; tip 1 slides throughout."""
+    t = np.arange(0, 2001) * 1e-3
+    F = np.zeros((t.size, 3))
+    F[:, 2] = scale * (1.0 + t)
+    sl = np.ones((t.size, 2), bool)
+    sl[(t >= 0.6) & (t < slip_at), 0] = False
+    return {
+        "t": t,
+        "F": F,
+        "event_t": t,
+        "sliding": sl,
+        "in_contact": np.ones_like(sl),
+        "status": "ok",
+    }
+
+
+def test_a_run_equal_to_its_reference_has_no_error():
+    r = compare(_run(), _run())
+    assert r["rms"] == 0.0 and r["rms_outside_events"] == 0.0
+    assert (r["events_matched"], r["events_ref"], r["event_max_ms"]) == (1, 1, 0.0)
+
+
+def test_a_force_one_percent_high_and_a_late_slip():
+    """1 % more force everywhere: 1 % RMS and +1 % in every phase; the slip 8 ms late: one
+    matched event 8 ms off."""
+    r = compare(_run(scale=1.01, slip_at=1.008), _run())
+    assert r["rms"] == pytest.approx(0.01, rel=1e-9)
+    for phase in ("phase_press", "phase_hold", "phase_sliding"):
+        assert r[phase] == pytest.approx(0.01, rel=1e-9)
+    assert r["event_median_ms"] == pytest.approx(8.0, abs=1e-6)
+
+
+def test_a_diverged_run_has_no_errors_but_its_status():
+    run = _run() | {"status": "diverged at t=1 s"}
+    assert compare(run, _run()) == {"status": "diverged at t=1 s"}
