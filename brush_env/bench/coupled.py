@@ -113,12 +113,15 @@ def load_reference(path: Path, bodies: int) -> dict | None:
 
 def compare(run: dict, ref: dict) -> dict:
     """The row's errors against the reference (module docstring)."""
-    grid = np.arange(0.0, float(ref["t"][-1]) + 1e-12, SAMPLE)
-    Fr = fm.on_grid(grid, ref["t"], ref["F"])
+    from .contact import CONTACT_GRID_FULL as G
+    from .fidelity import _phases
+
     if run["status"] != "ok":
         return {"status": run["status"]}
+    grid = np.arange(0.0, float(ref["t"][-1]) + 1e-12, SAMPLE)
+    Fr = fm.on_grid(grid, ref["t"], ref["F"])
     F = fm.on_grid(grid, run["t"], run["F"])
-    phases = {"press": (0.0, 0.5), "hold": (0.5, 0.75), "sliding": (0.75, float(grid[-1]))}
+    phases = _phases(G["press"], G["hold"], float(grid[-1]))
     pe = fm.phase_mean_errors(fm.phase_means(grid, F, phases), fm.phase_means(grid, Fr, phases))
     rev = fm.long_stick_events(
         fm.stick_slip_events(ref["event_t"], ref["sliding"], ref["in_contact"])
@@ -198,9 +201,8 @@ def bench_coupled(args) -> int:
 
 
 def _table(rows: list[dict]) -> str:
-    def pct(k, signed=False):
-        fmt = "{:+.2f} %" if signed else "{:.2f} %"
-        return lambda r: "—" if k not in r else fmt.format(100 * r[k])
+    def pct(k):
+        return lambda r: "—" if k not in r else f"{100 * r[k]:.2f} %"
 
     return markdown_table(
         rows,

@@ -224,8 +224,6 @@ def _lead_unsafe(b, j, fb, fj, tips):
         dot += d0 * d1
         e2 += d1 * d1
     now = reach - np.sqrt(d2)
-    if now <= 0.0 and reach - np.sqrt(e2) <= 0.0 and dot > 0.0:
-        return False  # apart before and after
     return dot <= 0.0 or reach - np.sqrt(e2) > max(now, 0.0) + PLACE_OVERLAP
 
 
