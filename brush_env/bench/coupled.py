@@ -114,14 +114,14 @@ def load_reference(path: Path, bodies: int) -> dict | None:
 def compare(run: dict, ref: dict) -> dict:
     """The row's errors against the reference (module docstring)."""
     from .contact import CONTACT_GRID_FULL as G
-    from .fidelity import _phases
+    from .fidelity import turn_phases
 
     if run["status"] != "ok":
         return {"status": run["status"]}
     grid = np.arange(0.0, float(ref["t"][-1]) + 1e-12, SAMPLE)
     Fr = fm.on_grid(grid, ref["t"], ref["F"])
     F = fm.on_grid(grid, run["t"], run["F"])
-    phases = _phases(G["press"], G["hold"], float(grid[-1]))
+    phases = turn_phases(G["press"], G["hold"], float(grid[-1]))
     pe = fm.phase_mean_errors(fm.phase_means(grid, F, phases), fm.phase_means(grid, Fr, phases))
     rev = fm.long_stick_events(
         fm.stick_slip_events(ref["event_t"], ref["sliding"], ref["in_contact"])

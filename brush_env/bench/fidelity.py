@@ -146,13 +146,14 @@ def turn_run(level, quick: bool = False) -> dict:
         np.array(rec["contact"], bool),
         offsets,
         lateral_force,
-        phases=_phases(press, hold, press + hold + arc),
+        phases=turn_phases(press, hold, press + hold + arc),
         wall_s=run.wall,
         status=run.status,
     )
 
 
-def _phases(press: float, hold: float, end: float) -> dict:
+def turn_phases(press: float, hold: float, end: float) -> dict:
+    """The paper turn's phases [s]: press, hold, sliding (shared with `bench coupled`)."""
     return {"press": (0.0, press), "hold": (press, press + hold), "sliding": (press + hold, end)}
 
 
@@ -265,7 +266,7 @@ def stored_reference_turn(level: str = "reference") -> dict:
 
     ref = load_reference()
     keep = np.abs(ref["t"] / SAMPLE - np.round(ref["t"] / SAMPLE)) < 1e-6
-    phases = _phases(*_turn_motion(False)[:2], float(ref["t"][-1]))
+    phases = turn_phases(*_turn_motion(False)[:2], float(ref["t"][-1]))
     return {
         "t": ref["t"][keep],
         "F": ref["F"][keep],
