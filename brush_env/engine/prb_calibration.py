@@ -33,14 +33,15 @@ from .beam import first_bending_omega
 DEFAULT = (0.07, 0.32, 4.2, 2.9, -0.13, -0.13)
 
 
-#: the twist spring k_t = TWIST G J / L [N mm/rad] (G J the section's torsion stiffness, the
-#: full chain's eq 1-3).  The planar fit never twists the chain, so this one constant is set
-#: against the full chain (12 mid-element bodies) dragging each default type, pressed L / 4,
-#: toward its wide side (``bench drag``): 1 gave -25 % / -52 % (inner / outer normal force),
-#: 4 -9 % / -6 %, 6.5 -1.5 % / -0.2 %, 8 +37 % (the inner strip no longer turns its bend over).
-#: 6.5 is a fit, not derived: the full chain twists mostly in its root third (0.15 of its
-#: 0.22 rad within 3 of 12 bodies) and shares the turn between twist and bending along its
-#: length, where the joint turns both links rigidly.  A brush of other sections uses it untested
+#: the twist spring k_t = twist G J / L [N mm/rad] (G J the section's torsion stiffness, the
+#: full chain's eq 1-3); ``twist`` is fitted per type with the drag targets
+#: (``calibration.fit``) and stored as the eighth constant.  This is the fit's start and the
+#: value of ``DEFAULT``: set by hand (2026-11-26) against the full chain (12 mid-element bodies)
+#: dragging each default type, pressed L / 4, toward its wide side (``bench drag``): 1 gave
+#: -25 % / -52 % (inner / outer sliding normal force), 4 -9 % / -6 %, 6.5 -1.5 % / -0.2 %, 8 +37 %
+#: (the inner strip no longer turns its bend over).  The full chain twists mostly in its root
+#: third (0.15 of its 0.22 rad within 3 of 12 bodies) and shares the turn between twist and
+#: bending along its length, where the joint turns both links rigidly
 TWIST = 6.5
 
 
@@ -48,7 +49,7 @@ def joint_parameters(br, lean: float) -> tuple:
     """(s0, l1, l2 [mm], k_a1, k_b1, k_a2, k_b2, k_t [N mm/rad], beta [s], c31, c32 [1/rad^2],
     the five rest angles [rad], ``rest_angles``) of ``br`` (``BristleConfig``) on a brush of
     effective lean ``lean`` [rad], with its type's fitted constants (``constants_for``)."""
-    g0, g1, c1, c2, c31, c32, sz = constants_for(br, lean)
+    g0, g1, c1, c2, c31, c32, sz, twist = constants_for(br, lean)
     L = br.length
     E = br.material.E
     sec = br.section
@@ -69,7 +70,7 @@ def joint_parameters(br, lean: float) -> tuple:
         sz * c1 * E * Iz / L,
         c2 * E * Iy / L,
         sz * c2 * E * Iz / L,
-        TWIST * br.material.G * sec.J / L,
+        twist * br.material.G * sec.J / L,
         beta,
         c31,
         c32,
@@ -106,7 +107,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 10
+VERSION = 11
 
 _override: tuple | None = None
 _memory: dict = {}
@@ -185,11 +186,15 @@ def store(key: str, rec: dict, ship: bool = False) -> None:
 
 
 def set_override(constants) -> None:
-    """Use ``constants`` (g0, g1, c1, c2, c31, c32, wide-side scale) for every bristle built until
-    reset
-    with None (the fit evaluates candidates this way)."""
+    """Use ``constants`` (g0, g1, c1, c2, c31, c32, wide-side scale, twist; without the twist:
+    TWIST) for every bristle built until reset with None (the fit evaluates candidates this
+    way)."""
     global _override
-    _override = None if constants is None else tuple(float(c) for c in constants)
+    if constants is None:
+        _override = None
+        return
+    c = tuple(float(v) for v in constants)
+    _override = c if len(c) == 8 else c + (TWIST,)
 
 
 def constants_for(br, lean: float) -> tuple:
@@ -212,4 +217,4 @@ def constants_for(br, lean: float) -> tuple:
             RuntimeWarning,
             stacklevel=3,
         )
-    return DEFAULT + (1.0,)
+    return DEFAULT + (1.0, TWIST)

@@ -8,12 +8,13 @@ rollout is the same steps as ``Simulator.step``, a free bristle's shortcut is Ne
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
 import pytest
 
-from brush_env.calibration import fit, press_reduced
+from brush_env.calibration import DRAG_AT, fit, press_reduced
 from brush_env.engine import SimSettings, Simulator, load_scene
 from brush_env.engine import prb_calibration as pc
 from brush_env.engine.fidelity import level_settings
@@ -63,13 +64,20 @@ def test_small_tip_load_deflects_as_the_timoshenko_cantilever(side):
     assert moved == pytest.approx(ref, rel=0.03)
 
 
+@functools.cache
+def _fit_once(lean):
+    """``fit`` of the outer bristle type at ``lean`` [deg] (the sliding and the sticking case
+    share it: one fit per lean and test process, ~45 s each)."""
+    case, _ = _one_bristle(lean_deg=lean, tip="free")
+    return fit(case.scene().brush.bristles[0], case.scene().brush.effective_lean)
+
+
 def _press_against_rod(lean, tip, press):
     """(reduced model's plate force, the rod's) [N] at ``press`` [mm] for the outer bristle at
     ``lean`` [deg], after its type calibrates itself."""
     case, _ = _one_bristle(lean_deg=lean, tip=tip)
-    br = case.scene().brush.bristles[0]
     eff = case.scene().brush.effective_lean
-    rec = fit(br, eff)
+    rec = _fit_once(lean)
     got = press_reduced(case, rec["constants"], press)[:, 0]
     ref = buckled_bristle(
         press,
@@ -127,7 +135,9 @@ def test_fit_error_is_stored_with_the_shipped_calibration():
         assert max(abs(e) for e in rec["force_error_free"]) < 0.05
         assert len(rec["force_error_pinned"]) == n
         assert rec["max_abs_force_error"] < 0.1  # the sticking tip at 4 mm: docs/model.md
-        assert len(rec["constants"]) == 7
+        assert len(rec["constants"]) == 8  # ... the wide side's scale and the twist
+        assert len(rec["drag_error_wide"]) == len(rec["drag_error_thin"]) == 2 * len(DRAG_AT)
+        assert len(rec["sliding_normal_error"]) == 2
 
 
 @pytest.mark.slow
@@ -314,6 +324,32 @@ def test_pressed_bristle_dragged_slides_as_the_full_chain(group, direction):
     got = D.drag_bristle(red, br.length, direction)
     assert got["fn_N"] == pytest.approx(ref["fn_N"], rel=0.05)
     assert got["ft_N"] == pytest.approx(ref["ft_N"], rel=0.05)
+
+
+@pytest.mark.parametrize("group", ["inner", "outer"])
+def test_stuck_tip_dragged_loads_as_the_full_chain(group):
+    """Each default bristle type pressed a quarter of its length with its tip stuck (mu = 5) and
+    its root dragged toward both sides (``calibration.drag_targets``): the tip's normal and
+    tangential force up to 0.3 L of travel within 10 % of the converged chain's (12 bodies), of
+    the side's first normal force.  Before the fit had drag targets (2026-11-27) the reduced
+    inner type toward its wide side was +15 % at 0.3 L and +28 % at 0.4 L: it kept its normal
+    force while the full chain lays over, and let go 0.75 mm late (the paper turn's late
+    break-away).  0.4 L is left out: there the two-joint chain is still +18 % (docs/model.md)."""
+    from brush_env.calibration import FULL_BODIES, FULL_DT, drag_errors, drag_targets
+    from brush_env.engine import load_brush
+
+    no_g = (0.0, 0.0, 0.0)
+    types = pc.bristle_types(load_brush("default")).values()
+    br, lean = next((b, ln) for b, ln in types if b.group == group)
+    ref = drag_targets(br, lean, SimSettings(dt=FULL_DT, gravity=no_g), FULL_BODIES)
+    got = drag_targets(br, lean, SimSettings(dt=4e-3, model="prb", gravity=no_g), 2)
+    err = drag_errors(got, ref)
+    m = len(DRAG_AT)
+    upto = [i for i, a in enumerate(DRAG_AT) if a <= 0.3 + 1e-9]
+    for side in range(2):  # wide, thin: normal then tangential samples
+        for part in range(2):
+            e = err[2 * m * side + m * part + np.array(upto)]
+            assert np.all(np.abs(e) < 0.10), (side, part, e)
 
 
 @pytest.mark.parametrize("model", ["prb", "dfm"])
