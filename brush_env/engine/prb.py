@@ -120,7 +120,7 @@ def build_geometry(brush: BrushConfig) -> PRBGeometry:
     lean = float(brush.effective_lean)
     for j, br in enumerate(brush.bristles):
         v = joint_parameters(br, lean)
-        prm[j] = (v[0:3], v[3:8], v[8], v[9:11], v[11:16])
+        prm[j] = (v[0:3], v[3:8], v[8], v[9:13], v[13:18])
     seg = np.stack([prm["geo"][:, 1], prm["geo"][:, 2]], axis=1).reshape(-1)
     return PRBGeometry(
         np.arange(0, 2 * nb + 1, 2, dtype=np.int64),

@@ -72,11 +72,11 @@ NBEND = 4
 NF1 = 3
 #: one bristle's joints (``prb.build_geometry`` fills them from ``prb_calibration``): geo = (s0,
 #: l1, l2) [mm] the stub and the links, k (5,) [N mm/rad] the springs (joint 1 about y, about z,
-#: joint 2 about y, about z, the twist), beta [s] their damping time, c3 (2,) [1/rad^2] the cubic
-#: of the bending springs' torque k (e + c3 e^3), one per joint (the twist's is linear), rest (5,)
+#: joint 2 about y, about z, the twist), beta [s] their damping time, c3 (4,) [1/rad^2] the cubic
+#: of each bending spring's torque k (e + c3 e^3), in q's order (the twist's is linear), rest (5,)
 #: [rad] their rest angles (e = q - rest)
 JOINT = np.dtype(
-    [("geo", "f8", 3), ("k", "f8", NQ), ("beta", "f8"), ("c3", "f8", 2), ("rest", "f8", NQ)]
+    [("geo", "f8", 3), ("k", "f8", NQ), ("beta", "f8"), ("c3", "f8", NBEND), ("rest", "f8", NQ)]
 )
 #: what every kernel of a solver step reads: the joints (JOINT, nb), the step (records.Substep),
 #: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
@@ -194,8 +194,8 @@ def _kind(f):
 
 @njit(**PRB, inline="always")
 def _c3(c3, i):
-    """The cubic of coordinate i's spring: the bending joints' fitted ones, the twist linear."""
-    return c3[i // 2] if i < NBEND else 0.0
+    """The cubic of coordinate i's spring: the bending springs' fitted ones, the twist linear."""
+    return c3[i] if i < NBEND else 0.0
 
 
 @njit(**PRB)
