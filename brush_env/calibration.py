@@ -134,16 +134,17 @@ def press_reduced(case: BucklingCase, constants, targets=None) -> np.ndarray:
 
 
 def drag_trace(sim, length: float, direction, travel: float) -> np.ndarray:
-    """(n, 3): travel [mm], tip normal force [N] and tangential force [N] per step of ``sim``
-    (one bristle, ``bristle_case``'s scene) pressed DRAG_PRESS ``length`` in 0.25 s (minimum
-    jerk), held 0.05 s, then its root dragged ``travel`` [mm] along ``direction`` (x, y)."""
+    """(n, 4): travel [mm], tip normal force [N], tangential force [N] and the sliding flag (1.0
+    or 0.0) per step of ``sim`` (one bristle, ``bristle_case``'s scene) pressed DRAG_PRESS
+    ``length`` in 0.25 s (minimum jerk), held 0.05 s, then its root dragged ``travel`` [mm] along
+    ``direction`` (x, y) at DRAG_SPEED (``bench drag`` (a) runs the same protocol)."""
     dt = sim.settings.dt
     z0 = sim.touch_height(R_DOWN, 0.0)
     press = DRAG_PRESS * length
     t_press, t_hold = 0.25, 0.05
     n = int(round((t_press + t_hold + travel / DRAG_SPEED) / dt))
     sim.reset(np.array([0.0, 0.0, z0]), R_DOWN)
-    out = np.zeros((n, 3))
+    out = np.zeros((n, 4))
     for k in range(1, n + 1):
         t = k * dt
         s = min(t / t_press, 1.0)
@@ -151,7 +152,8 @@ def drag_trace(sim, length: float, direction, travel: float) -> np.ndarray:
         down = press * (10 * s**3 - 15 * s**4 + 6 * s**5)  # minimum jerk
         p = np.array([u * direction[0], u * direction[1], z0 - down])
         res = sim.step(p, R_DOWN)
-        out[k - 1] = (u, res.tip_normal_force[0], np.linalg.norm(res.tip_tangential_force[0, :2]))
+        ft = np.linalg.norm(res.tip_tangential_force[0, :2])
+        out[k - 1] = (u, res.tip_normal_force[0], ft, float(res.tip_sliding[0]))
     return out
 
 

@@ -27,10 +27,9 @@ import numpy as np
 
 from .harness import emit, markdown_table, open_log
 
-#: (a) the press as a fraction of the bristle's length, the drag's speed [mm/s], travel [mm]
-#: and the stretch at its end over which the forces are averaged [mm]
-PRESS_FRACTION = 0.25
-SPEED = 10.0
+#: (a) the drag's travel [mm] and the stretch at its end over which the forces are averaged
+#: [mm]; the press (L / 4) and the speed (10 mm/s, also (b)'s) are the calibration's
+#: (``calibration.DRAG_PRESS``, ``DRAG_SPEED``)
 TRAVEL = 12.0
 MEASURE = 3.0
 #: (a) the full chain: bodies and solver step [s]
@@ -59,28 +58,19 @@ def bristle_scene(br, lean: float, bodies: int):
 
 def drag_bristle(sim, length: float, direction) -> dict:
     """(a) on the one-bristle ``sim``: mean normal and tangential tip force [N] over the drag's
-    last MEASURE mm, the travel [mm] at which the tip first slides (NaN: it never did)."""
-    from ..validation.buckling import R_DOWN
+    last MEASURE mm, the travel [mm] at which the tip first slides (NaN: it never did); the
+    protocol is the calibration's drag (``calibration.drag_trace``)."""
+    from ..calibration import drag_trace
 
-    dt = sim.settings.dt
-    z0 = sim.touch_height(R_DOWN, 0.0)
-    press = PRESS_FRACTION * length
-    t_press, t_hold = 0.25, 0.05
-    n = int(round((t_press + t_hold + TRAVEL / SPEED) / dt))
-    sim.reset(np.array([0.0, 0.0, z0]), R_DOWN)
-    fn, ft = [], []
-    first_slide = float("nan")
-    for k in range(1, n + 1):
-        t = k * dt
-        u = max(t - t_press - t_hold, 0.0) * SPEED
-        p = np.array([u * direction[0], u * direction[1], z0 - press * _min_jerk(t / t_press)])
-        res = sim.step(p, R_DOWN)
-        if u > 0.0 and first_slide != first_slide and res.tip_sliding[0]:
-            first_slide = u
-        if u >= TRAVEL - MEASURE:
-            fn.append(float(res.tip_normal_force[0]))
-            ft.append(float(np.linalg.norm(res.tip_tangential_force[0, :2])))
-    return {"fn_N": float(np.mean(fn)), "ft_N": float(np.mean(ft)), "slides_at_mm": first_slide}
+    tr = drag_trace(sim, length, direction, TRAVEL)
+    u = tr[:, 0]
+    slid = np.flatnonzero((u > 0.0) & (tr[:, 3] > 0.0))
+    last = u >= TRAVEL - MEASURE
+    return {
+        "fn_N": float(np.mean(tr[last, 1])),
+        "ft_N": float(np.mean(tr[last, 2])),
+        "slides_at_mm": float(u[slid[0]]) if slid.size else float("nan"),
+    }
 
 
 def bristle_rows(quick: bool, log) -> list[dict]:
@@ -120,6 +110,7 @@ def bristle_rows(quick: bool, log) -> list[dict]:
 def drag_brush(level: str, direction) -> dict:
     """(b) at ``level``: the default brush pressed BRUSH_PRESS and dragged; mean total tip normal
     force and lateral TCP force [N] over the last AVERAGE s, wall [s]."""
+    from ..calibration import DRAG_SPEED
     from ..engine import Simulator, load_scene
     from ..engine.fidelity import level_settings, load_fidelity
     from ..experiments.plan import plate_height
@@ -138,7 +129,7 @@ def drag_brush(level: str, direction) -> dict:
     t0 = time.perf_counter()
     for k in range(1, n + 1):
         t = k * dt
-        u = max(t - t_press - t_hold, 0.0) * SPEED
+        u = max(t - t_press - t_hold, 0.0) * DRAG_SPEED
         p = np.array(
             [u * direction[0], u * direction[1], z0 - BRUSH_PRESS * _min_jerk(t / t_press)]
         )
