@@ -32,9 +32,6 @@ from .harness import emit, markdown_table, open_log
 #: (``calibration.DRAG_PRESS``, ``DRAG_SPEED``)
 TRAVEL = 12.0
 MEASURE = 3.0
-#: (a) the full chain: bodies and solver step [s]
-FULL_BODIES = 12
-FULL_DT = 5e-4
 #: (b) the brush's press [mm] and drag time [s], averaged over its last AVERAGE [s]
 BRUSH_PRESS = 2.5
 BRUSH_DRAG = 1.0
@@ -74,7 +71,9 @@ def drag_bristle(sim, length: float, direction) -> dict:
 
 
 def bristle_rows(quick: bool, log) -> list[dict]:
-    """(a) for every bristle type of the default brush, both directions, full chain and reduced."""
+    """(a) for every bristle type of the default brush, both directions, the full chain (the
+    calibration's converged one: ``calibration.FULL_BODIES`` bodies at ``FULL_DT``) and reduced."""
+    from ..calibration import FULL_BODIES, FULL_DT
     from ..engine import SimSettings, Simulator, load_brush
     from ..engine import prb_calibration as pc
 

@@ -9,6 +9,7 @@ import math
 import pytest
 
 from brush_env.bench import drag as D
+from brush_env.calibration import FULL_BODIES, FULL_DT
 from brush_env.engine import SimSettings, Simulator, load_brush
 from brush_env.engine import prb_calibration as pc
 from brush_env.engine.scene import ContactParams
@@ -39,9 +40,7 @@ def test_reduced_bristle_slides_at_mu_d(direction):
 @pytest.mark.slow
 def test_full_bristle_slides_at_mu_d():
     br, lean = _outer()
-    sim = Simulator(
-        D.bristle_scene(br, lean, D.FULL_BODIES), SimSettings(dt=D.FULL_DT, gravity=NO_G)
-    )
+    sim = Simulator(D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G))
     r = D.drag_bristle(sim, br.length, (0.0, 1.0))
     assert 0.0 < r["slides_at_mm"] < D.TRAVEL - D.MEASURE
     assert r["ft_N"] / r["fn_N"] == pytest.approx(MU_D, rel=2e-2)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from brush_env.calibration import DRAG_AT, fit, press_reduced
+from brush_env.calibration import DRAG_AT, FULL_BODIES, FULL_DT, fit, press_reduced
 from brush_env.engine import SimSettings, Simulator, load_scene
 from brush_env.engine import prb_calibration as pc
 from brush_env.engine.fidelity import level_settings
@@ -316,9 +316,7 @@ def test_pressed_bristle_dragged_slides_as_the_full_chain(group, direction):
     no_g = (0.0, 0.0, 0.0)
     types = pc.bristle_types(load_brush("default")).values()
     br, lean = next((b, ln) for b, ln in types if b.group == group)
-    full = Simulator(
-        D.bristle_scene(br, lean, D.FULL_BODIES), SimSettings(dt=D.FULL_DT, gravity=no_g)
-    )
+    full = Simulator(D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=no_g))
     red = Simulator(D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=no_g))
     ref = D.drag_bristle(full, br.length, direction)
     got = D.drag_bristle(red, br.length, direction)
@@ -335,7 +333,7 @@ def test_stuck_tip_dragged_loads_as_the_full_chain(group):
     inner type toward its wide side was +15 % at 0.3 L and +28 % at 0.4 L: it kept its normal
     force while the full chain lays over, and let go 0.75 mm late; with the drag targets and a
     linear wide-side spring still +18 % at 0.4 L (docs/model.md)."""
-    from brush_env.calibration import FULL_BODIES, FULL_DT, drag_errors, drag_targets
+    from brush_env.calibration import drag_errors, drag_targets
     from brush_env.engine import load_brush
 
     no_g = (0.0, 0.0, 0.0)
