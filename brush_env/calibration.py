@@ -97,15 +97,16 @@ FULL_BODIES = 12
 FULL_DT = 5e-4
 
 
-def press_reduced(case: BucklingCase, constants, targets=None) -> np.ndarray:
+def press_reduced(case: BucklingCase, constants, targets=None, model="prb") -> np.ndarray:
     """(n, 3): the plate's normal force [N], its force along the plate [N] and the tip's shift
     along the plate from its touch point [mm] of the reduced model with ``constants``, pressed
-    to each compression of ``targets`` [mm] (the protocol of ``validation.buckling.press``)."""
+    to each compression of ``targets`` [mm] (the protocol of ``validation.buckling.press``);
+    ``model`` "table": its touching steps by the tabulated tip law (``engine/tip_table.py``)."""
     if targets is None:
         targets = press_points(case.length)
     pc.set_override(constants)
     try:
-        sim = Simulator(case.scene(), SimSettings(dt=FIT_DT, model="prb", gravity=(0.0, 0.0, 0.0)))
+        sim = Simulator(case.scene(), SimSettings(dt=FIT_DT, model=model, gravity=(0.0, 0.0, 0.0)))
     finally:
         pc.set_override(None)
     z0 = sim.touch_height(R_DOWN, 0.0)
@@ -350,7 +351,7 @@ def ensure_calibrated(brush: BrushConfig, settings) -> None:
     """Before a Simulator at ``settings`` is built on ``brush``: if its bristle model is the
     reduced one, fit the bristle types that have no calibration yet (~40-65 s each, said on
     stderr; the shipped brushes need none)."""
-    if getattr(settings, "model", "dfm") == "prb":
+    if getattr(settings, "model", "dfm") in ("prb", "table"):
         calibrate_brush(brush, verbose=True)
 
 

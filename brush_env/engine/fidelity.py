@@ -34,7 +34,7 @@ from .checks import ConfigError, Limit, check_choice, check_int, check_real, did
 from .config_files import read_toml, resolve_config
 
 #: the levels shipped in configs/fidelity, most to least accurate
-LEVELS = ("reference", "paper", "balanced", "fast", "reduced")
+LEVELS = ("reference", "paper", "balanced", "fast", "reduced", "table")
 #: what a level's [settings] table may set: these SimSettings fields, under their own names
 SETTING_KEYS = (
     "model",

@@ -23,6 +23,7 @@ from . import prb_rollout as R_
 from . import records as rec
 from . import records as rec_
 from . import shaft as shf
+from . import tip_table
 from .bristles import BristleModel, TipContact, register_bristle_model
 from .chain import (
     fresh_tip_state,
@@ -176,6 +177,7 @@ class PRBBristles(BristleModel):
         cp = self.contact_params[0]
         self._wk.fric[:] = (cp["mu_s"], cp["mu_d"], cp["delta_max"])
         self._out = _Out(*(np.zeros(nb, np.int64) for _ in range(4)))
+        self._tab = self._tables()
         self._head = (
             head_outline(scene.brush, _PairModel(m))
             if getattr(scene, "head_contact", False) and len(self.surfaces)
@@ -369,9 +371,14 @@ class PRBBristles(BristleModel):
             )
         return done, R_.STOP_REASONS[stop], msg, rec
 
+    def _tables(self) -> K.Tab:
+        """The tabulated tip law's tables: none for the chain's own Newton (``TableBristles``
+        has them)."""
+        return tip_table.no_tables(self.model.n_bristles)
+
     def _ctx(self, sub) -> K.Ctx:
         """The kernels' view of a solver step (``prb_kernels.Ctx``)."""
-        return K.Ctx(self.model.prm, sub, self._contact(), self._wk, self._out)
+        return K.Ctx(self.model.prm, sub, self._contact(), self._wk, self._out, self._tab)
 
     def _contact(self) -> rec.ContactScene:
         return rec.ContactScene(
@@ -542,4 +549,26 @@ def _work(nb: int) -> _Work:
     )
 
 
+class TableBristles(PRBBristles):
+    """The reduced model with its touching bristles stepped by the tabulated tip law
+    (``tip_table.py``): the same chain, springs and tip contact, its equilibria looked up by the
+    tip's position (a Newton on three coordinates instead of five joint angles)."""
+
+    def _tables(self) -> K.Tab:
+        return tip_table.tables_for(self.model.prm)
+
+    def reset(self, tcp_p, tcp_R, time: float) -> None:
+        """As the chain's, with every tip where its joints put it: the chain's reset leaves the
+        tips on the straight bristles' axes (its first free step moves them), and the table's
+        step carries a settled free tip with its root as it stands (``_table_step``)."""
+        super().reset(tcp_p, tcp_R, time)
+        st, wk = self.state, self._wk
+        for b in range(self.model.n_bristles):
+            K.kinematics(
+                st.q[b], self.model.prm[b]["geo"], wk.x, wk.J, wk.cs, wk.orders, wk.v, wk.tmp
+            )
+            st.tips[b, 0:3] = self._rootpos[b] + self._Bw[b] @ wk.x
+
+
 register_bristle_model("prb", PRBBristles)
+register_bristle_model("table", TableBristles)

@@ -49,6 +49,7 @@ from .contact import (
 )
 from .records import Substep
 from .surfaces import surface_gap
+from .tip_table_kernels import lookup as table_lookup
 
 #: the reduced model's kernels: as HOT, strict floating point.  Fast-math (reassociation and
 #: fused multiply-add) ran ~11 % faster under random actions but was not deterministic: a
@@ -81,7 +82,11 @@ JOINT = np.dtype(
 #: what every kernel of a solver step reads: the joints (JOINT, nb), the step (records.Substep),
 #: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
 #: outputs (iters, status, loose)
-Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out"])
+Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out", "tab"])
+#: the tabulated tip law (``tip_table.py``): grid (ntab, NG) and vals (ntab, 2, nr, nt, np, NV)
+#: the tables, idx (nb,) each bristle's table (-1: the chain's own Newton), outside (nb,) how
+#: many of its steps ended beyond its table; scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,)
+Tab = namedtuple("Tab", ["grid", "vals", "idx", "outside", "scr", "m", "v", "qv"])
 #: one bristle's root [mm] and frame in the world, and the weight lumped at its tip [N]
 Pose = namedtuple("Pose", ["rw", "B", "gtip"])
 #: the brush: roots [mm] and frames in the TCP frame, joints (JOINT)
@@ -714,6 +719,15 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
         dmax = max(dmax, abs(dq[i]))
     alpha = 1.0 if dmax <= MAX_DQ else MAX_DQ / dmax
     a_pen = _contact_limit(b, B, dq, con, wk)
+    alpha, held = _tip_limits(b, alpha, a_pen, con, wk, leaving)
+    return alpha, dmax, held
+
+
+@njit(**PRB, inline="always")
+def _tip_limits(b, alpha, a_pen, con, wk, leaving):
+    """(alpha, held): the fraction alpha of the tip step wk.dp from wk.xw cut to the contact
+    limit a_pen (``_contact_limit``) and, for a touching tip, to leave its surface and its
+    partners at most halfway per iterate (``_step_limit``; the tabulated law's step too)."""
     if a_pen < alpha:
         alpha = max(a_pen, 1e-3)
     dp = wk.dp
@@ -726,7 +740,7 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
         nrm = wk.tw.nrm
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]  # > 0: out of the surface
         if dn * alpha > 0.5 * st.pen:
-            return 0.5 * st.pen / dn, dmax, True
+            return 0.5 * st.pen / dn, True
     if st.ftt > 0.0 and not leaving:
         # ... and its partner tips likewise (Table 3's law has no stiffness at first touch: out
         # of the partner, Newton heads for the relaxed pose, the penetration limit stops it 2 um
@@ -748,8 +762,8 @@ def _step_limit(b, B, dq, static, sub, con, wk, leaving):
                 alpha = 0.5 * over / dn
                 held = True
         if held:
-            return alpha, dmax, True
-    return alpha, dmax, False
+            return alpha, True
+    return alpha, False
 
 
 @njit(**PRB, inline="always")
@@ -1018,7 +1032,7 @@ def _halved(b, ctx, gtip, x0, frames):
         m = 1 << lev
         hs = sub.h / m
         subk = Substep(1.0, -1.0, 0.0, hs, 1.0 / hs, False, sub.g, sub.rtol, sub.maxit, sub.jage)
-        ctxk = Ctx(ctx.prm, subk, ctx.con, wk, ctx.out)
+        ctxk = Ctx(ctx.prm, subk, ctx.con, wk, ctx.out, ctx.tab)
         for a in range(3):  # back to the step's start
             st.delta[a] = wk.d0[a]
             wk.xs[a] = x0[a]
@@ -1050,6 +1064,214 @@ def _halved(b, ctx, gtip, x0, frames):
     return -1
 
 
+#: [mm per mm of the links] the longest step of the tabulated law's tip Newton per iterate
+TAB_MAX_DX = 0.05
+#: the links' axial stiffness past their reach, in the stiffest joint over the links' length
+#: squared: the chain is inextensible, the table ends there (a stretch of ~1e-3 mm per 0.1 N)
+TAB_AXIAL = 1e3
+
+
+@njit(**PRB, inline="always")
+def _table_branch(grid, vals, xl, qprev, tab, g, Jg, D):
+    """(s, w, out): the branch (``tip_table_kernels``) to follow from the joint angles qprev
+    with the tip at xl -- of those that exist there, the one whose joint angles are nearest
+    (the chain follows its branch continuously: a branch's elbow may cross the chord, where both
+    hold the same configuration, and a side chosen by the elbow alone would then jump); if none
+    exists, the one with most of its cell (s = -1: no branch at all).  Leaves the branch's
+    values in g, Jg, D and its joint angles in qprev."""
+    best, pick = np.inf, -1
+    wbest = 0.0
+    for s in range(2):
+        w, _, _ = table_lookup(grid, vals, s, xl, g, Jg, D, tab.qv, True, tab.scr)
+        if w <= 0.0:
+            continue
+        d = 0.0
+        for i in range(NQ):
+            d = max(d, abs(tab.qv[i] - qprev[i]))
+        if (w >= 0.5 and (wbest < 0.5 or d < best)) or (wbest < 0.5 and w > wbest):
+            best, pick, wbest = d, s, w
+    if pick < 0:
+        return -1, 0.0, 0
+    w, out, _ = table_lookup(grid, vals, pick, xl, g, Jg, D, qprev, True, tab.scr)
+    return pick, w, out
+
+
+@njit(**PRB, inline="always")
+def _axial_penalty(xl, s0, rcap, kax, g, Jg, u):
+    """Past the table's longest chord rcap [mm]: g, Jg += the stiff axial spring kax [N/mm] that
+    holds the tip at it (the chain is inextensible); u (3,) scratch."""
+    u0, u1, u2 = xl[0] - s0, xl[1], xl[2]
+    rho = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    ext = rho - rcap
+    u[0], u[1], u[2] = u0 / rho, u1 / rho, u2 / rho
+    for a in range(3):
+        g[a] += kax * ext * u[a]
+        for c in range(3):
+            dac = 1.0 if a == c else 0.0
+            Jg[a, c] += kax * (u[a] * u[c] + ext / rho * (dac - u[a] * u[c]))
+
+
+@njit(**PRB, inline="always")
+def _table_residual(b, pose, ctx, xln, damp):
+    """max |r| of r = F_load(x) - B (g + damp D (xl - xln)) at the tip wk.xw (world; xl, g, Jg,
+    D as left by the lookup): the tip load (``contact.tip_load``, ``_friction``, the weight) in
+    wk.F and wk.Kt, r in tab.v[2]."""
+    tab, con, wk = ctx.tab, ctx.con, ctx.wk
+    B, gtip = pose.B, pose.gtip
+    g, ge, r, D, xl, F = tab.v[0], tab.v[1], tab.v[2], tab.m[1], wk.x, wk.F
+    for a in range(3):
+        ge[a] = g[a] + damp * (
+            D[a, 0] * (xl[0] - xln[0]) + D[a, 1] * (xl[1] - xln[1]) + D[a, 2] * (xl[2] - xln[2])
+        )
+    tip_load(b, wk.xw, ctx.sub, con, F, wk.Kt, wk.tw)
+    _friction(b, wk.xw, con, wk, wk.fric)
+    rmax = 0.0
+    for a in range(3):
+        F[a] += gtip[a]
+        r[a] = F[a] - (B[a, 0] * ge[0] + B[a, 1] * ge[1] + B[a, 2] * ge[2])
+        rmax = max(rmax, abs(r[a]))
+    return rmax
+
+
+@njit(**PRB, inline="always")
+def _table_newton(b, B, ctx, damp, L, held):
+    """(alpha, |dx|, held, ok): Newton's tip step dx (tab.v[3]) from
+    (Kt - B (Jg + damp D) B^T) dx = -r and the fraction alpha of it to take: at most TAB_MAX_DX
+    of the links' length, and the chain's contact limits per iterate (``_tip_limits``)."""
+    tab, con, wk = ctx.tab, ctx.con, ctx.wk
+    Jg, D, A, r, dx = tab.m[0], tab.m[1], tab.m[2], tab.v[2], tab.v[3]
+    for a in range(3):
+        for c in range(3):
+            wk.Ktl[a, c] = Jg[a, c] + damp * D[a, c]
+    for a in range(3):
+        for c in range(3):
+            v = wk.Kt[a, c]
+            for d in range(3):
+                for e in range(3):
+                    v -= B[a, d] * wk.Ktl[d, e] * B[c, e]
+            A[a, c] = v
+    if not lu_dense(A, 3, wk.piv):
+        return 0.0, 0.0, held, False
+    for a in range(3):
+        dx[a] = -r[a]
+    lus_dense(A, 3, wk.piv, dx)
+    dn = np.sqrt(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2])
+    alpha = 1.0 if dn <= TAB_MAX_DX * L else TAB_MAX_DX * L / dn
+    for a in range(3):
+        wk.dp[a] = dx[a]
+    R = con.tip_args[b].radius
+    a_pen = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw)
+    a_pen = _partner_limit(b, wk.xw, wk.dp, R, con, a_pen)
+    alpha, held = _tip_limits(b, alpha, a_pen, con, wk, held)
+    return alpha, dn, held, True
+
+
+@njit(**PRB)
+def table_solve(b, q0, pose, ctx, xs, xln):
+    """Bristle b's step with the tabulated tip law (``tip_table.py``): Newton on its tip's
+    position x (world) alone, F_load(x) = B (grad U_s(B^T (x - root)) + beta/h D (xl - xln)) --
+    the branch s's elastic law with the joints' damping seen at the tip (xln the tip in the
+    bristle frame at the step's start) -- with the same tip load (eq 6, eq 7-10 as a return
+    mapping, Table 3, the tip's weight) and the same contact limits per iterate as the chain's
+    Newton.  The branch is the one nearest the last iterate's joint angles (q0 at first:
+    ``_table_branch``); where it ends under the tip (the snap-through) the other is taken.
+    Starts from xs; leaves the tip in wk.xw, its load in wk.F and the joint angles the table
+    holds there in wk.qt.  Returns the iterations, or -1 (the caller then solves the chain
+    itself)."""
+    tab = ctx.tab
+    grid, vals = tab.grid[tab.idx[b]], tab.vals[tab.idx[b]]
+    j = ctx.prm[b]
+    geo, kq = j.geo, j.k
+    sub, wk = ctx.sub, ctx.wk
+    rw, B = pose.rw, pose.B
+    xl, xw = wk.x, wk.xw
+    damp = 0.0 if sub.static else j.beta / sub.h
+    L = geo[1] + geo[2]
+    kmax = max(kq[0], kq[1], kq[2], kq[3])
+    ftol = sub.rtol * kmax / L
+    kax = TAB_AXIAL * kmax / (L * L)
+    qprev = wk.qb  # the joint angles of the last iterate (its branch's)
+    for i in range(NQ):
+        qprev[i] = q0[i]
+        wk.qt[i] = q0[i]
+    for a in range(3):
+        xw[a] = xs[a]
+    held = False
+    small = False
+    for it in range(1, sub.maxit + 1):
+        for a in range(3):
+            xl[a] = (
+                B[0, a] * (xw[0] - rw[0]) + B[1, a] * (xw[1] - rw[1]) + B[2, a] * (xw[2] - rw[2])
+            )
+        s, w, out = _table_branch(grid, vals, xl, qprev, tab, tab.v[0], tab.m[0], tab.m[1])
+        if s < 0:
+            return -1
+        if out == 2:
+            _axial_penalty(xl, geo[0], grid[0], kax, tab.v[0], tab.m[0], wk.v)
+        rmax = _table_residual(b, pose, ctx, xln, damp)
+        if not np.isfinite(rmax):
+            return -1
+        if rmax <= ftol or small:
+            for i in range(NQ):
+                wk.qt[i] = qprev[i]
+            tab.outside[b] += int(out == 1)
+            return it
+        alpha, dn, held, ok = _table_newton(b, B, ctx, damp, L, held)
+        if not ok:
+            return -1
+        for a in range(3):
+            xw[a] += alpha * tab.v[3][a]
+        small = alpha * dn < sub.rtol * L
+    return -1
+
+
+@njit(**PRB, inline="always")
+def _table_step(b, qb, qpb, pose, ctx, touching):
+    """Bristle b's step with the tabulated law (``table_solve``), from the first guess: a tip
+    that touched something where it was, moved on by its last velocity as far as the contact
+    limits let it; else carried with its root -- and taken so, at no further cost, if its joints
+    had settled (turned less than SETTLED in the last step: ``_rigid_step``'s test, per bristle)
+    and the carried tip touches nothing.  Returns the iterations, or -1."""
+    sub, wk, con = ctx.sub, ctx.wk, ctx.con
+    x0, xln, xs = con.tips[b], ctx.tab.v[4], ctx.tab.v[5]
+    rw, B = pose.rw, pose.B
+    for a in range(3):
+        xln[a] = (
+            wk.B0[b, 0, a] * (x0[0] - wk.rp0[b, 0])
+            + wk.B0[b, 1, a] * (x0[1] - wk.rp0[b, 1])
+            + wk.B0[b, 2, a] * (x0[2] - wk.rp0[b, 2])
+        )
+    if touching and not sub.static:
+        for a in range(3):
+            wk.xw[a] = x0[a]
+            wk.dp[a] = x0[3 + a] * sub.h
+        R = con.tip_args[b].radius
+        lim = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw)
+        lim = _partner_limit(b, wk.xw, wk.dp, R, con, lim)
+        for a in range(3):
+            xs[a] = x0[a] + lim * wk.dp[a]
+        return table_solve(b, qb, pose, ctx, xs, xln)
+    for a in range(3):
+        xs[a] = rw[a] + B[a, 0] * xln[0] + B[a, 1] * xln[1] + B[a, 2] * xln[2]
+    settled = not sub.static
+    for i in range(NQ):
+        if abs(qb[i] - qpb[i]) > SETTLED:
+            settled = False
+    if settled:
+        for a in range(3):
+            wk.xw[a] = xs[a]
+        tip_load(b, wk.xw, sub, con, wk.F, wk.Kt, wk.tw)
+        st = con.tip_state[b]
+        F = wk.F
+        if st.fn <= 0.0 and st.ftt <= 0.0 and F[0] == 0.0 and F[1] == 0.0 and F[2] == 0.0:
+            for a in range(3):
+                F[a] = pose.gtip[a]
+            for i in range(NQ):
+                wk.qt[i] = qb[i]
+            return 1
+    return table_solve(b, qb, pose, ctx, xs, xln)
+
+
 @njit(**PRB)
 def _solve_one(b, joints, frames, ctx, gtip):
     """Bristle b's step (``step_all``): the free shortcut, else Newton from its first guess, else
@@ -1061,6 +1283,12 @@ def _solve_one(b, joints, frames, ctx, gtip):
     touching = st.fn > 0.0 or st.ftt > 0.0  # at the end of the last step
     # the shortcut only for a bristle that touched nothing either: one that did may spring back
     # off its contact only through Newton (its relaxed pose may lie past the surface)
+    if ctx.tab.idx[b] >= 0:
+        n = _table_step(b, q[b], qp[b], pose, ctx, touching)
+        if n >= 0:
+            return n
+        for i in range(NQ):
+            wk.qt[i] = q[b, i]
     if not sub.static and not touching and _free_step(b, pose, ctx):
         return 1
     # first guess: the joints' last motion carried on (a tip held or dragged along moves its

@@ -1,0 +1,153 @@
+"""The tabulated tip law (issue 29): the reduced chain's equilibria (``prb_kernels``) tabulated
+by its tip's position, so that a touching bristle's step is a Newton on its tip's three
+coordinates instead of the chain's five joint angles (``tip_table_kernels`` for the table and
+its branches; ``prb_kernels.table_solve`` for the step).
+
+One table per distinct joint record (a bristle type and the brush's lean: the springs, cubics,
+damping and rest angles), built in numba on first use and cached by its content under the
+user's cache directory (``prb_calibration.user_cache``'s folder).  The model that uses it is
+registered as ``"table"`` (``prb.TableBristles``): every bristle touching nothing still takes the
+chain's free step, and a step the table cannot take (no branch under the tip) falls back to the
+chain's own Newton.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from . import prb_kernels as K
+from . import tip_table_kernels as T
+from .prb_calibration import user_cache
+
+#: bump when the table or its kernels change: older cached tables are not used
+VERSION = 13
+#: nodes along rho (the chord's length), theta (from the axis), phi (the azimuth, -90 to 90 deg):
+#: the load turns fastest with rho near the unloaded tip (the chain is stiff along its chord),
+#: where 33 layers left a 1 mN side load's deflection 21 % short of the chain's; 65 leave the
+#: force within ~1 % (median) of the chain's own at a lateral deflection of 0.1-3 mm, and
+#: theta's 51 nodes (3 deg) are as good as 101
+SHAPE = (65, 51, 25)
+#: [rad] the largest angle of the chord from the bristle's axis in the table
+THETA_MAX = math.radians(150.0)
+#: the shortest chord in the table, as a fraction of the links' length
+RHO_MIN = 0.3
+#: the top of rho at most, below the links' full reach (where the chain is straight and the
+#: elbow's angle undefined), as a fraction of it
+RHO_TOP = 1.0 - 1e-6
+#: of the rho layers, those above the unloaded path (the chain pulled straighter)
+LAYERS_ABOVE = 12
+#: the layers' spacing: u = ALPHA s + (1 - ALPHA) s^2 of the span for s uniform in [0, 1]
+ALPHA = 0.1
+
+
+def table_grid(joint, shape=SHAPE) -> np.ndarray:
+    """The grid description (``tip_table_kernels.G_*``, the unloaded path's chords still 0: the
+    build fills them) of the table of one joint record."""
+    s0, l1, l2 = (float(v) for v in joint["geo"])
+    L = l1 + l2
+    nr, nt, npp = shape
+    g = np.zeros(T.NG + nt * npp)
+    # the top: just short of the full reach, where the elbow's angle is undefined (a chain bent
+    # at rest, a leaning bristle's, gets there by straightening: a tip pushed against its rest
+    # bend runs along its unloaded path to within 3e-4 mm of it; past the top the kernels hold
+    # the tip with a stiff axial spring)
+    g[T.G_RTOP] = RHO_TOP * L
+    g[T.G_RMIN] = max(RHO_MIN * L, abs(l1 - l2) * 1.001)
+    g[T.G_TMAX] = THETA_MAX
+    g[T.G_NR], g[T.G_NT], g[T.G_NP] = shape
+    g[T.G_S0], g[T.G_L1], g[T.G_L2] = s0, l1, l2
+    g[T.G_NU], g[T.G_ALPHA] = LAYERS_ABOVE, ALPHA
+    return g
+
+
+def table_key(joint, shape=SHAPE) -> str:
+    """Content key of a joint record's table."""
+    h = hashlib.sha256()
+    h.update(
+        repr((VERSION, tuple(shape), THETA_MAX, RHO_MIN, RHO_TOP, LAYERS_ABOVE, ALPHA)).encode()
+    )
+    h.update(np.ascontiguousarray(joint).tobytes())
+    return h.hexdigest()[:20]
+
+
+def build_table(joint, shape=SHAPE) -> tuple[np.ndarray, np.ndarray]:
+    """(grid, vals (2, nr, nt, np, NV), float32) of one joint record (``prb_kernels.JOINT``)."""
+    grid = table_grid(joint, shape)
+    rest = np.asarray(joint["rest"], float)
+    if rest[1] != 0.0 or rest[3] != 0.0 or rest[4] != 0.0:
+        # the table holds one half of the tips and mirrors the other (tip_table_kernels)
+        raise ValueError(f"tip table: rest angles {rest.tolist()} turn b1, b2 or t (must be 0)")
+    vals = np.zeros((2, *shape, T.NV))
+    T.build(
+        grid,
+        np.array(joint["k"], float),
+        np.array(joint["c3"], float),
+        np.array(joint["rest"], float),
+        vals,
+    )
+    # stored in single precision: the forces to ~1e-7 of themselves, half the memory
+    return grid, vals.astype(np.float32)
+
+
+def _cache_dir() -> Path:
+    return user_cache().parent / "tip_tables"
+
+
+def table(joint, shape=SHAPE) -> tuple[np.ndarray, np.ndarray]:
+    """The table of a joint record: from the cache, else built and cached."""
+    path = _cache_dir() / f"{table_key(joint, shape)}.npz"
+    try:
+        with np.load(path) as z:
+            return z["grid"], z["vals"]
+    except (OSError, KeyError, ValueError):
+        pass
+    grid, vals = build_table(joint, shape)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+    np.savez(tmp, grid=grid, vals=vals)
+    os.replace(tmp, path)
+    return grid, vals
+
+
+def tables_for(prm: np.ndarray) -> K.Tab:
+    """The kernels' tables (``prb_kernels.Tab``) of every bristle of a brush (joints ``prm``)."""
+    keys: dict[bytes, int] = {}
+    grids, vals = [], []
+    idx = np.zeros(len(prm), np.int64)
+    for b, j in enumerate(prm):
+        kb = np.ascontiguousarray(j).tobytes()
+        if kb not in keys:
+            keys[kb] = len(grids)
+            g, v = table(j)
+            grids.append(g)
+            vals.append(v)
+        idx[b] = keys[kb]
+    return _tab(np.stack(grids), np.stack(vals), idx)
+
+
+def no_tables(nb: int) -> K.Tab:
+    """A ``Tab`` that no bristle uses (the chain's own Newton for all)."""
+    return _tab(
+        np.zeros((1, T.NG + 4)),
+        np.zeros((1, 2, 2, 2, 2, T.NV), np.float32),
+        np.full(nb, -1, np.int64),
+    )
+
+
+def _tab(grid, vals, idx) -> K.Tab:
+    nb = len(idx)
+    return K.Tab(
+        grid,
+        vals,
+        idx,
+        np.zeros(nb, np.int64),
+        np.zeros((6, 3)),
+        np.zeros((3, 3, 3)),
+        np.zeros((6, 3)),
+        np.zeros(5),
+    )

@@ -1,0 +1,742 @@
+"""Kernels of the tabulated tip law (``tip_table.py``, issue 29): the reduced chain's elastic
+law as a function of its tip's position, built once per bristle type and looked up per step.
+
+The reduced chain (``prb_kernels``: a stub s0 clamped at the root, links l1 and l2 on two
+bending joints, a twist at joint 1) holds its tip at x (bristle frame, x along the axis) in
+equilibrium where its spring energy E(q) is least among the joint angles q that put the tip
+there.  The tip fixes three of the five coordinates: the elbow (the joint between the links)
+lies on the circle of points l1 from joint 1 (J1 = s0 e1) and l2 from x, at an angle psi about
+the chord J1 -> x, and the twist t is free.  So
+
+    U_s(x) = min over (psi, t) on branch s of E(q(x, psi, t)),
+
+and the tip is in equilibrium under a load F where F = grad U_s(x) (the envelope theorem: the
+gradient at fixed psi and t).  A bristle pressed past its buckling load has two such minima:
+its elbow thrown to one side of the chord or to the other along the section's thin direction
+(local z) -- the two branches s = 0 (elbow toward +z) and s = 1 (toward -z); where there is only
+one minimum both branches hold it.  A branch that stops existing under the tip is the snap-
+through; staying on a branch while it exists is the hysteresis.
+
+The table stores, on a grid of the tip's spherical coordinates about J1 -- rho (the chord's
+length), theta (its angle from the axis) and phi (its azimuth from local y toward z, -pi/2 to
+pi/2: the chain is its own mirror image across its x-z plane, which turns b1, b2 and t and keeps
+the branch, so a tip at -y is looked up at +y and mirrored back) -- for each branch: valid,
+U, grad U (3), its Hessian H (6), the damping matrix D (6) of the joints' stiffness-
+proportional damping seen at the tip (dq/dx^T K dq/dx) and the joint angles q (5) (for
+drawing and the state), all in the bristle frame.  The chain is stiff along its chord
+and soft across it, so the layers in rho follow the tip's unloaded path: rho_nat(theta, phi),
+where the energy along the ray from J1 is least (the chord of a tip pushed sideways only; a
+grid of constant rho crossed that path, and its nodes off the path carried the chain's
+stretching, which a 1 mN side load's interpolated deflection missed by 21 %).  Above the path
+(the chain pulled straighter) G_NU layers up to rho_cap, below it the rest down to rho_min,
+spaced by u = ALPHA s + (1 - ALPHA) s^2 of the span (s uniform: fine and even near the path,
+coarser far from it); theta on [0, theta_max]; phi on [-pi/2, pi/2].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+#: the builder runs once per bristle type, off the step: it may allocate (HOT may not)
+BUILD = dict(cache=True, fastmath=False)
+
+#: the values stored per node and branch (``tip_table`` reads them by these offsets)
+V_OK, V_U, V_G, V_H, V_D, V_Q = 0, 1, 2, 5, 11, 17
+NV = 22
+#: the grid's description (float64 array): rho_cap (the longest chord in the table), rho_min,
+#: theta_max [rad], the counts of nodes along rho (all, and above the unloaded path), theta and
+#: phi, the chain (s0, l1, l2) [mm], the layers' linear share ALPHA; from NG on, the unloaded
+#: path's chord rho_nat (nt, np) [mm]
+G_RTOP, G_RMIN, G_TMAX, G_NR, G_NT, G_NP, G_S0, G_L1, G_L2, G_NU, G_ALPHA = range(11)
+NG = 11
+#: elbow angles sampled per node in the search for the energy's minima
+NPSI = 48
+#: [rad] a minimum within this of the plane of the chord and local y belongs to both branches
+ON_PLANE = 1e-3
+#: the elbow's least distance from the chord in a table entry, in the links' length
+STRAIGHT = 5e-3
+#: [rad] a joint turned further than this from rest is off the table (a link folded back)
+FOLDED = 2.5
+#: [rad] the elbow angle's and twist's Newton step at which a minimum is converged
+STEP_TOL = 1e-10
+#: [rad] ... or a link turned further than this about local z (b1, b2 = asin(...): undefined
+#: at pi/2)
+SIDEWAYS = 1.3
+#: Hessian index pairs of the 6 stored entries (xx, yy, zz, xy, xz, yz)
+IH = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+@njit(**BUILD, inline="always")
+def _w(e, c3):
+    """(energy / k, its second derivative) of a bending spring turned by e [rad]: the integral
+    of ``prb_kernels._spring``'s torque e + c3 e^3, continued linearly (slope 1/2) past the
+    turn where a softening cubic has lost half its slope."""
+    if c3 >= 0.0 or e * e <= -0.5 / (3.0 * c3):
+        return 0.5 * e * e + 0.25 * c3 * e * e * e * e, 1.0 + 3.0 * c3 * e * e
+    em = np.sqrt(-0.5 / (3.0 * c3))
+    wm = 0.5 * em * em + 0.25 * c3 * em * em * em * em
+    tm = em * (1.0 + c3 * em * em)
+    d = abs(e) - em
+    return wm + tm * d + 0.25 * d * d, 0.5
+
+
+@njit(**BUILD)
+def energy(q, k, c3, rest):
+    """Spring energy [N mm] of the chain at q (a1, b1, a2, b2, t): the bending joints' cubic
+    springs and the linear twist (``prb_kernels._evaluate``'s torques integrated)."""
+    e = 0.0
+    for i in range(4):
+        e += k[i] * _w(q[i] - rest[i], c3[i])[0]
+    t = q[4] - rest[4]
+    return e + 0.5 * k[4] * t * t
+
+
+@njit(cache=True, _nrt=False, fastmath=False, inline="always")
+def chord_frame(u, fr):
+    """fr (3, 3) <- the rotation that takes e1 to the unit vector u along the great circle
+    (singular only at u = -e1, outside every table): its columns 1 and 2 are the chord's
+    reference directions for the elbow angle (e2 and e3 turned with it)."""
+    c = u[0]
+    # axis e1 x u = (0, -u2, u1), sin = its length; R = c I + [a]x + (1 - c)/(s^2) a a^T
+    a1, a2 = -u[2], u[1]
+    f = 1.0 / (1.0 + c)
+    fr[0, 0] = c
+    fr[0, 1] = -a2
+    fr[0, 2] = a1
+    fr[1, 0] = a2
+    fr[1, 1] = c + f * a1 * a1
+    fr[1, 2] = f * a1 * a2
+    fr[2, 0] = -a1
+    fr[2, 1] = f * a1 * a2
+    fr[2, 2] = c + f * a2 * a2
+
+
+@njit(**BUILD)
+def ik(x, psi, t, geo, q, fr):
+    """q (5,) <- the joint angles that put the tip at x (bristle frame [mm]) with the elbow at
+    angle psi [rad] about the chord from joint 1 and twist t [rad]; geo = (s0, l1, l2).  False
+    if x is out of reach (q then undefined).  The inverse of ``prb_kernels.kinematics``."""
+    s0, l1, l2 = geo[0], geo[1], geo[2]
+    u0, u1, u2 = x[0] - s0, x[1], x[2]
+    rho = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    if rho > l1 + l2 or rho < abs(l1 - l2) or rho == 0.0:
+        return False
+    u = np.empty(3)
+    u[0], u[1], u[2] = u0 / rho, u1 / rho, u2 / rho
+    if u[0] <= -1.0 + 1e-12:
+        return False
+    chord_frame(u, fr)
+    a = (l1 * l1 - l2 * l2 + rho * rho) / (2.0 * rho)
+    r = np.sqrt(max(l1 * l1 - a * a, 0.0))
+    cp, sp = np.cos(psi), np.sin(psi)
+    d1 = np.empty(3)
+    d2 = np.empty(3)
+    for i in range(3):
+        o = cp * fr[i, 1] + sp * fr[i, 2]
+        d1[i] = (a * u[i] + r * o) / l1
+        d2[i] = (rho * u[i] - a * u[i] - r * o) / l2
+    ct, st = np.cos(t), np.sin(t)
+    # v = Rx(-t) d1 = Ry(a1) Rz(b1) e1 = (cos a1 cos b1, sin b1, -sin a1 cos b1)
+    v0, v1, v2 = d1[0], ct * d1[1] + st * d1[2], -st * d1[1] + ct * d1[2]
+    b1 = np.arcsin(min(max(v1, -1.0), 1.0))
+    a1 = np.arctan2(-v2, v0)
+    # w = R1^T d2 = Rz(-b1) Ry(-a1) Rx(-t) d2
+    w0, w1, w2 = d2[0], ct * d2[1] + st * d2[2], -st * d2[1] + ct * d2[2]
+    ca, sa = np.cos(a1), np.sin(a1)
+    w0, w2 = ca * w0 - sa * w2, sa * w0 + ca * w2
+    cb, sb = np.cos(b1), np.sin(b1)
+    w0, w1 = cb * w0 + sb * w1, -sb * w0 + cb * w1
+    q[0] = a1
+    q[1] = b1
+    q[2] = np.arctan2(-w2, w0)
+    q[3] = np.arcsin(min(max(w1, -1.0), 1.0))
+    q[4] = t
+    return True
+
+
+@njit(**BUILD)
+def _e_at(x, psi, t, geo, k, c3, rest, q, fr):
+    if not ik(x, psi, t, geo, q, fr):
+        return np.inf
+    return energy(q, k, c3, rest)
+
+
+@njit(**BUILD)
+def _min_twist(x, psi, t, geo, k, c3, rest, q, fr):
+    """(t, E): the twist that minimises the energy at elbow angle psi, by Newton on finite
+    differences from t."""
+    h = 1e-5
+    e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+    for _ in range(8):
+        ep = _e_at(x, psi, t + h, geo, k, c3, rest, q, fr)
+        em = _e_at(x, psi, t - h, geo, k, c3, rest, q, fr)
+        d1 = (ep - em) / (2.0 * h)
+        d2 = (ep - 2.0 * e0 + em) / (h * h)
+        dt = -d1 / d2 if d2 > 0.0 else -0.05 * np.sign(d1)
+        dt = min(max(dt, -0.2), 0.2)
+        tn = t + dt
+        en = _e_at(x, psi, tn, geo, k, c3, rest, q, fr)
+        while en > e0 and abs(dt) > 1e-12:
+            dt *= 0.5
+            tn = t + dt
+            en = _e_at(x, psi, tn, geo, k, c3, rest, q, fr)
+        if en > e0:
+            break
+        t, e0 = tn, en
+        if abs(dt) < 1e-10:
+            break
+    return t, e0
+
+
+@njit(**BUILD)
+def local_min(x, psi, t, geo, k, c3, rest, q, fr):
+    """(psi, t, E, ok): the energy's minimum over (psi, t) nearest the start, by Newton on
+    finite differences with backtracking, and the steepest descent where Newton's step does not
+    lower the energy (an indefinite Hessian, or differences too coarse for it).  ok: Newton's
+    step fell below STEP_TOL [rad] (or the gradient below 1e-12 of the springs' largest)."""
+    h = 1e-5
+    gtol = 1e-9 * max(k[0], k[1], k[2], k[3])
+    e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+    if not np.isfinite(e0):
+        return psi, t, e0, False
+    conv = False
+    for _ in range(80):
+        epp = _e_at(x, psi + h, t, geo, k, c3, rest, q, fr)
+        epm = _e_at(x, psi - h, t, geo, k, c3, rest, q, fr)
+        etp = _e_at(x, psi, t + h, geo, k, c3, rest, q, fr)
+        etm = _e_at(x, psi, t - h, geo, k, c3, rest, q, fr)
+        e11 = _e_at(x, psi + h, t + h, geo, k, c3, rest, q, fr)
+        e22 = _e_at(x, psi - h, t - h, geo, k, c3, rest, q, fr)
+        gp = (epp - epm) / (2.0 * h)
+        gt = (etp - etm) / (2.0 * h)
+        hpp = (epp - 2.0 * e0 + epm) / (h * h)
+        htt = (etp - 2.0 * e0 + etm) / (h * h)
+        hpt = (e11 - epp - etp + 2.0 * e0 - epm - etm + e22) / (2.0 * h * h)
+        det = hpp * htt - hpt * hpt
+        # converged when Newton's step is below STEP_TOL (the load's error is the angles' error
+        # times the energy's cross slope in x: a nearly straight chain's energy is flat in the
+        # elbow's angle, and a small gradient there left the load 7e-4 off)
+        if hpp > 0.0 and det > 0.0:
+            sp = (htt * gp - hpt * gt) / det
+            st = (hpp * gt - hpt * gp) / det
+            if max(abs(sp), abs(st)) < STEP_TOL:
+                conv = True
+                break
+        if max(abs(gp), abs(gt)) < 1e-3 * gtol:
+            conv = True
+            break
+        moved = False
+        for attempt in range(2):
+            if attempt == 0 and hpp > 0.0 and det > 0.0:
+                dp = -(htt * gp - hpt * gt) / det
+                dt = -(hpp * gt - hpt * gp) / det
+            elif attempt == 0:
+                continue
+            else:  # steepest descent, scaled by the diagonal's size
+                sc = 1.0 / max(abs(hpp), abs(htt), 1e-9)
+                dp, dt = -gp * sc, -gt * sc
+            m = max(abs(dp), abs(dt))
+            if m > 0.2:
+                dp *= 0.2 / m
+                dt *= 0.2 / m
+            if attempt == 0 and m < 1e-6:
+                # near the minimum the energy changes below its round-off: Newton's step taken
+                # as it is (a line search cannot see it)
+                psi += dp
+                t += dt
+                e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+                moved = True
+                break
+            for _ in range(40):
+                en = _e_at(x, psi + dp, t + dt, geo, k, c3, rest, q, fr)
+                if en < e0:
+                    break
+                dp *= 0.5
+                dt *= 0.5
+            if en < e0:
+                psi += dp
+                t += dt
+                e0 = en
+                moved = True
+                break
+        if not moved:
+            break
+    return psi, t, e0, conv
+
+
+@njit(**BUILD)
+def minima(x, geo, k, c3, rest, out, q, fr):
+    """The energy's minima over the elbow angle (the twist minimised at each) at the tip x:
+    out (4, 3) rows (psi, t, E), returns how many (at most 4)."""
+    ev = np.empty(NPSI)
+    tv = np.empty(NPSI)
+    t = rest[4]
+    for i in range(NPSI):
+        psi = 2.0 * np.pi * i / NPSI
+        # the twist has minima of its own (the bend turned over toward the thin side, or not):
+        # from the last elbow angle's and from rest, the lower
+        t, e = _min_twist(x, psi, t, geo, k, c3, rest, q, fr)
+        t2, e2 = _min_twist(x, psi, rest[4], geo, k, c3, rest, q, fr)
+        if e2 < e:
+            t, e = t2, e2
+        ev[i] = e
+        tv[i] = t
+    n = 0
+    for i in range(NPSI):
+        em, ep = ev[(i - 1) % NPSI], ev[(i + 1) % NPSI]
+        if ev[i] < em and ev[i] <= ep and n < 4:
+            psi, tt, e, ok = local_min(x, 2.0 * np.pi * i / NPSI, tv[i], geo, k, c3, rest, q, fr)
+            if not ok:
+                continue
+            psi = psi % (2.0 * np.pi)
+            dup = False
+            for j in range(n):
+                d = abs(psi - out[j, 0])
+                if min(d, 2.0 * np.pi - d) < 1e-4:
+                    dup = True
+            if not dup:
+                out[n, 0], out[n, 1], out[n, 2] = psi, tt, e
+                n += 1
+    return n
+
+
+@njit(**BUILD)
+def _e_near(x, psi, t, geo, k, c3, rest, q, fr, q0):
+    """The energy at (x, psi, t) with every angle taken within pi of q0's (atan2 wraps at pi:
+    a link folded back past it would jump by 2 pi between two neighbouring tips)."""
+    if not ik(x, psi, t, geo, q, fr):
+        return np.inf
+    for i in range(5):
+        q[i] = q0[i] + ((q[i] - q0[i] + np.pi) % (2.0 * np.pi) - np.pi)
+    return energy(q, k, c3, rest)
+
+
+@njit(**BUILD)
+def envelope_grad(x, psi, t, geo, k, c3, rest, g, q, fr, h):
+    """g (3,) <- grad U at x [N]: the energy's gradient in x at fixed (psi, t), central
+    differences of step h [mm] (one-sided where x + h is out of reach)."""
+    xp = np.empty(3)
+    q0 = np.empty(5)
+    ik(x, psi, t, geo, q0, fr)
+    e0 = energy(q0, k, c3, rest)
+    for a in range(3):
+        for c in range(3):
+            xp[c] = x[c]
+        xp[a] = x[a] + h
+        ep = _e_near(xp, psi, t, geo, k, c3, rest, q, fr, q0)
+        xp[a] = x[a] - h
+        em = _e_near(xp, psi, t, geo, k, c3, rest, q, fr, q0)
+        if np.isfinite(ep) and np.isfinite(em):
+            g[a] = (ep - em) / (2.0 * h)
+        else:
+            g[a] = (ep - e0) / h if np.isfinite(ep) else (e0 - em) / h
+
+
+@njit(**BUILD)
+def _neighbour(xp, psi, t, geo, k, c3, rest, he, g, qo, q, fr):
+    """The branch's minimum at xp, from (psi, t) at a neighbouring tip: its load g (3,) and
+    joint angles qo (5,); False if there is none."""
+    p, tt, e, ok = local_min(xp, psi, t, geo, k, c3, rest, q, fr)
+    if not (ok and np.isfinite(e)):
+        return False
+    envelope_grad(xp, p, tt, geo, k, c3, rest, g, q, fr, he)
+    ik(xp, p, tt, geo, qo, fr)
+    return True
+
+
+@njit(**BUILD)
+def node_values(x, psi, t, e, geo, k, c3, rest, h, out, q, fr):
+    """out (NV,) <- one branch's values at x from its minimum (psi, t, E): U, grad U, the
+    Hessian of U and dq/dx (differences of step h [mm] between the branch's minima at the
+    neighbouring tips; one-sided where one of them has none), D and q."""
+    out[V_OK] = 1.0
+    out[V_U] = e
+    # the load's differences: a thousandth of h or of the elbow's distance from the chord (the
+    # load turns faster the straighter the chain)
+    rho = np.sqrt((x[0] - geo[0]) ** 2 + x[1] ** 2 + x[2] ** 2)
+    a = (geo[1] ** 2 - geo[2] ** 2 + rho * rho) / (2.0 * rho)
+    he = 1e-3 * min(h, np.sqrt(max(geo[1] ** 2 - a * a, 0.0)))
+    g0 = np.empty(3)
+    envelope_grad(x, psi, t, geo, k, c3, rest, g0, q, fr, he)
+    q0 = np.empty(5)
+    ik(x, psi, t, geo, q0, fr)
+    Hm = np.zeros((3, 3))
+    dq = np.zeros((5, 3))
+    xp = np.empty(3)
+    gs = np.empty((2, 3))
+    qs = np.empty((2, 5))
+    for a in range(3):
+        ok = np.zeros(2, np.bool_)
+        for side in range(2):
+            for c in range(3):
+                xp[c] = x[c]
+            xp[a] = x[a] + (h if side == 0 else -h)
+            ok[side] = _neighbour(xp, psi, t, geo, k, c3, rest, he, gs[side], qs[side], q, fr)
+        if not (ok[0] or ok[1]):
+            continue
+        # central where both exist, else one-sided against the node itself
+        span = 2.0 * h if ok[0] and ok[1] else h
+        for c in range(3):
+            Hm[c, a] = ((gs[0, c] if ok[0] else g0[c]) - (gs[1, c] if ok[1] else g0[c])) / span
+        for i in range(5):
+            dq[i, a] = ((qs[0, i] if ok[0] else q0[i]) - (qs[1, i] if ok[1] else q0[i])) / span
+    for a in range(3):
+        out[V_G + a] = g0[a]
+    for i in range(5):
+        out[V_Q + i] = q0[i]
+        q[i] = q0[i]
+    kd = np.empty(5)
+    for i in range(4):
+        kd[i] = k[i] * _w(q0[i] - rest[i], c3[i])[1]
+    kd[4] = k[4]
+    for m in range(6):
+        a, c = IH[m]
+        out[V_H + m] = 0.5 * (Hm[a, c] + Hm[c, a])
+        d = 0.0
+        for i in range(5):
+            d += kd[i] * dq[i, a] * dq[i, c]
+        out[V_D + m] = d
+
+
+@njit(**BUILD, inline="always")
+def _ray_x(grid, rho, j, m, x):
+    nt, npp = int(grid[G_NT]), int(grid[G_NP])
+    th = grid[G_TMAX] * j / (nt - 1)
+    ph = np.pi * (m / (npp - 1) - 0.5)
+    x[0] = grid[G_S0] + rho * np.cos(th)
+    x[1] = rho * np.sin(th) * np.cos(ph)
+    x[2] = rho * np.sin(th) * np.sin(ph)
+
+
+@njit(**BUILD)
+def node_rho(grid, i, j, m):
+    """The chord [mm] of layer i on the ray (j, m) (module docstring)."""
+    nr, npp, nu, al = int(grid[G_NR]), int(grid[G_NP]), int(grid[G_NU]), grid[G_ALPHA]
+    rn = grid[NG + j * npp + m]
+    if i < nu:
+        s = (nu - i) / nu
+        return rn + (grid[G_RTOP] - rn) * (al * s + (1.0 - al) * s * s)
+    s = (i - nu) / (nr - 1 - nu)
+    return rn - (rn - grid[G_RMIN]) * (al * s + (1.0 - al) * s * s)
+
+
+@njit(**BUILD)
+def node_x(grid, i, j, m, x):
+    """x (3,) <- the tip position [mm] (bristle frame) of node (i, j, m)."""
+    rho = node_rho(grid, i, j, m)
+    nt, npp = int(grid[G_NT]), int(grid[G_NP])
+    th = grid[G_TMAX] * j / (nt - 1)
+    ph = np.pi * (m / (npp - 1) - 0.5)
+    x[0] = grid[G_S0] + rho * np.cos(th)
+    x[1] = rho * np.sin(th) * np.cos(ph)
+    x[2] = rho * np.sin(th) * np.sin(ph)
+
+
+@njit(**BUILD, parallel=True)
+def build(grid, k, c3, rest, tab):
+    """tab (2, nr, nt, np, NV) <- both branches' values at every node (module docstring); the
+    rho layers in parallel (each node on its own: the same numbers on any number of threads)."""
+    nr, nt, npp = int(grid[G_NR]), int(grid[G_NT]), int(grid[G_NP])
+    for j in prange(nt):
+        for m in range(npp):
+            if j == 0 and m > 0:
+                continue
+            grid[NG + j * npp + m] = _natural_rho(grid, k, c3, rest, j, m)
+    for m in range(1, npp):
+        grid[NG + m] = grid[NG]
+    for i in prange(nr):
+        _build_layer(grid, k, c3, rest, tab, i)
+
+
+@njit(**BUILD)
+def _least_energy(grid, k, c3, rest, rho, j, m, x, q, fr, mins):
+    geo = np.empty(3)
+    geo[0], geo[1], geo[2] = grid[G_S0], grid[G_L1], grid[G_L2]
+    _ray_x(grid, rho, j, m, x)
+    n = minima(x, geo, k, c3, rest, mins, q, fr)
+    e = np.inf
+    for r in range(n):
+        e = min(e, mins[r, 2])
+    return e
+
+
+@njit(**BUILD)
+def _natural_rho(grid, k, c3, rest, j, m):
+    """The chord [mm] on the ray (j, m) where the chain's least energy is least: the unloaded
+    path (golden section between rho_min and rho_cap, to 1e-7 of the links' length)."""
+    x = np.empty(3)
+    q = np.empty(5)
+    fr = np.empty((3, 3))
+    mins = np.empty((4, 3))
+    a, b = grid[G_RMIN], grid[G_RTOP]
+    tol = 1e-7 * (grid[G_L1] + grid[G_L2])
+    gr = 0.5 * (np.sqrt(5.0) - 1.0)
+    c = b - gr * (b - a)
+    d = a + gr * (b - a)
+    fc = _least_energy(grid, k, c3, rest, c, j, m, x, q, fr, mins)
+    fd = _least_energy(grid, k, c3, rest, d, j, m, x, q, fr, mins)
+    while b - a > tol:
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - gr * (b - a)
+            fc = _least_energy(grid, k, c3, rest, c, j, m, x, q, fr, mins)
+        else:
+            a, c, fc = c, d, fd
+            d = a + gr * (b - a)
+            fd = _least_energy(grid, k, c3, rest, d, j, m, x, q, fr, mins)
+    return 0.5 * (a + b)
+
+
+@njit(**BUILD, inline="always")
+def _straight(x, geo):
+    """True if the chain with its tip at x is nearly straight (its elbow within STRAIGHT of the
+    chord): the elbow's angle is undefined there and the load turns without bound near full
+    reach (a chain bent at rest, straightened).  No branch in the table there; the chain's own
+    Newton takes such a tip (``prb_kernels.table_solve`` gives up)."""
+    rho = np.sqrt((x[0] - geo[0]) ** 2 + x[1] ** 2 + x[2] ** 2)
+    a = (geo[1] ** 2 - geo[2] ** 2 + rho * rho) / (2.0 * rho)
+    return geo[1] ** 2 - a * a < (STRAIGHT * (geo[1] + geo[2])) ** 2
+
+
+@njit(**BUILD, inline="always")
+def _pick(mins, n, s):
+    """Of the n minima (psi, t, E), the least on branch s's side of the chord (-1: none)."""
+    best = np.inf
+    pick = -1
+    for r in range(n):
+        sp = np.sin(mins[r, 0])
+        on = sp >= -ON_PLANE if s == 0 else sp <= ON_PLANE
+        if on and mins[r, 2] < best:
+            best = mins[r, 2]
+            pick = r
+    return pick
+
+
+@njit(**BUILD, inline="always")
+def _folded(q, rest):
+    """True if a joint turned past FOLDED from rest, or a link past SIDEWAYS about local z:
+    beyond anything a bristle does (and where atan2 and asin wrap)."""
+    out = abs(q[1]) > SIDEWAYS or abs(q[3]) > SIDEWAYS
+    for r in range(5):
+        if abs(q[r] - rest[r]) > FOLDED:
+            out = True
+    return out
+
+
+@njit(**BUILD)
+def _build_layer(grid, k, c3, rest, tab, i):
+    """Layer i of the table (``build``)."""
+    geo = np.empty(3)
+    geo[0], geo[1], geo[2] = grid[G_S0], grid[G_L1], grid[G_L2]
+    nt, npp = int(grid[G_NT]), int(grid[G_NP])
+    h = 1e-3 * (geo[1] + geo[2])
+    x = np.empty(3)
+    q = np.empty(5)
+    fr = np.empty((3, 3))
+    mins = np.empty((4, 3))
+    vals = np.empty(NV)
+    for j in range(nt):
+        for m in range(npp):
+            if j == 0 and m > 0:  # the axis: one point for every azimuth
+                tab[:, i, j, m, :] = tab[:, i, 0, 0, :]
+                continue
+            tab[:, i, j, m, V_OK] = 0.0
+            node_x(grid, i, j, m, x)
+            if _straight(x, geo):
+                continue
+            n = minima(x, geo, k, c3, rest, mins, q, fr)
+            for s in range(2):
+                r = _pick(mins, n, s)
+                if r < 0:
+                    continue
+                ik(x, mins[r, 0], mins[r, 1], geo, q, fr)
+                if _folded(q, rest):
+                    continue
+                node_values(x, mins[r, 0], mins[r, 1], mins[r, 2], geo, k, c3, rest, h, vals, q, fr)
+                tab[s, i, j, m, :] = vals
+
+
+# --------------------------------------------------------------------------- the lookup (per step)
+#: the lookup's scratch per call: corner weights and their derivatives
+LOOK = dict(cache=True, _nrt=False, fastmath=False)
+
+
+@njit(**LOOK, inline="always")
+def _layer(U, al):
+    """(u, du/dU): the layer coordinate u in [0, 1] of the span fraction U (U = al u + (1 - al)
+    u^2, ``node_rho``)."""
+    r = np.sqrt(al * al + 4.0 * (1.0 - al) * U)
+    return (r - al) / (2.0 * (1.0 - al)), 1.0 / r
+
+
+@njit(**LOOK)
+def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
+    """The branch s of one table (grid (NG + nt np,), vals (2, nr, nt, np, NV)) at the tip xl
+    (bristle frame [mm]): g (3,) <- grad U [N] and Jg (3, 3) <- its derivative in xl [N/mm] (of
+    the interpolant itself: Newton's tangent), D (3, 3) <- the damping matrix [N/mm per unit of
+    beta/h], q (5,) <- the joint angles if ``want_q``; scr (6, 3) scratch.  Trilinear in the
+    layer, theta and phi over the cell's corners where the branch exists, their weights
+    renormalised.
+
+    Returns (w, out, U): w the weight of the corners where the branch exists (the branch exists
+    at xl where w >= 0.5), out 1 where xl lies beyond the table (rho below rho_min or theta past
+    theta_max: the values of its edge, clamped), 2 where the chord is longer than rho_cap (the
+    caller adds the axial penalty; the values are the top layer's), U the branch's energy
+    [N mm]."""
+    rcap, rmin, tmax = grid[G_RTOP], grid[G_RMIN], grid[G_TMAX]
+    nr, nt, npp = int(grid[G_NR]), int(grid[G_NT]), int(grid[G_NP])
+    nu, al = int(grid[G_NU]), grid[G_ALPHA]
+    nd = nr - 1 - nu
+    u0, u1, u2 = xl[0] - grid[G_S0], xl[1], xl[2]
+    # a tip at -y: the mirror image's values (module docstring), mirrored back at the end
+    sy = 1.0
+    if u1 < 0.0:
+        sy = -1.0
+        u1 = -u1
+    rho = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    out = 0
+    ux = u0 / rho
+    th = np.arccos(min(max(ux, -1.0), 1.0))
+    sth = np.sin(th)
+    ph = np.arctan2(u2, u1)  # in [-pi/2, pi/2]: u1 >= 0
+    fj = th / tmax * (nt - 1)
+    fpj = (nt - 1) / tmax
+    if fj > nt - 1:
+        fj, fpj = float(nt - 1), 0.0
+        out = 1
+    fm = (ph / np.pi + 0.5) * (npp - 1)
+    fpm = (npp - 1) / np.pi
+    j0 = min(int(fj), nt - 2)
+    m0 = min(max(int(fm), 0), npp - 2)
+    m1 = m0 + 1
+    b, c = fj - j0, fm - m0
+    # d rho, d theta, d phi / d xl
+    drho, dth, dph = scr[0], scr[1], scr[2]
+    drho[0], drho[1], drho[2] = u0 / rho, u1 / rho, u2 / rho
+    if sth > 1e-9:
+        dth[0] = -(1.0 - ux * drho[0]) / (rho * sth)
+        dth[1] = ux * drho[1] / (rho * sth)
+        dth[2] = ux * drho[2] / (rho * sth)
+        r2 = u1 * u1 + u2 * u2
+        dph[0], dph[1], dph[2] = 0.0, -u2 / r2, u1 / r2
+    else:
+        for k in range(3):
+            dth[k] = 0.0
+            dph[k] = 0.0
+    # the unloaded path's chord here (bilinear in theta, phi) and its slopes
+    rn00 = grid[NG + j0 * npp + m0]
+    rn01 = grid[NG + j0 * npp + m1]
+    rn10 = grid[NG + (j0 + 1) * npp + m0]
+    rn11 = grid[NG + (j0 + 1) * npp + m1]
+    rn = (1 - b) * ((1 - c) * rn00 + c * rn01) + b * ((1 - c) * rn10 + c * rn11)
+    dn_j = (1 - c) * (rn10 - rn00) + c * (rn11 - rn01)
+    dn_m = (1 - b) * (rn01 - rn00) + b * (rn11 - rn10)
+    # the layer: fi and its slopes in rho and in rn
+    if rho <= rn:
+        span = rn - rmin
+        U = (rn - rho) / span
+        if U > 1.0:
+            U = 1.0
+            out = 1
+            ku, kr = 0.0, 0.0
+        else:
+            uu, du = _layer(U, al)
+            # U = (rn - rho) / (rn - rmin): dU = ((1 - U) d rn - d rho) / span
+            ku = nd * du / span
+            kr = (1.0 - U) * ku
+            ku = -ku
+        uu, _ = _layer(U, al)
+        fi = nu + uu * nd
+    else:
+        span = rcap - rn
+        U = (rho - rn) / span
+        if U > 1.0:
+            U = 1.0
+            out = 2
+            ku, kr = 0.0, 0.0
+        else:
+            uu, du = _layer(U, al)
+            # U = (rho - rn) / (rcap - rn): dU = (d rho - (1 - U) d rn) / span; fi = nu - u nu
+            ku = -nu * du / span
+            kr = -(1.0 - U) * ku
+        uu, _ = _layer(U, al)
+        fi = nu - uu * nu
+    i0 = min(int(fi), nr - 2)
+    a = fi - i0
+    for k in range(3):
+        g[k] = 0.0
+        for m in range(3):
+            Jg[k, m] = 0.0
+            D[k, m] = 0.0
+    if want_q:
+        for k in range(5):
+            q[k] = 0.0
+    w = 0.0
+    U = 0.0
+    # the interpolant and its derivative in (fi, fj, fm): sum over corners of weight * value
+    gv = scr[3:6]  # rows: d/dfi, d/dfj, d/dfm of g
+    for k in range(3):
+        for m in range(3):
+            gv[k, m] = 0.0
+    for ci in range(2):
+        wi = a if ci else 1.0 - a
+        di = 1.0 if ci else -1.0
+        for cj in range(2):
+            wj = b if cj else 1.0 - b
+            dj = 1.0 if cj else -1.0
+            for cm in range(2):
+                wm = c if cm else 1.0 - c
+                dm = 1.0 if cm else -1.0
+                v = vals[s, i0 + ci, j0 + cj, m1 if cm else m0]
+                if v[V_OK] == 0.0:
+                    continue
+                wc = wi * wj * wm
+                w += wc
+                U += wc * v[V_U]
+                for k in range(3):
+                    gk = v[V_G + k]
+                    g[k] += wc * gk
+                    gv[0, k] += di * wj * wm * gk
+                    gv[1, k] += wi * dj * wm * gk
+                    gv[2, k] += wi * wj * dm * gk
+                for n in range(6):
+                    p, r = IH[n]
+                    D[p, r] += wc * v[V_D + n]
+                if want_q:
+                    for k in range(5):
+                        q[k] += wc * v[V_Q + k]
+    if w <= 0.0:
+        return 0.0, out, 0.0
+    # the renormalisation's derivative is left out: within the branch's cells (w = 1) it is 0
+    inv = 1.0 / w
+    for k in range(3):
+        g[k] *= inv
+    for n in range(6):
+        p, r = IH[n]
+        D[p, r] *= inv
+        if p != r:
+            D[r, p] = D[p, r]
+    if want_q:
+        for k in range(5):
+            q[k] *= inv
+    # d fi = ku d rho + kr d rn, d rn = dn_j d fj + dn_m d fm
+    for m in range(3):
+        dfj = fpj * dth[m]
+        dfm = fpm * dph[m]
+        dfi = ku * drho[m] + kr * (dn_j * dfj + dn_m * dfm)
+        for k in range(3):
+            Jg[k, m] = inv * (gv[0, k] * dfi + gv[1, k] * dfj + gv[2, k] * dfm)
+    if sy < 0.0:  # back from the mirror image: y components and b1, b2, t turn sign
+        g[1] = -g[1]
+        for k in range(3):
+            if k != 1:
+                Jg[1, k] = -Jg[1, k]
+                Jg[k, 1] = -Jg[k, 1]
+                D[1, k] = -D[1, k]
+                D[k, 1] = -D[k, 1]
+        if want_q:
+            q[1] = -q[1]
+            q[3] = -q[3]
+            q[4] = -q[4]
+    return w, out, U * inv

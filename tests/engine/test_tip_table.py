@@ -1,0 +1,163 @@
+"""The tabulated tip law (``engine/tip_table.py``, the level ``table``): its geometry inverts the
+reduced chain's kinematics, every table entry is an equilibrium of the chain (the spring torques
+are the tip load's through the chain's own Jacobian, ``prb_kernels.kinematics``), and the model
+built on it meets the references the reduced chain is held to: the Timoshenko cantilever for a
+small load, the rod pressed onto a plate (``validation.rod``), and itself run twice.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from brush_env.engine import SimSettings, Simulator, load_scene, tip_table
+from brush_env.engine import prb_kernels as K
+from brush_env.engine import tip_table_kernels as T
+from brush_env.engine.config import load_brush
+from brush_env.engine.fidelity import level_settings
+from brush_env.engine.prb import build_geometry
+from brush_env.motion import R0
+from brush_env.validation.references import timoshenko_cantilever_tip
+
+
+@functools.cache
+def _joint(group: str):
+    """The default brush's joint record of an inner (bristle 0) or outer (bristle 20) tuft."""
+    prm = build_geometry(load_brush("default")).prm
+    return prm[0 if group == "inner" else 20]
+
+
+def _kin(q, geo):
+    x, J = np.zeros(3), np.zeros((3, K.NQ))
+    K.kinematics(
+        np.asarray(q, float),
+        geo,
+        x,
+        J,
+        np.zeros((K.NQ, 2)),
+        np.zeros(K.NQ, np.int64),
+        np.zeros(3),
+        np.zeros(3),
+    )
+    return x, J
+
+
+def _elbow_angle(q, geo):
+    """The elbow's angle about the chord from joint 1 to the tip (``tip_table_kernels``)."""
+    s0, l1, l2 = geo
+    x, _ = _kin(q, geo)
+    q1 = np.array([q[0], q[1], 0.0, 0.0, q[4]])
+    xe, _ = _kin(q1, np.array([s0, l1, 0.0]))  # joint 1 + l1 * link 1: the elbow
+    u = x - np.array([s0, 0.0, 0.0])
+    rho = np.linalg.norm(u)
+    fr = np.zeros((3, 3))
+    T.chord_frame(u / rho, fr)
+    a = (l1 * l1 - l2 * l2 + rho * rho) / (2.0 * rho)
+    o = xe - np.array([s0, 0.0, 0.0]) - a * u / rho
+    return x, float(np.arctan2(o @ fr[:, 2], o @ fr[:, 1]))
+
+
+def test_inverse_kinematics_inverts_the_chain():
+    """For 200 random joint angles: the tip of ``prb_kernels.kinematics`` and its elbow angle
+    give the same angles back through ``tip_table_kernels.ik``."""
+    j = _joint("inner")
+    geo = np.array(j["geo"], float)
+    rng = np.random.default_rng(0)
+    q2, fr = np.zeros(5), np.zeros((3, 3))
+    for _ in range(200):
+        q = rng.uniform(-1.0, 1.0, 5) * np.array([1.2, 0.6, 1.2, 0.6, 0.5])
+        x, psi = _elbow_angle(q, geo)
+        assert T.ik(x, psi, q[4], geo, q2, fr)
+        np.testing.assert_allclose(q2, q, atol=1e-9)
+
+
+@pytest.mark.parametrize("group", ["inner", "outer"])
+def test_every_entry_is_an_equilibrium_of_the_chain(group):
+    """At every 7th node of both branches: the stored joint angles put the tip on the node (to
+    their single precision), and
+    the joints' spring torques K (e + c3 e^3) are the stored tip load through the chain's
+    Jacobian, J^T grad U (the chain in equilibrium under that load), to 1e-3 of the torque
+    (and 1e-6 of the stiffest joint's, at the unloaded tip).  The load is a difference quotient
+    of the energy; 99.99 % of the entries are within 1e-4, the rest (a chain pulled nearly
+    straight, the first layers above its unloaded path) within 7.5e-4."""
+    j = _joint(group)
+    grid, vals = tip_table.table(j)
+    geo = np.array(j["geo"], float)
+    k, c3, rest = (np.array(j[f], float) for f in ("k", "c3", "rest"))
+    x = np.zeros(3)
+    nr, nt, npp = (int(v) for v in grid[T.G_NR : T.G_NP + 1])
+    checked = 0
+    for n, (i, jj, m) in enumerate(np.ndindex(nr, nt, npp)):
+        if n % 7:
+            continue
+        T.node_x(grid, i, jj, m, x)
+        for s in range(2):
+            v = vals[s, i, jj, m]
+            if v[T.V_OK] == 0.0:
+                continue
+            q = v[T.V_Q : T.V_Q + 5]
+            xt, J = _kin(q, geo)
+            # (the angles are stored in single precision: ~1.5e-7 rad at 2.5 rad)
+            np.testing.assert_allclose(xt, x, atol=1e-6 * geo[1:].sum())
+            e = q - rest
+            tau = k * np.array([K._spring(e[i], c3[i] if i < 4 else 0.0)[0] for i in range(5)])
+            load = J.T @ v[T.V_G : T.V_G + 3]
+            assert np.abs(tau - load).max() <= 1e-3 * np.abs(tau).max() + 1e-6 * k.max()
+            checked += 1
+    assert checked > 1000
+
+
+@pytest.mark.parametrize("side", ["thin", "wide"])
+def test_small_tip_load_deflects_as_the_timoshenko_cantilever(side):
+    """The same 1 mN side load on the default outer bristle as for the reduced chain
+    (tests/engine/test_prb.py), solved by the table: the Timoshenko cantilever's deflection
+    within 3 %."""
+    sc = load_scene("flat_plate")
+    sim = Simulator(sc.brush, SimSettings(model="table", bodies_per_bristle=2, gravity=(0, 0, 0)))
+    sim.reset(np.zeros(3), np.eye(3))
+    b = 20
+    br = sc.brush.bristles[b]
+    frame = sim.model.root_R[b]
+    d = frame[:, 2] if side == "thin" else frame[:, 1]
+    P = 1e-3
+    f = np.zeros((sim.model.n_bristles, 3))
+    f[b] = P * d
+    rest = sim.tip_positions()[b].copy()
+    sim.set_tip_forces(f)
+    sim.solve_static(increments=1)
+    moved = float((sim.tip_positions()[b] - rest) @ d)
+    sec, mat = br.section, br.material
+    inertia = sec.I_y if side == "thin" else sec.I_z
+    ref = timoshenko_cantilever_tip(
+        P, br.length, mat.E, mat.G, inertia, sec.area, sec.shear_coeff(mat.nu)
+    )["v"]
+    assert moved == pytest.approx(ref, rel=0.03)
+
+
+def _scrub(level):
+    """The brush pressed 0.3 mm past touch while it moves 20 mm/s along x and 15 mm/s down for
+    40 engine steps (4 ms), then held: (tips, TCP force) at the end."""
+    sc = load_scene("flat_plate")
+    s = Simulator(sc, level_settings(level, dt=4e-3))
+    s.reset(np.array([0.0, 0.0, s.touch_height(R0) + 0.2]), R0)
+    for _ in range(4):
+        ro = s.rollout(np.array([20.0, 0.0, -15.0]), np.zeros(3), 10)
+    return ro.last
+
+
+def test_rollout_is_deterministic():
+    """Same start and motion at the level ``table``: the same result bit for bit."""
+    a, b = _scrub("table"), _scrub("table")
+    assert np.array_equal(a.tip_pos, b.tip_pos)
+    assert np.array_equal(a.tcp_force, b.tcp_force)
+
+
+def test_table_carries_the_chains_load():
+    """The brush pressed and dragged (``_scrub``): the table's TCP force within 3 % of the
+    chain it tabulates (level ``reduced``), every tip within 0.05 mm of the chain's."""
+    a, b = _scrub("table"), _scrub("reduced")
+    assert b.tip_in_contact.sum() > 20
+    assert np.linalg.norm(a.tcp_force - b.tcp_force) <= 0.03 * np.linalg.norm(b.tcp_force)
+    assert np.abs(a.tip_pos - b.tip_pos).max() < 0.05
