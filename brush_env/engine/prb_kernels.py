@@ -1066,28 +1066,48 @@ def _halved(b, ctx, gtip, x0, frames):
 
 #: [mm per mm of the links] the longest step of the tabulated law's tip Newton per iterate
 TAB_MAX_DX = 0.05
+#: the tabulated law's Newton tolerance on the tip's force balance, in the stiffest joint over
+#: the links' length (~2e-7 N for the default types: 1e-6 of a light 0.2 N contact; the table
+#: itself is within ~1 % of the chain)
+TAB_FTOL = 1e-6
 #: the links' axial stiffness past their reach, in the stiffest joint over the links' length
 #: squared: the chain is inextensible, the table ends there (a stretch of ~1e-3 mm per 0.1 N)
 TAB_AXIAL = 1e3
 
 
+#: [rad] a branch's joint angles that move further than this from the last iterate's are checked
+#: against the other branch's (``_table_branch``)
+TAB_JUMP = 0.02
+
+
 @njit(**PRB, inline="always")
-def _table_branch(grid, vals, xl, qprev, tab, g, Jg, D):
+def _table_branch(grid, vals, xl, qprev, s0, tab, g, Jg, D):
     """(s, w, out): the branch (``tip_table_kernels``) to follow from the joint angles qprev
-    with the tip at xl -- of those that exist there, the one whose joint angles are nearest
-    (the chain follows its branch continuously: a branch's elbow may cross the chord, where both
-    hold the same configuration, and a side chosen by the elbow alone would then jump); if none
-    exists, the one with most of its cell (s = -1: no branch at all).  Leaves the branch's
-    values in g, Jg, D and its joint angles in qprev."""
+    (on branch s0, or -1: unknown) with the tip at xl -- of those that exist there, the one
+    whose joint angles are nearest (the chain follows its branch continuously: a branch's elbow
+    may cross the chord, where both hold the same configuration, and a side chosen by the elbow
+    alone would then jump); if none exists, the one with most of its cell (s = -1: no branch at
+    all).  Branch s0 is kept without looking at the other while it exists and its angles move
+    less than TAB_JUMP.  Leaves the branch's values in g, Jg, D and its joint angles in qprev."""
+    qv = tab.qv
+    if s0 >= 0:
+        w, out, _ = table_lookup(grid, vals, s0, xl, g, Jg, D, qv, True, tab.scr)
+        d = 0.0
+        for i in range(NQ):
+            d = max(d, abs(qv[i] - qprev[i]))
+        if w >= 0.5 and d < TAB_JUMP:
+            for i in range(NQ):
+                qprev[i] = qv[i]
+            return s0, w, out
     best, pick = np.inf, -1
     wbest = 0.0
     for s in range(2):
-        w, _, _ = table_lookup(grid, vals, s, xl, g, Jg, D, tab.qv, True, tab.scr)
+        w, _, _ = table_lookup(grid, vals, s, xl, g, Jg, D, qv, True, tab.scr)
         if w <= 0.0:
             continue
         d = 0.0
         for i in range(NQ):
-            d = max(d, abs(tab.qv[i] - qprev[i]))
+            d = max(d, abs(qv[i] - qprev[i]))
         if (w >= 0.5 and (wbest < 0.5 or d < best)) or (wbest < 0.5 and w > wbest):
             best, pick, wbest = d, s, w
     if pick < 0:
@@ -1188,7 +1208,7 @@ def table_solve(b, q0, pose, ctx, xs, xln):
     damp = 0.0 if sub.static else j.beta / sub.h
     L = geo[1] + geo[2]
     kmax = max(kq[0], kq[1], kq[2], kq[3])
-    ftol = sub.rtol * kmax / L
+    ftol = TAB_FTOL * kmax / L
     kax = TAB_AXIAL * kmax / (L * L)
     qprev = wk.qb  # the joint angles of the last iterate (its branch's)
     for i in range(NQ):
@@ -1198,12 +1218,13 @@ def table_solve(b, q0, pose, ctx, xs, xln):
         xw[a] = xs[a]
     held = False
     small = False
+    s = -1
     for it in range(1, sub.maxit + 1):
         for a in range(3):
             xl[a] = (
                 B[0, a] * (xw[0] - rw[0]) + B[1, a] * (xw[1] - rw[1]) + B[2, a] * (xw[2] - rw[2])
             )
-        s, w, out = _table_branch(grid, vals, xl, qprev, tab, tab.v[0], tab.m[0], tab.m[1])
+        s, w, out = _table_branch(grid, vals, xl, qprev, s, tab, tab.v[0], tab.m[0], tab.m[1])
         if s < 0:
             return -1
         if out == 2:

@@ -94,6 +94,15 @@ def _reduced(t: _Tiny) -> None:
     sim.solve_static()
 
 
+def _tip_table(t: _Tiny) -> None:
+    """The tabulated tip law's builder (level ``table``) on a 5 x 5 x 3 table of the tiny
+    brush's first bristle: its kernels compile once here, not on a user's first table."""
+    from .prb import build_geometry
+    from .tip_table import build_table
+
+    build_table(build_geometry(t.scene.brush).prm[0], shape=(5, 5, 3))
+
+
 #: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
 #: compiles the step kernel with every kernel it calls; the later groups reuse them.
 GROUPS: tuple[KernelGroup, ...] = (
@@ -105,6 +114,7 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
     KernelGroup("static solve", _static),
     KernelGroup("reduced model (fidelity level 'reduced': quasi-static joints, rollout)", _reduced),
+    KernelGroup("tabulated tip law's builder (fidelity level 'table')", _tip_table),
 )
 
 
