@@ -1066,10 +1066,6 @@ def _halved(b, ctx, gtip, x0, frames):
 
 #: [mm per mm of the links] the longest step of the tabulated law's tip Newton per iterate
 TAB_MAX_DX = 0.05
-#: the tabulated law's Newton tolerance on the tip's force balance, in the stiffest joint over
-#: the links' length (~2e-7 N for the default types: 1e-6 of a light 0.2 N contact; the table
-#: itself is within ~1 % of the chain)
-TAB_FTOL = 1e-6
 #: the links' axial stiffness past their reach, in the stiffest joint over the links' length
 #: squared: the chain is inextensible, the table ends there (a stretch of ~1e-3 mm per 0.1 N)
 TAB_AXIAL = 1e3
@@ -1208,7 +1204,7 @@ def table_solve(b, q0, pose, ctx, xs, xln):
     damp = 0.0 if sub.static else j.beta / sub.h
     L = geo[1] + geo[2]
     kmax = max(kq[0], kq[1], kq[2], kq[3])
-    ftol = TAB_FTOL * kmax / L
+    ftol = sub.rtol * kmax / L
     kax = TAB_AXIAL * kmax / (L * L)
     qprev = wk.qb  # the joint angles of the last iterate (its branch's)
     for i in range(NQ):

@@ -632,36 +632,25 @@ def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
     rn = (1 - b) * ((1 - c) * rn00 + c * rn01) + b * ((1 - c) * rn10 + c * rn11)
     dn_j = (1 - c) * (rn10 - rn00) + c * (rn11 - rn01)
     dn_m = (1 - b) * (rn01 - rn00) + b * (rn11 - rn10)
-    # the layer: fi and its slopes in rho and in rn
+    # the layer: fi and its slopes in rho and in rn.  Below the unloaded path (compressed)
+    # U = (rn - rho) / (rn - rmin) and fi = nu + u nd; above it (pulled straighter)
+    # U = (rho - rn) / (rcap - rn) and fi = nu - u nu; on both sides
+    # d fi = n du/dU ((1 - U) d rn - d rho) / span
     if rho <= rn:
-        span = rn - rmin
-        U = (rn - rho) / span
-        if U > 1.0:
-            U = 1.0
-            out = 1
-            ku, kr = 0.0, 0.0
-        else:
-            uu, du = _layer(U, al)
-            # U = (rn - rho) / (rn - rmin): dU = ((1 - U) d rn - d rho) / span
-            ku = nd * du / span
-            kr = (1.0 - U) * ku
-            ku = -ku
-        uu, _ = _layer(U, al)
-        fi = nu + uu * nd
+        sg, span, nside, edge = 1.0, rn - rmin, nd, 1
     else:
-        span = rcap - rn
-        U = (rho - rn) / span
-        if U > 1.0:
-            U = 1.0
-            out = 2
-            ku, kr = 0.0, 0.0
-        else:
-            uu, du = _layer(U, al)
-            # U = (rho - rn) / (rcap - rn): dU = (d rho - (1 - U) d rn) / span; fi = nu - u nu
-            ku = -nu * du / span
-            kr = -(1.0 - U) * ku
-        uu, _ = _layer(U, al)
-        fi = nu - uu * nu
+        sg, span, nside, edge = -1.0, rcap - rn, nu, 2
+    U = sg * (rn - rho) / span
+    clamped = U > 1.0
+    if clamped:
+        U = 1.0
+        out = edge
+    uu, du = _layer(U, al)
+    ku, kr = 0.0, 0.0
+    if not clamped:
+        ku = -(nside * du / span)
+        kr = (1.0 - U) * (nside * du / span)
+    fi = nu + sg * uu * nside
     i0 = min(int(fi), nr - 2)
     a = fi - i0
     for k in range(3):
