@@ -49,6 +49,7 @@ from .contact import (
 )
 from .records import Substep
 from .surfaces import surface_gap
+from .tip_table_kernels import Table
 from .tip_table_kernels import lookup as table_lookup
 
 #: the reduced model's kernels: as HOT, strict floating point.  Fast-math (reassociation and
@@ -83,10 +84,11 @@ JOINT = np.dtype(
 #: the contact scene (records.ContactScene), the scratch (prb.py's _Work) and the per-bristle
 #: outputs (iters, status, loose)
 Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out", "tab"])
-#: the tabulated tip law (``tip_table.py``): grid (ntab, NG) and vals (ntab, 2, nr, nt, np, NV)
-#: the tables, idx (nb,) each bristle's table (-1: the chain's own Newton), outside (nb,) how
-#: many of its steps ended beyond its table; scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,)
-Tab = namedtuple("Tab", ["grid", "vals", "idx", "outside", "scr", "m", "v", "qv"])
+#: the tabulated tip law (``tip_table.py``): the tables' grid (ntab,) ``tip_table_kernels.GRID``,
+#: rnat (ntab, nt, np) [mm] and vals (ntab, 2, nr, nt, np) ``ENTRY32``, idx (nb,) each bristle's
+#: table (-1: the chain's own Newton), outside (nb,) how many of its steps ended beyond its
+#: table; scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,)
+Tab = namedtuple("Tab", ["grid", "rnat", "vals", "idx", "outside", "scr", "m", "v", "qv"])
 #: one bristle's root [mm] and frame in the world, and the weight lumped at its tip [N]
 Pose = namedtuple("Pose", ["rw", "B", "gtip"])
 #: the brush: roots [mm] and frames in the TCP frame, joints (JOINT)
@@ -1077,17 +1079,17 @@ TAB_JUMP = 0.02
 
 
 @njit(**PRB, inline="always")
-def _table_branch(grid, vals, xl, qprev, s0, tab, g, Jg, D):
-    """(s, w, out): the branch (``tip_table_kernels``) to follow from the joint angles qprev
-    (on branch s0, or -1: unknown) with the tip at xl -- of those that exist there, the one
-    whose joint angles are nearest (the chain follows its branch continuously: a branch's elbow
-    may cross the chord, where both hold the same configuration, and a side chosen by the elbow
-    alone would then jump); if none exists, the one with most of its cell (s = -1: no branch at
-    all).  Branch s0 is kept without looking at the other while it exists and its angles move
-    less than TAB_JUMP.  Leaves the branch's values in g, Jg, D and its joint angles in qprev."""
+def _table_branch(tb, xl, qprev, s0, tab, g, Jg, D):
+    """(s, w, out): the branch of table tb (``tip_table_kernels``) to follow from the joint angles
+    qprev (on branch s0, or -1: unknown) with the tip at xl -- of those that exist there, the one
+    whose joint angles are nearest (the chain follows its branch continuously: a branch's elbow may
+    cross the chord, where both hold the same configuration, and a side chosen by the elbow alone
+    would then jump); if none exists, the one with most of its cell (s = -1: no branch at all).
+    Branch s0 is kept without looking at the other while it exists and its angles move less than
+    TAB_JUMP. Leaves the branch's values in g, Jg, D and its joint angles in qprev."""
     qv = tab.qv
     if s0 >= 0:
-        w, out, _ = table_lookup(grid, vals, s0, xl, g, Jg, D, qv, True, tab.scr)
+        w, out, _ = table_lookup(tb, s0, xl, g, Jg, D, qv, True, tab.scr)
         d = 0.0
         for i in range(NQ):
             d = max(d, abs(qv[i] - qprev[i]))
@@ -1098,7 +1100,7 @@ def _table_branch(grid, vals, xl, qprev, s0, tab, g, Jg, D):
     best, pick = np.inf, -1
     wbest = 0.0
     for s in range(2):
-        w, _, _ = table_lookup(grid, vals, s, xl, g, Jg, D, qv, True, tab.scr)
+        w, _, _ = table_lookup(tb, s, xl, g, Jg, D, qv, True, tab.scr)
         if w <= 0.0:
             continue
         d = 0.0
@@ -1108,7 +1110,7 @@ def _table_branch(grid, vals, xl, qprev, s0, tab, g, Jg, D):
             best, pick, wbest = d, s, w
     if pick < 0:
         return -1, 0.0, 0
-    w, out, _ = table_lookup(grid, vals, pick, xl, g, Jg, D, qprev, True, tab.scr)
+    w, out, _ = table_lookup(tb, pick, xl, g, Jg, D, qprev, True, tab.scr)
     return pick, w, out
 
 
@@ -1195,7 +1197,8 @@ def table_solve(b, q0, pose, ctx, xs, xln):
     holds there in wk.qt.  Returns the iterations, or -1 (the caller then solves the chain
     itself)."""
     tab = ctx.tab
-    grid, vals = tab.grid[tab.idx[b]], tab.vals[tab.idx[b]]
+    t = tab.idx[b]
+    tb = Table(tab.grid[t], tab.rnat[t], tab.vals[t])
     j = ctx.prm[b]
     geo, kq = j.geo, j.k
     sub, wk = ctx.sub, ctx.wk
@@ -1220,11 +1223,11 @@ def table_solve(b, q0, pose, ctx, xs, xln):
             xl[a] = (
                 B[0, a] * (xw[0] - rw[0]) + B[1, a] * (xw[1] - rw[1]) + B[2, a] * (xw[2] - rw[2])
             )
-        s, w, out = _table_branch(grid, vals, xl, qprev, s, tab, tab.v[0], tab.m[0], tab.m[1])
+        s, w, out = _table_branch(tb, xl, qprev, s, tab, tab.v[0], tab.m[0], tab.m[1])
         if s < 0:
             return -1
         if out == 2:
-            _axial_penalty(xl, geo[0], grid[0], kax, tab.v[0], tab.m[0], wk.v)
+            _axial_penalty(xl, geo[0], tb.grid.rcap, kax, tab.v[0], tab.m[0], wk.v)
         rmax = _table_residual(b, pose, ctx, xln, damp)
         if not np.isfinite(rmax):
             return -1

@@ -25,7 +25,7 @@ from . import tip_table_kernels as T
 from .prb_calibration import user_cache
 
 #: bump when the table or its kernels change: older cached tables are not used
-VERSION = 14
+VERSION = 15
 #: nodes along rho (the chord's length), theta (from the axis, 3 deg apart) and phi (the
 #: azimuth, -90 to 90 deg, 7.5 deg apart).  rho matters most: the chain is stiff along its
 #: chord, and 33 layers of constant rho left a 1 mN side load's deflection 21 % short of the
@@ -48,22 +48,21 @@ ALPHA = 0.1
 
 
 def table_grid(joint, shape=SHAPE) -> np.ndarray:
-    """The grid description (``tip_table_kernels.G_*``, the unloaded path's chords still 0: the
-    build fills them) of the table of one joint record."""
+    """The grid (``tip_table_kernels.GRID``, one record in a (1,) array) of the table of one
+    joint record."""
     s0, l1, l2 = (float(v) for v in joint["geo"])
     L = l1 + l2
-    nr, nt, npp = shape
-    g = np.zeros(T.NG + nt * npp)
+    g = np.zeros(1, T.GRID)
     # the top: just short of the full reach, where the elbow's angle is undefined (a chain bent
     # at rest, a leaning bristle's, gets there by straightening: a tip pushed against its rest
     # bend runs along its unloaded path to within 3e-4 mm of it; past the top the kernels hold
     # the tip with a stiff axial spring)
-    g[T.G_RTOP] = RHO_TOP * L
-    g[T.G_RMIN] = max(RHO_MIN * L, abs(l1 - l2) * 1.001)
-    g[T.G_TMAX] = THETA_MAX
-    g[T.G_NR], g[T.G_NT], g[T.G_NP] = shape
-    g[T.G_S0], g[T.G_L1], g[T.G_L2] = s0, l1, l2
-    g[T.G_NU], g[T.G_ALPHA] = LAYERS_ABOVE, ALPHA
+    g["rcap"] = RHO_TOP * L
+    g["rmin"] = max(RHO_MIN * L, abs(l1 - l2) * 1.001)
+    g["tmax"] = THETA_MAX
+    g["nr"], g["nt"], g["np"] = shape
+    g["nu"], g["alpha"] = LAYERS_ABOVE, ALPHA
+    g["geo"] = (s0, l1, l2)
     return g
 
 
@@ -77,74 +76,75 @@ def table_key(joint, shape=SHAPE) -> str:
     return h.hexdigest()[:20]
 
 
-def build_table(joint, shape=SHAPE) -> tuple[np.ndarray, np.ndarray]:
-    """(grid, vals (2, nr, nt, np, NV), float32) of one joint record (``prb_kernels.JOINT``)."""
-    grid = table_grid(joint, shape)
+def build_table(joint, shape=SHAPE) -> T.Table:
+    """The table (``tip_table_kernels.Table``: grid (1,), rnat (nt, np), vals (2, nr, nt, np)
+    ENTRY32) of one joint record (``prb_kernels.JOINT``)."""
     rest = np.asarray(joint["rest"], float)
     if rest[1] != 0.0 or rest[3] != 0.0 or rest[4] != 0.0:
         # the table holds one half of the tips and mirrors the other (tip_table_kernels)
         raise ValueError(f"tip table: rest angles {rest.tolist()} turn b1, b2 or t (must be 0)")
-    vals = np.zeros((2, *shape, T.NV))
-    T.build(
-        grid,
-        np.array(joint["k"], float),
-        np.array(joint["c3"], float),
-        np.array(joint["rest"], float),
-        vals,
-    )
+    grid = table_grid(joint, shape)
+    rnat = np.zeros(shape[1:])
+    vals = np.zeros((2, *shape), T.ENTRY)
+    T.build(T.Table(grid[0], rnat, vals), np.asarray(joint).reshape(1)[0])
     # stored in single precision: the forces to ~1e-7 of themselves, half the memory
-    return grid, vals.astype(np.float32)
+    return T.Table(grid, rnat, vals.astype(T.ENTRY32))
 
 
 def _cache_dir() -> Path:
     return user_cache().parent / "tip_tables"
 
 
-def table(joint, shape=SHAPE) -> tuple[np.ndarray, np.ndarray]:
+def table(joint, shape=SHAPE) -> T.Table:
     """The table of a joint record: from the cache, else built and cached."""
     path = _cache_dir() / f"{table_key(joint, shape)}.npz"
     try:
         with np.load(path) as z:
-            return z["grid"], z["vals"]
+            return T.Table(z["grid"], z["rnat"], z["vals"])
     except (OSError, KeyError, ValueError):
         pass
-    grid, vals = build_table(joint, shape)
+    tb = build_table(joint, shape)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-    np.savez(tmp, grid=grid, vals=vals)
+    np.savez(tmp, grid=tb.grid, rnat=tb.rnat, vals=tb.vals)
     os.replace(tmp, path)
-    return grid, vals
+    return tb
 
 
 def tables_for(prm: np.ndarray) -> K.Tab:
     """The kernels' tables (``prb_kernels.Tab``) of every bristle of a brush (joints ``prm``)."""
     keys: dict[bytes, int] = {}
-    grids, vals = [], []
+    tables = []
     idx = np.zeros(len(prm), np.int64)
     for b, j in enumerate(prm):
         kb = np.ascontiguousarray(j).tobytes()
         if kb not in keys:
-            keys[kb] = len(grids)
-            g, v = table(j)
-            grids.append(g)
-            vals.append(v)
+            keys[kb] = len(tables)
+            tables.append(table(j))
         idx[b] = keys[kb]
-    return _tab(np.stack(grids), np.stack(vals), idx)
+    return _tab(
+        np.concatenate([t.grid for t in tables]),
+        np.stack([t.rnat for t in tables]),
+        np.stack([t.vals for t in tables]),
+        idx,
+    )
 
 
 def no_tables(nb: int) -> K.Tab:
     """A ``Tab`` that no bristle uses (the chain's own Newton for all)."""
     return _tab(
-        np.zeros((1, T.NG + 4)),
-        np.zeros((1, 2, 2, 2, 2, T.NV), np.float32),
+        np.zeros(1, T.GRID),
+        np.zeros((1, 2, 2)),
+        np.zeros((1, 2, 2, 2, 2), T.ENTRY32),
         np.full(nb, -1, np.int64),
     )
 
 
-def _tab(grid, vals, idx) -> K.Tab:
+def _tab(grid, rnat, vals, idx) -> K.Tab:
     nb = len(idx)
     return K.Tab(
         grid,
+        rnat,
         vals,
         idx,
         np.zeros(nb, np.int64),

@@ -28,28 +28,50 @@ and soft across it, so the layers in rho follow the tip's unloaded path: rho_nat
 where the energy along the ray from J1 is least (the chord of a tip pushed sideways only; a
 grid of constant rho crossed that path, and its nodes off the path carried the chain's
 stretching, which a 1 mN side load's interpolated deflection missed by 21 %).  Above the path
-(the chain pulled straighter) G_NU layers up to rho_cap, below it the rest down to rho_min,
+(the chain pulled straighter) nu layers up to rho_cap, below it the rest down to rho_min,
 spaced by u = ALPHA s + (1 - ALPHA) s^2 of the span (s uniform: fine and even near the path,
 coarser far from it); theta on [0, theta_max]; phi on [-pi/2, pi/2].
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 #: the builder runs once per bristle type, off the step: it may allocate (HOT may not)
 BUILD = dict(cache=True, fastmath=False)
 
-#: the values stored per node and branch (``tip_table`` reads them by these offsets)
-V_OK, V_U, V_G, V_H, V_D, V_Q = 0, 1, 2, 5, 11, 17
-NV = 22
-#: the grid's description (float64 array): rho_cap (the longest chord in the table), rho_min,
-#: theta_max [rad], the counts of nodes along rho (all, and above the unloaded path), theta and
-#: phi, the chain (s0, l1, l2) [mm], the layers' linear share ALPHA; from NG on, the unloaded
-#: path's chord rho_nat (nt, np) [mm]
-G_RTOP, G_RMIN, G_TMAX, G_NR, G_NT, G_NP, G_S0, G_L1, G_L2, G_NU, G_ALPHA = range(11)
-NG = 11
+#: one table's grid (a record): the longest and shortest chord in it (rcap, rmin [mm]), the
+#: largest angle from the axis (tmax [rad]), the nodes along rho (nr; nu of them above the
+#: unloaded path), theta (nt) and phi (np), the layers' linear share alpha, the chain (geo:
+#: s0, l1, l2 [mm]).  The unloaded path's chords rho_nat (nt, np) [mm] travel beside it.
+GRID = np.dtype(
+    [
+        ("rcap", "f8"),
+        ("rmin", "f8"),
+        ("tmax", "f8"),
+        ("nr", "i8"),
+        ("nt", "i8"),
+        ("np", "i8"),
+        ("nu", "i8"),
+        ("alpha", "f8"),
+        ("geo", "f8", 3),
+    ]
+)
+#: one node's entry per branch (module docstring): whether the branch exists (ok), U [N mm],
+#: grad U (g [N]), its Hessian (H [N/mm]: xx, yy, zz, xy, xz, yz), the damping matrix (D, the
+#: same order) and the joint angles q [rad]; built in double, stored in single precision
+ENTRY = np.dtype(
+    [("ok", "f8"), ("U", "f8"), ("g", "f8", 3), ("H", "f8", 6), ("D", "f8", 6), ("q", "f8", 5)]
+)
+ENTRY32 = np.dtype(
+    [("ok", "f4"), ("U", "f4"), ("g", "f4", 3), ("H", "f4", 6), ("D", "f4", 6), ("q", "f4", 5)]
+)
+#: one table as the kernels read it: grid (GRID record), rnat (nt, np) [mm], vals (2, nr, nt,
+#: np) ENTRY32
+Table = namedtuple("Table", ["grid", "rnat", "vals"])
 #: elbow angles sampled per node in the search for the energy's minima
 NPSI = 48
 #: [rad] a minimum within this of the plane of the chord and local y belongs to both branches
@@ -82,9 +104,11 @@ def _w(e, c3):
 
 
 @njit(**BUILD)
-def energy(q, k, c3, rest):
-    """Spring energy [N mm] of the chain at q (a1, b1, a2, b2, t): the bending joints' cubic
-    springs and the linear twist (``prb_kernels._evaluate``'s torques integrated)."""
+def energy(q, j):
+    """Spring energy [N mm] of the chain with joints j (``prb_kernels.JOINT``) at q (a1, b1,
+    a2, b2, t): the bending joints' cubic springs and the linear twist (``prb_kernels._evaluate``'s
+    torques integrated)."""
+    k, c3, rest = j.k, j.c3, j.rest
     e = 0.0
     for i in range(4):
         e += k[i] * _w(q[i] - rest[i], c3[i])[0]
@@ -156,31 +180,31 @@ def ik(x, psi, t, geo, q, fr):
 
 
 @njit(**BUILD)
-def _e_at(x, psi, t, geo, k, c3, rest, q, fr):
-    if not ik(x, psi, t, geo, q, fr):
+def _e_at(x, psi, t, j, q, fr):
+    if not ik(x, psi, t, j.geo, q, fr):
         return np.inf
-    return energy(q, k, c3, rest)
+    return energy(q, j)
 
 
 @njit(**BUILD)
-def _min_twist(x, psi, t, geo, k, c3, rest, q, fr):
+def _min_twist(x, psi, t, j, q, fr):
     """(t, E): the twist that minimises the energy at elbow angle psi, by Newton on finite
     differences from t."""
     h = 1e-5
-    e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+    e0 = _e_at(x, psi, t, j, q, fr)
     for _ in range(8):
-        ep = _e_at(x, psi, t + h, geo, k, c3, rest, q, fr)
-        em = _e_at(x, psi, t - h, geo, k, c3, rest, q, fr)
+        ep = _e_at(x, psi, t + h, j, q, fr)
+        em = _e_at(x, psi, t - h, j, q, fr)
         d1 = (ep - em) / (2.0 * h)
         d2 = (ep - 2.0 * e0 + em) / (h * h)
         dt = -d1 / d2 if d2 > 0.0 else -0.05 * np.sign(d1)
         dt = min(max(dt, -0.2), 0.2)
         tn = t + dt
-        en = _e_at(x, psi, tn, geo, k, c3, rest, q, fr)
+        en = _e_at(x, psi, tn, j, q, fr)
         while en > e0 and abs(dt) > 1e-12:
             dt *= 0.5
             tn = t + dt
-            en = _e_at(x, psi, tn, geo, k, c3, rest, q, fr)
+            en = _e_at(x, psi, tn, j, q, fr)
         if en > e0:
             break
         t, e0 = tn, en
@@ -190,24 +214,24 @@ def _min_twist(x, psi, t, geo, k, c3, rest, q, fr):
 
 
 @njit(**BUILD)
-def local_min(x, psi, t, geo, k, c3, rest, q, fr):
+def local_min(x, psi, t, j, q, fr):
     """(psi, t, E, ok): the energy's minimum over (psi, t) nearest the start, by Newton on
     finite differences with backtracking, and the steepest descent where Newton's step does not
     lower the energy (an indefinite Hessian, or differences too coarse for it).  ok: Newton's
     step fell below STEP_TOL [rad] (or the gradient below 1e-12 of the springs' largest)."""
     h = 1e-5
-    gtol = 1e-9 * max(k[0], k[1], k[2], k[3])
-    e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+    gtol = 1e-9 * max(j.k[0], j.k[1], j.k[2], j.k[3])
+    e0 = _e_at(x, psi, t, j, q, fr)
     if not np.isfinite(e0):
         return psi, t, e0, False
     conv = False
     for _ in range(80):
-        epp = _e_at(x, psi + h, t, geo, k, c3, rest, q, fr)
-        epm = _e_at(x, psi - h, t, geo, k, c3, rest, q, fr)
-        etp = _e_at(x, psi, t + h, geo, k, c3, rest, q, fr)
-        etm = _e_at(x, psi, t - h, geo, k, c3, rest, q, fr)
-        e11 = _e_at(x, psi + h, t + h, geo, k, c3, rest, q, fr)
-        e22 = _e_at(x, psi - h, t - h, geo, k, c3, rest, q, fr)
+        epp = _e_at(x, psi + h, t, j, q, fr)
+        epm = _e_at(x, psi - h, t, j, q, fr)
+        etp = _e_at(x, psi, t + h, j, q, fr)
+        etm = _e_at(x, psi, t - h, j, q, fr)
+        e11 = _e_at(x, psi + h, t + h, j, q, fr)
+        e22 = _e_at(x, psi - h, t - h, j, q, fr)
         gp = (epp - epm) / (2.0 * h)
         gt = (etp - etm) / (2.0 * h)
         hpp = (epp - 2.0 * e0 + epm) / (h * h)
@@ -245,11 +269,11 @@ def local_min(x, psi, t, geo, k, c3, rest, q, fr):
                 # as it is (a line search cannot see it)
                 psi += dp
                 t += dt
-                e0 = _e_at(x, psi, t, geo, k, c3, rest, q, fr)
+                e0 = _e_at(x, psi, t, j, q, fr)
                 moved = True
                 break
             for _ in range(40):
-                en = _e_at(x, psi + dp, t + dt, geo, k, c3, rest, q, fr)
+                en = _e_at(x, psi + dp, t + dt, j, q, fr)
                 if en < e0:
                     break
                 dp *= 0.5
@@ -266,18 +290,18 @@ def local_min(x, psi, t, geo, k, c3, rest, q, fr):
 
 
 @njit(**BUILD)
-def minima(x, geo, k, c3, rest, out, q, fr):
+def minima(x, j, out, q, fr):
     """The energy's minima over the elbow angle (the twist minimised at each) at the tip x:
     out (4, 3) rows (psi, t, E), returns how many (at most 4)."""
     ev = np.empty(NPSI)
     tv = np.empty(NPSI)
-    t = rest[4]
+    t = j.rest[4]
     for i in range(NPSI):
         psi = 2.0 * np.pi * i / NPSI
         # the twist has minima of its own (the bend turned over toward the thin side, or not):
         # from the last elbow angle's and from rest, the lower
-        t, e = _min_twist(x, psi, t, geo, k, c3, rest, q, fr)
-        t2, e2 = _min_twist(x, psi, rest[4], geo, k, c3, rest, q, fr)
+        t, e = _min_twist(x, psi, t, j, q, fr)
+        t2, e2 = _min_twist(x, psi, j.rest[4], j, q, fr)
         if e2 < e:
             t, e = t2, e2
         ev[i] = e
@@ -286,13 +310,13 @@ def minima(x, geo, k, c3, rest, out, q, fr):
     for i in range(NPSI):
         em, ep = ev[(i - 1) % NPSI], ev[(i + 1) % NPSI]
         if ev[i] < em and ev[i] <= ep and n < 4:
-            psi, tt, e, ok = local_min(x, 2.0 * np.pi * i / NPSI, tv[i], geo, k, c3, rest, q, fr)
+            psi, tt, e, ok = local_min(x, 2.0 * np.pi * i / NPSI, tv[i], j, q, fr)
             if not ok:
                 continue
             psi = psi % (2.0 * np.pi)
             dup = False
-            for j in range(n):
-                d = abs(psi - out[j, 0])
+            for r in range(n):
+                d = abs(psi - out[r, 0])
                 if min(d, 2.0 * np.pi - d) < 1e-4:
                     dup = True
             if not dup:
@@ -302,31 +326,31 @@ def minima(x, geo, k, c3, rest, out, q, fr):
 
 
 @njit(**BUILD)
-def _e_near(x, psi, t, geo, k, c3, rest, q, fr, q0):
+def _e_near(x, psi, t, j, q, fr, q0):
     """The energy at (x, psi, t) with every angle taken within pi of q0's (atan2 wraps at pi:
     a link folded back past it would jump by 2 pi between two neighbouring tips)."""
-    if not ik(x, psi, t, geo, q, fr):
+    if not ik(x, psi, t, j.geo, q, fr):
         return np.inf
     for i in range(5):
         q[i] = q0[i] + ((q[i] - q0[i] + np.pi) % (2.0 * np.pi) - np.pi)
-    return energy(q, k, c3, rest)
+    return energy(q, j)
 
 
 @njit(**BUILD)
-def envelope_grad(x, psi, t, geo, k, c3, rest, g, q, fr, h):
+def envelope_grad(x, psi, t, j, g, q, fr, h):
     """g (3,) <- grad U at x [N]: the energy's gradient in x at fixed (psi, t), central
     differences of step h [mm] (one-sided where x + h is out of reach)."""
     xp = np.empty(3)
     q0 = np.empty(5)
-    ik(x, psi, t, geo, q0, fr)
-    e0 = energy(q0, k, c3, rest)
+    ik(x, psi, t, j.geo, q0, fr)
+    e0 = energy(q0, j)
     for a in range(3):
         for c in range(3):
             xp[c] = x[c]
         xp[a] = x[a] + h
-        ep = _e_near(xp, psi, t, geo, k, c3, rest, q, fr, q0)
+        ep = _e_near(xp, psi, t, j, q, fr, q0)
         xp[a] = x[a] - h
-        em = _e_near(xp, psi, t, geo, k, c3, rest, q, fr, q0)
+        em = _e_near(xp, psi, t, j, q, fr, q0)
         if np.isfinite(ep) and np.isfinite(em):
             g[a] = (ep - em) / (2.0 * h)
         else:
@@ -334,31 +358,32 @@ def envelope_grad(x, psi, t, geo, k, c3, rest, g, q, fr, h):
 
 
 @njit(**BUILD)
-def _neighbour(xp, psi, t, geo, k, c3, rest, he, g, qo, q, fr):
+def _neighbour(xp, psi, t, j, he, g, qo, q, fr):
     """The branch's minimum at xp, from (psi, t) at a neighbouring tip: its load g (3,) and
     joint angles qo (5,); False if there is none."""
-    p, tt, e, ok = local_min(xp, psi, t, geo, k, c3, rest, q, fr)
+    p, tt, e, ok = local_min(xp, psi, t, j, q, fr)
     if not (ok and np.isfinite(e)):
         return False
-    envelope_grad(xp, p, tt, geo, k, c3, rest, g, q, fr, he)
-    ik(xp, p, tt, geo, qo, fr)
+    envelope_grad(xp, p, tt, j, g, q, fr, he)
+    ik(xp, p, tt, j.geo, qo, fr)
     return True
 
 
 @njit(**BUILD)
-def node_values(x, psi, t, e, geo, k, c3, rest, h, out, q, fr):
-    """out (NV,) <- one branch's values at x from its minimum (psi, t, E): U, grad U, the
-    Hessian of U and dq/dx (differences of step h [mm] between the branch's minima at the
-    neighbouring tips; one-sided where one of them has none), D and q."""
-    out[V_OK] = 1.0
-    out[V_U] = e
+def node_values(x, psi, t, e, j, h, out, q, fr):
+    """out (an ENTRY record) <- one branch's values at x from its minimum (psi, t, E): U,
+    grad U, the Hessian of U and dq/dx (differences of step h [mm] between the branch's
+    minima at the neighbouring tips; one-sided where one of them has none), D and q."""
+    geo = j.geo
+    out.ok = 1.0
+    out.U = e
     # the load's differences: a thousandth of h or of the elbow's distance from the chord (the
     # load turns faster the straighter the chain)
     rho = np.sqrt((x[0] - geo[0]) ** 2 + x[1] ** 2 + x[2] ** 2)
     a = (geo[1] ** 2 - geo[2] ** 2 + rho * rho) / (2.0 * rho)
     he = 1e-3 * min(h, np.sqrt(max(geo[1] ** 2 - a * a, 0.0)))
     g0 = np.empty(3)
-    envelope_grad(x, psi, t, geo, k, c3, rest, g0, q, fr, he)
+    envelope_grad(x, psi, t, j, g0, q, fr, he)
     q0 = np.empty(5)
     ik(x, psi, t, geo, q0, fr)
     Hm = np.zeros((3, 3))
@@ -372,7 +397,7 @@ def node_values(x, psi, t, e, geo, k, c3, rest, h, out, q, fr):
             for c in range(3):
                 xp[c] = x[c]
             xp[a] = x[a] + (h if side == 0 else -h)
-            ok[side] = _neighbour(xp, psi, t, geo, k, c3, rest, he, gs[side], qs[side], q, fr)
+            ok[side] = _neighbour(xp, psi, t, j, he, gs[side], qs[side], q, fr)
         if not (ok[0] or ok[1]):
             continue
         # central where both exist, else one-sided against the node itself
@@ -382,79 +407,76 @@ def node_values(x, psi, t, e, geo, k, c3, rest, h, out, q, fr):
         for i in range(5):
             dq[i, a] = ((qs[0, i] if ok[0] else q0[i]) - (qs[1, i] if ok[1] else q0[i])) / span
     for a in range(3):
-        out[V_G + a] = g0[a]
+        out.g[a] = g0[a]
     for i in range(5):
-        out[V_Q + i] = q0[i]
+        out.q[i] = q0[i]
         q[i] = q0[i]
     kd = np.empty(5)
     for i in range(4):
-        kd[i] = k[i] * _w(q0[i] - rest[i], c3[i])[1]
-    kd[4] = k[4]
+        kd[i] = j.k[i] * _w(q0[i] - j.rest[i], j.c3[i])[1]
+    kd[4] = j.k[4]
     for m in range(6):
         a, c = IH[m]
-        out[V_H + m] = 0.5 * (Hm[a, c] + Hm[c, a])
+        out.H[m] = 0.5 * (Hm[a, c] + Hm[c, a])
         d = 0.0
         for i in range(5):
             d += kd[i] * dq[i, a] * dq[i, c]
-        out[V_D + m] = d
+        out.D[m] = d
 
 
 @njit(**BUILD, inline="always")
-def _ray_x(grid, rho, j, m, x):
-    nt, npp = int(grid[G_NT]), int(grid[G_NP])
-    th = grid[G_TMAX] * j / (nt - 1)
-    ph = np.pi * (m / (npp - 1) - 0.5)
-    x[0] = grid[G_S0] + rho * np.cos(th)
+def _ray_x(grid, rho, jj, m, x):
+    """x (3,) <- the tip [mm] at chord rho on the ray (jj, m)."""
+    th = grid.tmax * jj / (grid.nt - 1)
+    ph = np.pi * (m / (grid.np - 1) - 0.5)
+    x[0] = grid.geo[0] + rho * np.cos(th)
     x[1] = rho * np.sin(th) * np.cos(ph)
     x[2] = rho * np.sin(th) * np.sin(ph)
 
 
 @njit(**BUILD)
-def node_rho(grid, i, j, m):
-    """The chord [mm] of layer i on the ray (j, m) (module docstring)."""
-    nr, npp, nu, al = int(grid[G_NR]), int(grid[G_NP]), int(grid[G_NU]), grid[G_ALPHA]
-    rn = grid[NG + j * npp + m]
+def node_rho(tb, i, jj, m):
+    """The chord [mm] of layer i on the ray (jj, m) of table tb (module docstring)."""
+    grid = tb.grid
+    nr, nu, al = grid.nr, grid.nu, grid.alpha
+    rn = tb.rnat[jj, m]
     if i < nu:
         s = (nu - i) / nu
-        return rn + (grid[G_RTOP] - rn) * (al * s + (1.0 - al) * s * s)
+        return rn + (grid.rcap - rn) * (al * s + (1.0 - al) * s * s)
     s = (i - nu) / (nr - 1 - nu)
-    return rn - (rn - grid[G_RMIN]) * (al * s + (1.0 - al) * s * s)
+    return rn - (rn - grid.rmin) * (al * s + (1.0 - al) * s * s)
 
 
 @njit(**BUILD)
-def node_x(grid, i, j, m, x):
-    """x (3,) <- the tip position [mm] (bristle frame) of node (i, j, m)."""
-    rho = node_rho(grid, i, j, m)
-    nt, npp = int(grid[G_NT]), int(grid[G_NP])
-    th = grid[G_TMAX] * j / (nt - 1)
-    ph = np.pi * (m / (npp - 1) - 0.5)
-    x[0] = grid[G_S0] + rho * np.cos(th)
-    x[1] = rho * np.sin(th) * np.cos(ph)
-    x[2] = rho * np.sin(th) * np.sin(ph)
+def node_x(tb, i, jj, m, x):
+    """x (3,) <- the tip position [mm] (bristle frame) of node (i, jj, m) of table tb."""
+    _ray_x(tb.grid, node_rho(tb, i, jj, m), jj, m, x)
 
 
-@njit(**BUILD, parallel=True)
-def build(grid, k, c3, rest, tab):
-    """tab (2, nr, nt, np, NV) <- both branches' values at every node (module docstring); the
-    rho layers in parallel (each node on its own: the same numbers on any number of threads)."""
-    nr, nt, npp = int(grid[G_NR]), int(grid[G_NT]), int(grid[G_NP])
-    for j in prange(nt):
-        for m in range(npp):
-            if j == 0 and m > 0:
+@njit(**BUILD)
+def build(tb, j):
+    """tb.rnat and tb.vals (2, nr, nt, np) ENTRY <- the unloaded path and both branches' values
+    at every node of the chain with joints j (module docstring).  One thread: numba's parallel
+    loops do not take the records (GRID, JOINT) this reads."""
+    grid = tb.grid
+    for jj in range(grid.nt):
+        for m in range(grid.np):
+            if jj == 0 and m > 0:
                 continue
-            grid[NG + j * npp + m] = _natural_rho(grid, k, c3, rest, j, m)
-    for m in range(1, npp):
-        grid[NG + m] = grid[NG]
-    for i in prange(nr):
-        _build_layer(grid, k, c3, rest, tab, i)
+            tb.rnat[jj, m] = _natural_rho(grid, j, jj, m)
+    for m in range(1, grid.np):
+        tb.rnat[0, m] = tb.rnat[0, 0]
+    for i in range(grid.nr):
+        _build_layer(tb, j, i)
 
 
 @njit(**BUILD)
-def _least_energy(grid, k, c3, rest, rho, j, m, x, q, fr, mins):
-    geo = np.empty(3)
-    geo[0], geo[1], geo[2] = grid[G_S0], grid[G_L1], grid[G_L2]
-    _ray_x(grid, rho, j, m, x)
-    n = minima(x, geo, k, c3, rest, mins, q, fr)
+def _least_energy(grid, j, rho, jj, m, scr):
+    """The chain's least energy [N mm] with its tip at chord rho on the ray (jj, m); scr: the
+    scratch (x, q, fr, mins) of ``_natural_rho``."""
+    x, q, fr, mins = scr
+    _ray_x(grid, rho, jj, m, x)
+    n = minima(x, j, mins, q, fr)
     e = np.inf
     for r in range(n):
         e = min(e, mins[r, 2])
@@ -462,29 +484,26 @@ def _least_energy(grid, k, c3, rest, rho, j, m, x, q, fr, mins):
 
 
 @njit(**BUILD)
-def _natural_rho(grid, k, c3, rest, j, m):
-    """The chord [mm] on the ray (j, m) where the chain's least energy is least: the unloaded
+def _natural_rho(grid, j, jj, m):
+    """The chord [mm] on the ray (jj, m) where the chain's least energy is least: the unloaded
     path (golden section between rho_min and rho_cap, to 1e-7 of the links' length)."""
-    x = np.empty(3)
-    q = np.empty(5)
-    fr = np.empty((3, 3))
-    mins = np.empty((4, 3))
-    a, b = grid[G_RMIN], grid[G_RTOP]
-    tol = 1e-7 * (grid[G_L1] + grid[G_L2])
+    scr = (np.empty(3), np.empty(5), np.empty((3, 3)), np.empty((4, 3)))
+    a, b = grid.rmin, grid.rcap
+    tol = 1e-7 * (grid.geo[1] + grid.geo[2])
     gr = 0.5 * (np.sqrt(5.0) - 1.0)
     c = b - gr * (b - a)
     d = a + gr * (b - a)
-    fc = _least_energy(grid, k, c3, rest, c, j, m, x, q, fr, mins)
-    fd = _least_energy(grid, k, c3, rest, d, j, m, x, q, fr, mins)
+    fc = _least_energy(grid, j, c, jj, m, scr)
+    fd = _least_energy(grid, j, d, jj, m, scr)
     while b - a > tol:
         if fc < fd:
             b, d, fd = d, c, fc
             c = b - gr * (b - a)
-            fc = _least_energy(grid, k, c3, rest, c, j, m, x, q, fr, mins)
+            fc = _least_energy(grid, j, c, jj, m, scr)
         else:
             a, c, fc = c, d, fd
             d = a + gr * (b - a)
-            fd = _least_energy(grid, k, c3, rest, d, j, m, x, q, fr, mins)
+            fd = _least_energy(grid, j, d, jj, m, scr)
     return 0.5 * (a + b)
 
 
@@ -524,37 +543,49 @@ def _folded(q, rest):
     return out
 
 
+@njit(**BUILD, inline="always")
+def _copy_entry(src, dst):
+    dst.ok, dst.U = src.ok, src.U
+    for a in range(3):
+        dst.g[a] = src.g[a]
+    for a in range(6):
+        dst.H[a] = src.H[a]
+        dst.D[a] = src.D[a]
+    for a in range(5):
+        dst.q[a] = src.q[a]
+
+
 @njit(**BUILD)
-def _build_layer(grid, k, c3, rest, tab, i):
-    """Layer i of the table (``build``)."""
-    geo = np.empty(3)
-    geo[0], geo[1], geo[2] = grid[G_S0], grid[G_L1], grid[G_L2]
-    nt, npp = int(grid[G_NT]), int(grid[G_NP])
+def _build_layer(tb, j, i):
+    """Layer i of table tb (``build``)."""
+    grid, vals = tb.grid, tb.vals
+    geo = grid.geo
     h = 1e-3 * (geo[1] + geo[2])
     x = np.empty(3)
     q = np.empty(5)
     fr = np.empty((3, 3))
     mins = np.empty((4, 3))
-    vals = np.empty(NV)
-    for j in range(nt):
-        for m in range(npp):
-            if j == 0 and m > 0:  # the axis: one point for every azimuth
-                tab[:, i, j, m, :] = tab[:, i, 0, 0, :]
+    for jj in range(grid.nt):
+        for m in range(grid.np):
+            for s in range(2):
+                if jj == 0 and m > 0:  # the axis: one point for every azimuth
+                    _copy_entry(vals[s, i, 0, 0], vals[s, i, jj, m])
+                else:
+                    vals[s, i, jj, m].ok = 0.0
+            if jj == 0 and m > 0:
                 continue
-            tab[:, i, j, m, V_OK] = 0.0
-            node_x(grid, i, j, m, x)
+            node_x(tb, i, jj, m, x)
             if _straight(x, geo):
                 continue
-            n = minima(x, geo, k, c3, rest, mins, q, fr)
+            n = minima(x, j, mins, q, fr)
             for s in range(2):
                 r = _pick(mins, n, s)
                 if r < 0:
                     continue
                 ik(x, mins[r, 0], mins[r, 1], geo, q, fr)
-                if _folded(q, rest):
+                if _folded(q, j.rest):
                     continue
-                node_values(x, mins[r, 0], mins[r, 1], mins[r, 2], geo, k, c3, rest, h, vals, q, fr)
-                tab[s, i, j, m, :] = vals
+                node_values(x, mins[r, 0], mins[r, 1], mins[r, 2], j, h, vals[s, i, jj, m], q, fr)
 
 
 # --------------------------------------------------------------------------- the lookup (per step)
@@ -571,9 +602,9 @@ def _layer(U, al):
 
 
 @njit(**LOOK)
-def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
-    """The branch s of one table (grid (NG + nt np,), vals (2, nr, nt, np, NV)) at the tip xl
-    (bristle frame [mm]): g (3,) <- grad U [N] and Jg (3, 3) <- its derivative in xl [N/mm] (of
+def lookup(tb, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
+    """The branch s of one table (``Table``: grid, rnat, vals) at the tip xl (bristle frame
+    [mm]): g (3,) <- grad U [N] and Jg (3, 3) <- its derivative in xl [N/mm] (of
     the interpolant itself: Newton's tangent), D (3, 3) <- the damping matrix [N/mm per unit of
     beta/h], q (5,) <- the joint angles if ``want_q``; scr (6, 3) scratch.  Trilinear in the
     layer, theta and phi over the cell's corners where the branch exists, their weights
@@ -584,11 +615,12 @@ def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
     theta_max: the values of its edge, clamped), 2 where the chord is longer than rho_cap (the
     caller adds the axial penalty; the values are the top layer's), U the branch's energy
     [N mm]."""
-    rcap, rmin, tmax = grid[G_RTOP], grid[G_RMIN], grid[G_TMAX]
-    nr, nt, npp = int(grid[G_NR]), int(grid[G_NT]), int(grid[G_NP])
-    nu, al = int(grid[G_NU]), grid[G_ALPHA]
+    grid, rnat, vals = tb.grid, tb.rnat, tb.vals
+    rcap, rmin, tmax = grid.rcap, grid.rmin, grid.tmax
+    nr, nt, npp = grid.nr, grid.nt, grid.np
+    nu, al = grid.nu, grid.alpha
     nd = nr - 1 - nu
-    u0, u1, u2 = xl[0] - grid[G_S0], xl[1], xl[2]
+    u0, u1, u2 = xl[0] - grid.geo[0], xl[1], xl[2]
     # a tip at -y: the mirror image's values (module docstring), mirrored back at the end
     sy = 1.0
     if u1 < 0.0:
@@ -625,10 +657,10 @@ def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
             dth[k] = 0.0
             dph[k] = 0.0
     # the unloaded path's chord here (bilinear in theta, phi) and its slopes
-    rn00 = grid[NG + j0 * npp + m0]
-    rn01 = grid[NG + j0 * npp + m1]
-    rn10 = grid[NG + (j0 + 1) * npp + m0]
-    rn11 = grid[NG + (j0 + 1) * npp + m1]
+    rn00 = rnat[j0, m0]
+    rn01 = rnat[j0, m1]
+    rn10 = rnat[j0 + 1, m0]
+    rn11 = rnat[j0 + 1, m1]
     rn = (1 - b) * ((1 - c) * rn00 + c * rn01) + b * ((1 - c) * rn10 + c * rn11)
     dn_j = (1 - c) * (rn10 - rn00) + c * (rn11 - rn01)
     dn_m = (1 - b) * (rn01 - rn00) + b * (rn11 - rn10)
@@ -678,23 +710,23 @@ def lookup(grid, vals, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
                 wm = c if cm else 1.0 - c
                 dm = 1.0 if cm else -1.0
                 v = vals[s, i0 + ci, j0 + cj, m1 if cm else m0]
-                if v[V_OK] == 0.0:
+                if v.ok == 0.0:
                     continue
                 wc = wi * wj * wm
                 w += wc
-                U += wc * v[V_U]
+                U += wc * v.U
                 for k in range(3):
-                    gk = v[V_G + k]
+                    gk = v.g[k]
                     g[k] += wc * gk
                     gv[0, k] += di * wj * wm * gk
                     gv[1, k] += wi * dj * wm * gk
                     gv[2, k] += wi * wj * dm * gk
                 for n in range(6):
                     p, r = IH[n]
-                    D[p, r] += wc * v[V_D + n]
+                    D[p, r] += wc * v.D[n]
                 if want_q:
                     for k in range(5):
-                        q[k] += wc * v[V_Q + k]
+                        q[k] += wc * v.q[k]
     if w <= 0.0:
         return 0.0, out, 0.0
     # the renormalisation's derivative is left out: within the branch's cells (w = 1) it is 0

@@ -74,35 +74,35 @@ def test_inverse_kinematics_inverts_the_chain():
 
 @pytest.mark.parametrize("group", ["inner", "outer"])
 def test_every_entry_is_an_equilibrium_of_the_chain(group):
-    """At every 7th node of both branches: the stored joint angles put the tip on the node (to
-    their single precision), and
-    the joints' spring torques K (e + c3 e^3) are the stored tip load through the chain's
-    Jacobian, J^T grad U (the chain in equilibrium under that load), to 1e-3 of the torque
-    (and 1e-6 of the stiffest joint's, at the unloaded tip).  The load is a difference quotient
-    of the energy; 99.99 % of the entries are within 1e-4, the rest (a chain pulled nearly
+    """At every 7th node of both branches: the stored joint angles put the tip on the node (to their
+    single precision), and the joints' spring torques K (e + c3 e^3) are the stored tip load through
+    the chain's Jacobian, J^T grad U (the chain in equilibrium under that load), to 1e-3 of the
+    torque (and 1e-6 of the stiffest joint's, at the unloaded tip). The load is a difference
+    quotient of the energy; 99.99 % of the entries are within 1e-4, the rest (a chain pulled nearly
     straight, the first layers above its unloaded path) within 7.5e-4."""
     j = _joint(group)
-    grid, vals = tip_table.table(j)
+    tb = tip_table.table(j)
+    tbk = T.Table(tb.grid[0], tb.rnat, tb.vals)
     geo = np.array(j["geo"], float)
     k, c3, rest = (np.array(j[f], float) for f in ("k", "c3", "rest"))
     x = np.zeros(3)
-    nr, nt, npp = (int(v) for v in grid[T.G_NR : T.G_NP + 1])
+    g = tb.grid[0]
     checked = 0
-    for n, (i, jj, m) in enumerate(np.ndindex(nr, nt, npp)):
+    for n, (i, jj, m) in enumerate(np.ndindex(int(g["nr"]), int(g["nt"]), int(g["np"]))):
         if n % 7:
             continue
-        T.node_x(grid, i, jj, m, x)
+        T.node_x(tbk, i, jj, m, x)
         for s in range(2):
-            v = vals[s, i, jj, m]
-            if v[T.V_OK] == 0.0:
+            v = tb.vals[s, i, jj, m]
+            if v["ok"] == 0.0:
                 continue
-            q = v[T.V_Q : T.V_Q + 5]
+            q = v["q"].astype(float)
             xt, J = _kin(q, geo)
             # (the angles are stored in single precision: ~1.5e-7 rad at 2.5 rad)
             np.testing.assert_allclose(xt, x, atol=1e-6 * geo[1:].sum())
             e = q - rest
             tau = k * np.array([K._spring(e[i], c3[i] if i < 4 else 0.0)[0] for i in range(5)])
-            load = J.T @ v[T.V_G : T.V_G + 3]
+            load = J.T @ v["g"].astype(float)
             assert np.abs(tau - load).max() <= 1e-3 * np.abs(tau).max() + 1e-6 * k.max()
             checked += 1
     assert checked > 1000
