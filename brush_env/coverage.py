@@ -20,6 +20,7 @@ The engine does not use this module; it reads only the engine's step results.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -121,6 +122,10 @@ class CoverageMap:
         # coarse blocks: edges in cell indices (blocks differ by at most one cell in size)
         self._edges = np.linspace(0, self.n, self.coarse_size + 1).round().astype(int)
         self._block_area = np.diff(self._edges)[:, None] * np.diff(self._edges)[None, :]
+        # each cell row's (= column's) block, and the cleaned cells per block, counted as the
+        # stamps set them (``coarse`` without summing the grid every step)
+        self._block = np.searchsorted(self._edges, np.arange(self.n), side="right") - 1
+        self._block_count = np.zeros((self.coarse_size, self.coarse_size), np.int64)
 
     @property
     def total(self) -> int:
@@ -133,67 +138,133 @@ class CoverageMap:
     def reset(self) -> None:
         self.cleaned[:] = False
         self.count = 0
+        self._block_count[:] = 0
 
     def stamp(self, start: np.ndarray, end: np.ndarray) -> int:
         """Clean along segments ``start[k] -> end[k]`` ((m, 2) or (m, 3) contact points in mm,
         patch-centred; only x, y are used); returns the number of newly cleaned cells."""
         if len(end) == 0:
             return 0
-        new = _stamp_segments(
-            self.cleaned,
-            np.ascontiguousarray(np.asarray(start)[:, :2], dtype=np.float64),
-            np.ascontiguousarray(np.asarray(end)[:, :2], dtype=np.float64),
-            self.patch_size,
-            self.cell,
-            self.clean_radius,
+        start = np.ascontiguousarray(np.asarray(start)[:, :2], dtype=np.float64)
+        end = np.ascontiguousarray(np.asarray(end)[:, :2], dtype=np.float64)
+        new = _stamp_segments(self._grid(), start, end)
+        self.count += new
+        return new
+
+    def sweep(self, sweep: EffectiveSweep, f: np.ndarray, cp: np.ndarray) -> int:
+        """``sweep.segments_many(f, cp, f > 0)`` stamped, in one compiled call: tip normal forces
+        f (n, nb) [N] and contact points cp (n, nb, 3) [mm] of n engine steps (a tip touches
+        where f > 0); ``sweep``'s state moves on as ``segments_many`` moves it.  Returns the
+        number of newly cleaned cells."""
+        new = _sweep_stamp(
+            self._grid(),
+            f,
+            cp,
+            sweep.lo,
+            sweep.hi,
+            sweep.prev_eff,
+            sweep.prev_cp,
         )
         self.count += new
         return new
 
+    def _grid(self) -> Grid:
+        return Grid(
+            self.cleaned,
+            self.patch_size,
+            self.cell,
+            self.clean_radius,
+            self._block,
+            self._block_count,
+        )
+
     def coarse(self) -> np.ndarray:
         """(coarse_size, coarse_size) fraction cleaned per block (rows along +y)."""
-        c = np.add.reduceat(
-            np.add.reduceat(self.cleaned, self._edges[:-1], axis=0), self._edges[:-1], axis=1
-        )
-        return c / self._block_area
+        return self._block_count / self._block_area
+
+
+#: a CoverageMap's grid as the kernels see it: cleaned (n, n) bool, the patch side and cell side
+#: [mm], the cleaning radius [mm], block (n,) each cell row's (= column's) coarse block and
+#: block_count (m, m) the cleaned cells per block
+Grid = namedtuple("Grid", ["cleaned", "patch_size", "cell", "radius", "block", "block_count"])
 
 
 @njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
-def _stamp_segments(cleaned, start, end, patch_size, cell, radius):
-    """Mark cells within ``radius`` of samples (every half cell) along each segment; returns the
-    number of cells newly set.  ``cleaned`` (n, n) bool is modified in place."""
+def _stamp_segment(g, start, end):
+    """Mark the cells within ``g.radius`` of samples (every half cell) along the segment start ->
+    end (x, y [mm], patch-centred; the cell holding a sample where the radius is 0), counting
+    them per coarse block; returns the number of cells newly set."""
+    cleaned = g.cleaned
     n = cleaned.shape[0]
-    half = 0.5 * patch_size
-    rho = radius / cell
+    cell = g.cell
+    half = 0.5 * g.patch_size
+    rho = g.radius / cell
     rho2 = rho * rho
     k = int(np.floor(rho + 0.5))  # offsets that can hold a centre within rho of the sample
     new = 0
-    for s in range(start.shape[0]):
-        dx = end[s, 0] - start[s, 0]
-        dy = end[s, 1] - start[s, 1]
-        m = int(np.ceil(max(abs(dx), abs(dy)) / (0.5 * cell))) + 1
-        for q in range(m):
-            f = q / (m - 1) if m > 1 else 1.0
-            ux = (start[s, 0] + f * dx + half) / cell
-            uy = (start[s, 1] + f * dy + half) / cell
-            bi = int(np.floor(uy))
-            bj = int(np.floor(ux))
-            if radius == 0.0:
-                if 0 <= bi < n and 0 <= bj < n and not cleaned[bi, bj]:
-                    cleaned[bi, bj] = True
-                    new += 1
+    dx = end[0] - start[0]
+    dy = end[1] - start[1]
+    m = int(np.ceil(max(abs(dx), abs(dy)) / (0.5 * cell))) + 1
+    for q in range(m):
+        f = q / (m - 1) if m > 1 else 1.0
+        ux = (start[0] + f * dx + half) / cell
+        uy = (start[1] + f * dy + half) / cell
+        bi = int(np.floor(uy))
+        bj = int(np.floor(ux))
+        if g.radius == 0.0:
+            if 0 <= bi < n and 0 <= bj < n and not cleaned[bi, bj]:
+                cleaned[bi, bj] = True
+                g.block_count[g.block[bi], g.block[bj]] += 1
+                new += 1
+            continue
+        for i in range(bi - k, bi + k + 1):
+            if i < 0 or i >= n:
                 continue
-            for i in range(bi - k, bi + k + 1):
-                if i < 0 or i >= n:
+            for j in range(bj - k, bj + k + 1):
+                if j < 0 or j >= n or cleaned[i, j]:
                     continue
-                for j in range(bj - k, bj + k + 1):
-                    if j < 0 or j >= n or cleaned[i, j]:
-                        continue
-                    ex = j + 0.5 - ux
-                    ey = i + 0.5 - uy
-                    if ex * ex + ey * ey <= rho2:
-                        cleaned[i, j] = True
-                        new += 1
+                ex = j + 0.5 - ux
+                ey = i + 0.5 - uy
+                if ex * ex + ey * ey <= rho2:
+                    cleaned[i, j] = True
+                    g.block_count[g.block[i], g.block[j]] += 1
+                    new += 1
+    return new
+
+
+@njit(cache=True, fastmath=False)
+def _stamp_segments(g, start, end):
+    """``_stamp_segment`` along each segment start[k] -> end[k] ((m, 2) [mm]); returns the number
+    of cells newly set."""
+    new = 0
+    for k in range(start.shape[0]):
+        new += _stamp_segment(g, start[k], end[k])
+    return new
+
+
+@njit(cache=True, fastmath=False)
+def _sweep_stamp(g, f, cp, lo, hi, prev_eff, prev_cp):
+    """``EffectiveSweep.segments_many`` and ``_stamp_segment`` over n engine steps in one pass
+    (``CoverageMap.sweep``): a tip effective at step k (f in [lo, hi], f > 0) sweeps from its
+    contact point at step k - 1 if it was effective then, else from its own point; prev_eff (nb,)
+    and prev_cp (nb, 3) move on in place.  Returns the number of cells newly set."""
+    new = 0
+    p = np.empty(2)
+    e = np.empty(2)
+    for s in range(f.shape[0]):
+        for b in range(f.shape[1]):
+            fb = f[s, b]
+            eff = fb > 0.0 and lo <= fb <= hi
+            if eff:
+                e[0], e[1] = cp[s, b, 0], cp[s, b, 1]
+                if prev_eff[b]:
+                    p[0], p[1] = prev_cp[b, 0], prev_cp[b, 1]
+                else:
+                    p[0], p[1] = e[0], e[1]
+                new += _stamp_segment(g, p, e)
+                for a in range(3):
+                    prev_cp[b, a] = cp[s, b, a]
+            prev_eff[b] = eff
     return new
 
 
@@ -243,6 +314,12 @@ class SurfaceCoverage:
     def reset(self) -> None:
         self.cleaned[:] = False
         self.count = 0.0
+
+    def sweep(self, sweep: EffectiveSweep, f: np.ndarray, cp: np.ndarray) -> float:
+        """``CoverageMap.sweep``'s contract: the effective tips' segments of n engine steps
+        (``sweep.segments_many``) stamped; returns the newly cleaned area [mm^2]."""
+        starts, ends = sweep.segments_many(f, cp, f > 0.0)
+        return self.stamp(starts, ends) if len(starts) else 0.0
 
     def stamp(self, start: np.ndarray, end: np.ndarray) -> float:
         """Clean along segments start[k] -> end[k] ((m, 3) contact points [mm]); returns the newly

@@ -1,4 +1,6 @@
-"""``brush-env bench env``: BrushEnv steps per second under the reference policy.
+"""``brush-env bench env``: BrushEnv steps per second under the reference policy (or random
+actions: ``--policy random``, episode k seeded with k, ``--episode-steps`` long; or zero actions,
+the brush hovering: ``--policy zero``).
 
 One env in this process, and a vector of envs (``gymnasium.vector.AsyncVectorEnv``, one process
 per env).  The policy is the press-then-circle reference (``brush_env.envs.reference``), so the
@@ -15,7 +17,8 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 
     brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
                         [--engine-dt 0.004] [--max-substep 0.001] [--frame-skip 10]
-                        [--fidelity LEVEL] [--json]
+                        [--fidelity LEVEL] [--policy reference|random|zero] [--episode-steps 100]
+                        [--json]
 
 Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
 first: ``add_arguments`` skips options the parser already has); ``run(args)`` prints and returns
@@ -43,7 +46,10 @@ DEFAULTS = {
     "frame_skip": 10,
     "config": "flat_plate",
     "fidelity": None,
+    "policy": "reference",
+    "episode_steps": 100,
 }
+POLICIES = ("reference", "random", "zero")
 
 
 def _env_kwargs(a: dict) -> dict:
@@ -85,6 +91,33 @@ class _Reference:
         return np.stack([c.act(int(k[i]), p[i], R[i]) for i, c in enumerate(self.ctrl)])
 
 
+class _Random:
+    """Uniform random actions (``action_space.sample()``), the space seeded with each episode's
+    seed at its reset (``_single``); a batch of them for a vector env."""
+
+    def __init__(self, env):
+        self.space = env.action_space
+        self.lead = () if hasattr(env, "num_envs") else (1,)  # one env's action as a batch of 1
+
+    def seed(self, seed: int) -> None:
+        self.space.seed(seed)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.space.sample().reshape(self.lead + self.space.shape)
+
+
+class _Zero(_Random):
+    """Zero actions: the brush stays where the reset put it, 1-2 mm above the plate (no contact:
+    the env's cost around a brush that touches nothing)."""
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return np.zeros(self.lead + self.space.shape, self.space.dtype)
+
+
+def _policy(a: dict, env):
+    return {"reference": _Reference, "random": _Random, "zero": _Zero}[a["policy"]](env)
+
+
 def _single(a: dict) -> dict:
     import gymnasium as gym
 
@@ -92,19 +125,27 @@ def _single(a: dict) -> dict:
 
     t0 = time.perf_counter()
     env = gym.make(ENV_ID, **_env_kwargs(a))
-    policy = _Reference(env)
+    policy = _policy(a, env)
     obs, _ = env.reset(seed=0)
     obs, *_ = env.step(policy(obs)[0])
     cold = time.perf_counter() - t0
+    # random actions: episode k (seed k, the action space seeded with k) ends after
+    # episode_steps or at a termination; the reference: at its time limit or a termination
+    random = isinstance(policy, _Random)
+    terminations, seed, k = 0, 0, 0
     obs, _ = env.reset(seed=0)
-    terminations, seed = 0, 0
+    if random:
+        policy.seed(0)
     t0 = time.perf_counter()
     for _ in range(a["steps"]):
         obs, _, term, trunc, _ = env.step(policy(obs)[0])
-        if term or trunc:
+        k += 1
+        if term or trunc or (random and k >= a["episode_steps"]):
             terminations += int(term)
-            seed += 1
+            seed, k = seed + 1, 0
             obs, _ = env.reset(seed=seed)
+            if random:
+                policy.seed(seed)
     wall = time.perf_counter() - t0
     row = _row("single", 1, a["steps"], wall, cold, terminations, env.unwrapped, a)
     env.close()
@@ -120,7 +161,7 @@ def _vector(a: dict, n: int) -> dict:
     t0 = time.perf_counter()
     venv = gym.vector.AsyncVectorEnv([lambda: gym.make(ENV_ID, **kw) for _ in range(n)])
     probe = gym.make(ENV_ID, **kw)
-    policy = _Reference(probe)
+    policy = _policy(a, probe if a["policy"] == "reference" else venv)
     obs, _ = venv.reset(seed=list(range(n)))
     obs, *_ = venv.step(policy(obs))
     cold = time.perf_counter() - t0
@@ -158,6 +199,7 @@ def _row(mode, n, steps, wall, cold, terminations, u, a) -> dict:
         "max_substep": u.sim.settings.max_substep,
         "frame_skip": u.config.frame_skip,
         "control_hz": 1.0 / u.dt,
+        "policy": a["policy"],
     }
 
 
@@ -172,6 +214,12 @@ def bench_env(args: dict) -> list[dict]:
         )
     if int(a["steps"]) < 1:
         raise ValueError(f"steps = {a['steps']!r} is out of range: must be >= 1")
+    if a["policy"] not in POLICIES:
+        raise ValueError(f"policy = {a['policy']!r} is not allowed: must be one of {POLICIES}")
+    if int(a["episode_steps"]) < 1:
+        raise ValueError(
+            f"episode_steps = {a['episode_steps']!r} is out of range: must be >= 1 (env steps)"
+        )
     rows = []
     for n in a["n_envs"]:
         if int(n) < 1:
@@ -222,6 +270,24 @@ _OPTIONS = (
         ),
     ),
     ("--config", dict(default=DEFAULTS["config"], help="env config name or TOML path")),
+    (
+        "--policy",
+        dict(
+            default=DEFAULTS["policy"],
+            choices=POLICIES,
+            help="the press-then-circle reference, uniform random actions, or zero actions (the "
+            "brush hovering where it starts)",
+        ),
+    ),
+    (
+        "--episode-steps",
+        dict(
+            type=int,
+            default=DEFAULTS["episode_steps"],
+            help="random and zero policies, single env: env steps per episode (seed k for "
+            "episode k)",
+        ),
+    ),
     ("--json", dict(action="store_true", help="one JSON object per row on stdout")),
 )
 
@@ -258,8 +324,11 @@ def run(args: argparse.Namespace) -> int:
         f"brush {r['brush']} ({r['n_bristles']} bristles x {r['bodies_per_bristle']} bodies), "
         f"engine dt {r['engine_dt']} s (solver steps <= {r['max_substep']} s) "
         f"x frame_skip {r['frame_skip']} = "
-        f"{r['control_hz']:.4g} Hz control"
+        f"{r['control_hz']:.4g} Hz control; model {r['model']}, policy {r['policy']}"
     )
+    from .harness import machine_info
+
+    print("machine: " + ", ".join(f"{k} {v}" for k, v in machine_info().items()))
     return 0
 
 

@@ -14,6 +14,8 @@ compliance (in the calibration instead), torsion, and the shafts' contact with t
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -554,6 +556,8 @@ class TableBristles(PRBBristles):
     (``tip_table.py``): the same chain, springs and tip contact, its equilibria looked up by the
     tip's position (a Newton on three coordinates instead of five joint angles)."""
 
+    _range_warned = False  # warned of a tip beyond its table since reset (``_check_range``)
+
     def _tables(self) -> K.Tab:
         return tip_table.tables_for(self.model.prm)
 
@@ -568,6 +572,56 @@ class TableBristles(PRBBristles):
                 st.q[b], self.model.prm[b]["geo"], wk.x, wk.J, wk.cs, wk.orders, wk.v, wk.tmp
             )
             st.tips[b, 0:3] = self._rootpos[b] + self._Bw[b] @ wk.x
+        self._tab.outside[:] = 0
+        self._tab.fallback[:] = 0
+        self._range_warned = False
+
+    def advance(self, tcp_p, tcp_R, t_new, rollback=None) -> tuple[int, int]:
+        r = super().advance(tcp_p, tcp_R, t_new, rollback)
+        self._check_range()
+        return r
+
+    def rollout(self, v, w, n: int, force_stop: float, penetration_stop: float):
+        r = super().rollout(v, w, n, force_stop, penetration_stop)
+        self._check_range()
+        return r
+
+    def _check_range(self) -> None:
+        """Warn once per reset when a step ended with a tip beyond its table (chord below the
+        table's shortest or angle from the root's axis past its largest: the edge's values were
+        used, not an extrapolation), naming the bristle and where its tip is."""
+        if self._range_warned or not self._tab.outside.any():
+            return
+        self._range_warned = True
+        b = int(np.argmax(self._tab.outside))
+        g = self._tab.grid[self._tab.idx[b]]
+        u = self._Bw[b].T @ (self.state.tips[b, 0:3] - self._rootpos[b])
+        u[0] -= g["geo"][0]  # about joint 1, where the table's spherical grid is centred
+        rho = float(np.linalg.norm(u))
+        theta = math.degrees(math.acos(max(-1.0, min(1.0, u[0] / max(rho, 1e-300)))))
+        warnings.warn(
+            f"t = {self.state.time:.4g} s: the tip of bristle {b} left its tip table "
+            f"(tip_table.py): chord {rho:.3g} mm (table: >= {g['rmin']:.3g} mm) at "
+            f"{theta:.3g} deg from the root's axis (table: <= {math.degrees(g['tmax']):.0f} deg); "
+            "the table's edge values were used there (a bristle folded this far is outside the "
+            "calibrated range of the reduced model); warned once per reset",
+            TableRangeWarning,
+            stacklevel=3,
+        )
+
+    def solver_info(self) -> dict:
+        """The chain's (``PRBBristles.solver_info``) and, since reset, the bristle-steps the table
+        could not take (``table_fallbacks``: the chain's Newton took them) and those that ended
+        beyond the table (``table_outside``)."""
+        return {
+            **super().solver_info(),
+            "table_fallbacks": int(self._tab.fallback.sum()),
+            "table_outside": int(self._tab.outside.sum()),
+        }
+
+
+class TableRangeWarning(UserWarning):
+    """A tip left the range its table covers (``TableBristles._check_range``)."""
 
 
 register_bristle_model("prb", PRBBristles)

@@ -47,7 +47,7 @@ from .contact import (
     step10_dx,
     tip_load,
 )
-from .records import Substep
+from .records import ContactScene, Substep
 from .surfaces import surface_gap
 from .tip_table_kernels import Table
 from .tip_table_kernels import lookup as table_lookup
@@ -87,8 +87,26 @@ Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out", "tab"])
 #: the tabulated tip law (``tip_table.py``): the tables' grid (ntab,) ``tip_table_kernels.GRID``,
 #: rnat (ntab, nt, np) [mm] and vals (ntab, 2, nr, nt, np) ``ENTRY32``, idx (nb,) each bristle's
 #: table (-1: the chain's own Newton), outside (nb,) how many of its steps ended beyond its
-#: table; scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,)
-Tab = namedtuple("Tab", ["grid", "rnat", "vals", "idx", "outside", "scr", "m", "v", "qv"])
+#: table, fallback (nb,) how many the table could not take (the chain's Newton took them);
+#: scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,), and the near partner tips of the bristle
+#: being solved as a pair list (``_near_partners``): near_ptr (nb + 1,), near_idx (most partners,)
+Tab = namedtuple(
+    "Tab",
+    [
+        "grid",
+        "rnat",
+        "vals",
+        "idx",
+        "outside",
+        "fallback",
+        "scr",
+        "m",
+        "v",
+        "qv",
+        "near_ptr",
+        "near_idx",
+    ],
+)
 #: one bristle's root [mm] and frame in the world, and the weight lumped at its tip [N]
 Pose = namedtuple("Pose", ["rw", "B", "gtip"])
 #: the brush: roots [mm] and frames in the TCP frame, joints (JOINT)
@@ -1078,6 +1096,46 @@ TAB_AXIAL = 1e3
 TAB_JUMP = 0.02
 
 
+#: [mm] the tabulated law's step lists the partner tips within R + R_j + 2 TAB_NEAR of a point
+#: x_ref (``_near_partners``) and uses that list while its tip stays within TAB_NEAR of x_ref and
+#: its Newton step is at most TAB_NEAR long: no other partner can then touch the tip or limit the
+#: step (each is farther than R + R_j + TAB_NEAR from every point of it), so the list changes
+#: no result.  The pair list holds 23 partners per tip for the default brush, ~3 within reach
+TAB_NEAR = 0.5
+
+
+@njit(**PRB, inline="always")
+def _near_partners(b, x, con, tab):
+    """tab.near_idx[0:n] <- the partner tips of bristle b within R_b + R_j + 2 TAB_NEAR [mm] of
+    x, tab.near_ptr[b:b+2] <- (0, n); returns the contact scene whose pair list is that
+    (``TAB_NEAR``)."""
+    ptr, tips = con.pair_ptr, con.tips
+    n = 0
+    if ptr.shape[0] > b + 1:
+        R = con.tip_args[b].radius
+        for q in range(ptr[b], ptr[b + 1]):
+            j = con.pair_idx[q]
+            d0, d1, d2 = x[0] - tips[j, 0], x[1] - tips[j, 1], x[2] - tips[j, 2]
+            reach = R + tips[j, 6] + 2.0 * TAB_NEAR
+            if d0 * d0 + d1 * d1 + d2 * d2 < reach * reach:
+                tab.near_idx[n] = j
+                n += 1
+    tab.near_ptr[b] = 0
+    tab.near_ptr[b + 1] = n
+    return ContactScene(
+        con.surf,
+        con.cp,
+        con.tips,
+        tab.near_ptr,
+        tab.near_idx,
+        con.mesh,
+        con.tip_args,
+        con.tip_state,
+        con.sdf,
+        con.shaft,
+    )
+
+
 @njit(**PRB, inline="always")
 def _table_branch(tb, xl, qprev, s0, tab, g, Jg, D):
     """(s, w, out): the branch of table tb (``tip_table_kernels``) to follow from the joint angles
@@ -1152,10 +1210,12 @@ def _table_residual(b, pose, ctx, xln, damp):
 
 
 @njit(**PRB, inline="always")
-def _table_newton(b, B, ctx, damp, L, held):
+def _table_newton(b, B, ctx, damp, L, held, full):
     """(alpha, |dx|, held, ok): Newton's tip step dx (tab.v[3]) from
     (Kt - B (Jg + damp D) B^T) dx = -r and the fraction alpha of it to take: at most TAB_MAX_DX
-    of the links' length, and the chain's contact limits per iterate (``_tip_limits``)."""
+    of the links' length, and the chain's contact limits per iterate (``_tip_limits``) against
+    ctx.con's partners (the near ones: ``_near_partners``), or all of them (``full``, the
+    contact scene) for a step longer than TAB_NEAR."""
     tab, con, wk = ctx.tab, ctx.con, ctx.wk
     Jg, D, A, r, dx = tab.m[0], tab.m[1], tab.m[2], tab.v[2], tab.v[3]
     for a in range(3):
@@ -1178,6 +1238,8 @@ def _table_newton(b, B, ctx, damp, L, held):
     for a in range(3):
         wk.dp[a] = dx[a]
     R = con.tip_args[b].radius
+    if dn > TAB_NEAR:  # the near partners' list does not cover so long a step: all of them
+        con = full
     a_pen = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw)
     a_pen = _partner_limit(b, wk.xw, wk.dp, R, con, a_pen)
     alpha, held = _tip_limits(b, alpha, a_pen, con, wk, held)
@@ -1218,7 +1280,16 @@ def table_solve(b, q0, pose, ctx, xs, xln):
     held = False
     small = False
     s = -1
+    # the partner tips near the tip (``_near_partners``), listed about xref = xs, again about the
+    # tip whenever it has moved more than TAB_NEAR from where they were listed
+    full, xref = ctx.con, xs
+    ctxn = Ctx(ctx.prm, sub, _near_partners(b, xref, full, tab), wk, ctx.out, tab)
     for it in range(1, sub.maxit + 1):
+        d0, d1, d2 = xw[0] - xref[0], xw[1] - xref[1], xw[2] - xref[2]
+        if d0 * d0 + d1 * d1 + d2 * d2 > TAB_NEAR * TAB_NEAR:
+            for a in range(3):
+                xref[a] = xw[a]
+            _near_partners(b, xref, full, tab)
         for a in range(3):
             xl[a] = (
                 B[0, a] * (xw[0] - rw[0]) + B[1, a] * (xw[1] - rw[1]) + B[2, a] * (xw[2] - rw[2])
@@ -1228,7 +1299,7 @@ def table_solve(b, q0, pose, ctx, xs, xln):
             return -1
         if out == 2:
             _axial_penalty(xl, geo[0], tb.grid.rcap, kax, tab.v[0], tab.m[0], wk.v)
-        rmax = _table_residual(b, pose, ctx, xln, damp)
+        rmax = _table_residual(b, pose, ctxn, xln, damp)
         if not np.isfinite(rmax):
             return -1
         if rmax <= ftol or small:
@@ -1236,7 +1307,7 @@ def table_solve(b, q0, pose, ctx, xs, xln):
                 wk.qt[i] = qprev[i]
             tab.outside[b] += int(out == 1)
             return it
-        alpha, dn, held, ok = _table_newton(b, B, ctx, damp, L, held)
+        alpha, dn, held, ok = _table_newton(b, B, ctxn, damp, L, held, full)
         if not ok:
             return -1
         for a in range(3):
@@ -1307,6 +1378,7 @@ def _solve_one(b, joints, frames, ctx, gtip):
         n = _table_step(b, q[b], qp[b], pose, ctx, touching)
         if n >= 0:
             return n
+        ctx.tab.fallback[b] += 1
         for i in range(NQ):
             wk.qt[i] = q[b, i]
     if not sub.static and not touching and _free_step(b, pose, ctx):

@@ -7,6 +7,8 @@ axis * angle [rad].  The hot kernels use their own allocation-free scalar forms 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -31,6 +33,8 @@ def skew(w) -> np.ndarray:
 def expmap(w) -> np.ndarray:
     """Rodrigues: rotation vector(s) (..., 3) [rad] -> rotation matrices (..., 3, 3)."""
     w = np.asarray(w, dtype=float)
+    if w.shape == (3,):  # one vector (every env step's drive): scalar maths, ~5x faster
+        return _expmap1(float(w[0]), float(w[1]), float(w[2]))
     th2 = np.sum(w * w, axis=-1)
     th = np.sqrt(th2)
     small = th < 1e-4
@@ -39,6 +43,26 @@ def expmap(w) -> np.ndarray:
     b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(ths)) / (ths * ths))
     K = skew(w)
     return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def _expmap1(x: float, y: float, z: float) -> np.ndarray:
+    """``expmap`` of one rotation vector (x, y, z) [rad]: I + a K + b K^2, K^2 = w w^T - th^2 I,
+    with the same series below th = 1e-4."""
+    th2 = x * x + y * y + z * z
+    if th2 < 1e-8:
+        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
+        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+    else:
+        th = math.sqrt(th2)
+        a = math.sin(th) / th
+        b = (1.0 - math.cos(th)) / (th * th)
+    return np.array(
+        [
+            [1.0 - b * (y * y + z * z), b * x * y - a * z, b * x * z + a * y],
+            [b * x * y + a * z, 1.0 - b * (x * x + z * z), b * y * z - a * x],
+            [b * x * z - a * y, b * y * z + a * x, 1.0 - b * (x * x + y * y)],
+        ]
+    )
 
 
 def logmap(R) -> np.ndarray:

@@ -148,8 +148,11 @@ def _tab(grid, rnat, vals, idx) -> K.Tab:
         vals,
         idx,
         np.zeros(nb, np.int64),
+        np.zeros(nb, np.int64),
         np.zeros((6, 3)),
         np.zeros((3, 3, 3)),
         np.zeros((6, 3)),
         np.zeros(5),
+        np.zeros(nb + 1, np.int64),
+        np.zeros(max(nb - 1, 1), np.int64),  # at most every other tip is a partner
     )

@@ -183,6 +183,7 @@ from .action import make_action_type
 from .config import EnvConfig, load_env_config
 from .observation import ObservationLayout, make_observation_type
 from .rendering import Renderer, RenderInput
+from .rollout_sums import Limits, rollout_sums
 
 __all__ = ["BrushEnv", "R_START"]
 
@@ -415,35 +416,28 @@ class BrushEnv(gym.Env):
         n, rec = ro.done, ro.record
         if n:
             self._p, self._R, self._last = rec.p[n - 1].copy(), rec.R[n - 1].copy(), ro.last
-        f = rec.fn[:n]
-        fn = f.sum(axis=1) + rec.shaft_fn[:n]  # every eq 6 contact: the tips' and the shafts'
-        gum = np.zeros(n)
-        if self._gum.any():
-            surf = rec.surf[:n]
-            on_gum = (surf >= 0) & self._gum[np.maximum(surf, 0)]
-            gum = np.where(on_gum, f, 0.0).sum(axis=1)
+        lim = Limits(cfg.total_force_limit, cfg.tip_force_limit, cfg.gum_force_limit, dte)
+        sums = rollout_sums(rec, n, self._gum, lim)
         self._total_force = self._normal_force(self._last)
-        starts, ends = self._sweep.segments_many(f, rec.cpt[:n], f > 0.0)
-        new_cells = self.coverage.stamp(starts, ends) if len(starts) else 0
+        new_cells = self.coverage.sweep(self._sweep, rec.fn[:n], rec.cpt[:n])
         termination = ro.stop
         if termination is None and not self._in_workspace():
             termination = "workspace"
-        pk = lambda x, empty: float(x.max()) if n else empty  # noqa: E731
         return dict(
             new_cells=new_cells,
-            total_int=dte * float(np.maximum(fn - cfg.total_force_limit, 0.0).sum()),
-            tip_int=dte * float(np.maximum(f - cfg.tip_force_limit, 0.0).sum()),
-            time_above=dte * int(np.count_nonzero(fn > cfg.total_force_limit)),
-            gum_int=dte * float(np.maximum(gum - cfg.gum_force_limit, 0.0).sum()),
-            peak_gum=pk(gum, 0.0),
-            peak_total=pk(fn, 0.0),
-            peak_tip=pk(f, 0.0),
+            total_int=sums.total_int,
+            tip_int=sums.tip_int,
+            time_above=sums.time_above,
+            gum_int=sums.gum_int,
+            peak_gum=sums.peak_gum,
+            peak_total=sums.peak_total,
+            peak_tip=sums.peak_tip,
             termination=termination,
             divergence=ro.message,
-            pen_tip=pk(rec.pen_max[:n], 0.0),
-            pen_shaft=pk(rec.shaft_pen[:n], 0.0),
-            beyond=int(rec.beyond[:n].sum()),
-            head=float(rec.head[:n].min()) if n else math.inf,
+            pen_tip=sums.pen_tip,
+            pen_shaft=sums.pen_shaft,
+            beyond=int(sums.beyond),
+            head=sums.head,
         )
 
     @staticmethod
@@ -468,7 +462,7 @@ class BrushEnv(gym.Env):
     # ------------------------------------------------------------------ obs / reward / info
     def _get_obs(self):
         out = self._last
-        values = self.layout.values(
+        flat = self.layout.flat(
             p=self._p,
             R=self._R,
             v=self._v,
@@ -485,7 +479,7 @@ class BrushEnv(gym.Env):
             coverage_map=self.coverage.coarse(),
             time_remaining=max(0.0, 1.0 - self._steps / self.horizon),
         )
-        return self.observation_type.observe(values)
+        return self.observation_type.observe(flat)
 
     def _get_rew(self, sim: dict) -> dict[str, float]:
         """Signed reward terms (costs negative); the reward is their sum."""

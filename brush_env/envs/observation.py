@@ -184,7 +184,15 @@ class ObservationLayout:
         self.high = np.concatenate([np.full(b.size, b.high, np.float32) for b in self.blocks])
 
     # ------------------------------------------------------------------ physical -> scaled
-    def values(
+    def values(self, **physical) -> dict[str, np.ndarray]:
+        """``flat``'s blocks by name (each (shape) float32, a view of one flat vector)."""
+        return self.split(self.flat(**physical))
+
+    def split(self, flat: np.ndarray) -> dict[str, np.ndarray]:
+        """The blocks of a flat observation by name (views, each of its block's shape)."""
+        return {b.name: flat[self.slices[b.name]].reshape(b.shape) for b in self.blocks}
+
+    def flat(
         self,
         *,
         p,
@@ -202,35 +210,47 @@ class ObservationLayout:
         coverage_fraction,
         coverage_map,
         time_remaining,
-    ) -> dict[str, np.ndarray]:
-        """Scaled, clipped float32 blocks from physical values (mm, s, N; base frame unless
-        stated).  ``p, R``: TCP pose (engine frame); ``v, w``: commanded twist; ``rest_tips``:
-        (nb, 3) tip rest positions in the TCP frame; ``p_obs``: TCP position about the nominal
-        patch centre with z above the nominal plate."""
-        cfg = self.cfg
+    ) -> np.ndarray:
+        """The scaled, clipped observation (size,) float32 in layout order from physical values
+        (mm, s, N; base frame unless stated).  ``p, R``: TCP pose (engine frame); ``v, w``:
+        commanded twist; ``rest_tips``: (nb, 3) tip rest positions in the TCP frame; ``p_obs``:
+        TCP position about the nominal patch centre with z above the nominal plate.
+
+        Written block by block into one buffer with numpy's out= (every env step calls it: ~5x
+        faster than a dict of blocks concatenated)."""
+        cfg, nb, sl = self.cfg, self.n_bristles, self.slices
+        raw = np.empty(self.size)
         rel = tip_pos - p
-        defl = (rel @ R - rest_tips) / self.max_length
-        vrel = (tip_vel - v - np.cross(w, rel)) @ R / cfg.tip_velocity_scale
-        pos = (np.asarray(p_obs, float) - [0.0, 0.0, self.touch_height]) / self.position_scale
-        raw = {
-            "tip_deflection": defl,
-            "tip_velocity": vrel,
-            "tip_normal_force": tip_force / cfg.tip_force_limit,
-            "tip_contact": tip_contact.astype(float),
-            "tcp_force": tcp_force_tcp / cfg.force_scale,
-            "tcp_moment": tcp_moment_tcp / cfg.moment_scale,
-            "tcp_position": pos,
-            "tcp_orientation": np.concatenate([R[:, 0], R[:, 1]]),
-            "tcp_twist": np.concatenate([v / self.v_max, w / self.w_max]),
-            "coverage_fraction": [coverage_fraction],
-            "coverage_map": coverage_map,
-            "time_remaining": [time_remaining],
-        }
-        out = {}
-        for b in self.blocks:
-            a = np.asarray(raw[b.name], dtype=float).reshape(b.shape)
-            out[b.name] = np.clip(a, b.low, b.high).astype(np.float32)
-        return out
+        # tip minus rest in the TCP frame, / L
+        defl = raw[sl["tip_deflection"]].reshape(nb, 3)
+        np.matmul(rel, R, out=defl)
+        defl -= rest_tips
+        defl *= 1.0 / self.max_length
+        # (tip_vel - v - w x rel) R / v_tip, with (w x rel_i)^T = rel_i^T [w]x^T
+        W = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+        vrel = raw[sl["tip_velocity"]].reshape(nb, 3)
+        np.matmul(tip_vel - v, R, out=vrel)
+        vrel -= rel @ (W.T @ R)
+        vrel *= 1.0 / cfg.tip_velocity_scale
+        np.multiply(tip_force, 1.0 / cfg.tip_force_limit, out=raw[sl["tip_normal_force"]])
+        raw[sl["tip_contact"]] = tip_contact
+        np.multiply(tcp_force_tcp, 1.0 / cfg.force_scale, out=raw[sl["tcp_force"]])
+        np.multiply(tcp_moment_tcp, 1.0 / cfg.moment_scale, out=raw[sl["tcp_moment"]])
+        pos = raw[sl["tcp_position"]]
+        pos[:] = p_obs
+        pos[2] -= self.touch_height
+        pos /= self.position_scale
+        ori = raw[sl["tcp_orientation"]]
+        ori[0:3] = R[:, 0]
+        ori[3:6] = R[:, 1]
+        tw = raw[sl["tcp_twist"]]
+        np.divide(v, self.v_max, out=tw[0:3])
+        np.divide(w, self.w_max, out=tw[3:6])
+        raw[sl["coverage_fraction"]] = coverage_fraction
+        raw[sl["coverage_map"]] = coverage_map.ravel()
+        raw[sl["time_remaining"]] = time_remaining
+        np.clip(raw, self.low, self.high, out=raw)
+        return raw.astype(np.float32)
 
     # ------------------------------------------------------------------ scaled -> physical
     def block(self, obs, name: str) -> np.ndarray:
@@ -284,8 +304,9 @@ class BoxObservation:
         lay = self.layout
         return spaces.Box(lay.low.copy(), lay.high.copy(), shape=(lay.size,), dtype=np.float32)
 
-    def observe(self, values: dict[str, np.ndarray]) -> np.ndarray:
-        return np.concatenate([values[b.name].ravel() for b in self.layout.blocks])
+    def observe(self, flat: np.ndarray) -> np.ndarray:
+        """The observation from ``ObservationLayout.flat``'s vector: that vector."""
+        return flat
 
 
 class DictObservation:
@@ -302,8 +323,9 @@ class DictObservation:
             }
         )
 
-    def observe(self, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {b.name: values[b.name] for b in self.layout.blocks}
+    def observe(self, flat: np.ndarray) -> dict[str, np.ndarray]:
+        """The observation from ``ObservationLayout.flat``'s vector: its blocks by name."""
+        return self.layout.split(flat)
 
 
 def make_observation_type(cfg: EnvConfig, layout: ObservationLayout):

@@ -28,6 +28,7 @@ KEYS = {
     "max_substep",
     "frame_skip",
     "control_hz",
+    "policy",
 }
 
 
@@ -60,6 +61,35 @@ def test_bench_env_rates_are_what_ran_over_its_wall_time(monkeypatch):
     assert row["real_time_factor"] * row["wall_s"] == pytest.approx(sum(timed), rel=1e-12)
     assert row["engine_steps_per_s"] * row["wall_s"] == pytest.approx(len(timed), rel=1e-12)
     assert row["steps_per_s"] * row["wall_s"] == pytest.approx(row["steps"], rel=1e-12)
+
+
+def test_bench_env_random_and_zero_policies_restart_episodes_with_the_next_seed(monkeypatch):
+    """``--policy random`` / ``zero``: episode k is reset with seed k after ``episode_steps``
+    (12 steps of 5-step episodes: seeds 0 (cold start), 0, 1, 2); a vector of envs runs too."""
+    import gymnasium as gym
+
+    seeds = []
+    reset = gym.Wrapper.reset
+
+    def spy(self, *, seed=None, options=None):
+        if isinstance(self, gym.wrappers.TimeLimit):
+            seeds.append(seed)
+        return reset(self, seed=seed, options=options)
+
+    monkeypatch.setattr(gym.Wrapper, "reset", spy)
+    for policy in ("random", "zero"):
+        seeds.clear()
+        args = {"steps": 12, "n_envs": [1], "brush": "tiny_env", "policy": policy}
+        (row,) = bench_env({**args, "episode_steps": 5})
+        assert row["policy"] == policy and row["steps"] == 12
+        assert seeds == [0, 0, 1, 2]
+    (row,) = bench_env({"steps": 3, "n_envs": [2], "brush": "tiny_env", "policy": "random"})
+    assert row["mode"] == "vector" and row["steps"] == 6
+
+
+def test_bench_env_rejects_an_unknown_policy():
+    with pytest.raises(ValueError, match=r"policy = 'greedy' is not allowed: .*'random'"):
+        bench_env({"steps": 2, "n_envs": [1], "brush": "tiny_env", "policy": "greedy"})
 
 
 def test_bench_env_cli_json(capsys):

@@ -114,3 +114,28 @@ def test_run_reference_refuses_a_deep_press_before_writing(tmp_path):
     with pytest.raises(ConfigError, match=r"press_depth = 15.0 is out of range"):
         run_reference(out_dir=tmp_path / "out", press_depth=15.0, turns=0.01, progress=False)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "v, w, match",
+    [
+        ((np.nan, 0.0, 0.0), (0.0, 0.0, 0.0), r"v = \[nan, 0.0, 0.0\]: must be finite"),
+        ((0.0, np.inf, 0.0), (0.0, 0.0, 0.0), r"v = \[0.0, inf, 0.0\]: must be finite"),
+        ((3000.0, 0.0, 0.0), (0.0, 0.0, 0.0), r"\|v\| = 3000 mm/s up to settings.max_tcp_speed"),
+        ((0.0, 0.0, 0.0), (0.0, np.nan, 0.0), r"w = \[0.0, nan, 0.0\]: must be finite"),
+    ],
+)
+def test_a_rollout_refuses_a_non_finite_or_too_fast_twist(v, w, match):
+    """``Simulator.rollout`` checks the twist before any step: a NaN or inf entry or a speed
+    above the settings' limit is refused naming the parameter, its value and the limit, and the
+    state is untouched."""
+    from brush_env.engine import Simulator
+    from brush_env.engine.fidelity import level_settings
+    from brush_env.motion import R0
+
+    s = Simulator(load_scene("flat_plate"), level_settings("table", dt=4e-3))
+    s.reset(np.array([0.0, 0.0, s.touch_height(R0) + 1.0]), R0)
+    tips = s.bristles.tips.copy()
+    with pytest.raises(ValueError, match=match):
+        s.rollout(np.array(v), np.array(w), 3)
+    assert np.array_equal(s.bristles.tips, tips) and s.state.steps == 0

@@ -158,3 +158,28 @@ def test_flat_plate_at_table_passes_both_env_checkers():
 
 def _flat(obs):
     return obs.values() if isinstance(obs, dict) else [obs]
+
+
+def test_a_tip_beyond_its_table_warns_once_per_reset_naming_the_bristle():
+    """A step that ends with a tip beyond its table (counted by the kernel in ``Tab.outside``)
+    warns once per reset, naming the bristle and the table's limits; the counts of such steps
+    and of the steps the table handed to the chain are in ``solver_info``."""
+    from brush_env.engine.prb import TableRangeWarning
+
+    sc = load_scene("flat_plate")
+    s = Simulator(sc, level_settings("table", dt=4e-3))
+    p = np.array([0.0, 0.0, s.touch_height(R0) + 1.0])
+    s.reset(p, R0)
+    tab = s.bristles._tab
+    tab.outside[7] = 1  # as the lookup counts a step that ended beyond the table
+    with pytest.warns(TableRangeWarning, match=r"bristle 7 left its tip table.*<= 150 deg"):
+        s.rollout(np.zeros(3), np.zeros(3), 2)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TableRangeWarning)
+        s.rollout(np.zeros(3), np.zeros(3), 2)  # once per reset
+    info = s.bristles.solver_info()
+    assert info["table_outside"] == 1 and info["table_fallbacks"] >= 0
+    s.reset(p, R0)
+    assert s.bristles.solver_info()["table_outside"] == 0
