@@ -1,10 +1,12 @@
-"""``brush-env bench env``: BrushEnv steps per second under the reference policy (or random
-actions: ``--policy random``, episode k seeded with k, ``--episode-steps`` long; or zero actions,
-the brush hovering: ``--policy zero``).
+"""``brush-env bench env``: BrushEnv steps per second (FlatPlate-v0, or ToothRow-v0 with
+``--env tooth_row``) under the env's reference policy (or random actions: ``--policy random``,
+episode k seeded with k, ``--episode-steps`` long; or zero actions, the brush hovering:
+``--policy zero``).
 
 One env in this process, and a vector of envs (``gymnasium.vector.AsyncVectorEnv``, one process
-per env).  The policy is the press-then-circle reference (``brush_env.envs.reference``), so the
-steps include contact once the brush is pressed.  Episodes restart when they end (the time limit,
+per env).  The reference policy is the env's own (``brush_env.envs.reference``: FlatPlate-v0's
+press-then-circle, ToothRow-v0's scrub), so the steps include contact once the brush is
+pressed.  Episodes restart when they end (the time limit,
 or a termination, counted in ``terminations``).  Cold start (env construction, first reset and
 first step: numba's cache load or JIT compile) is timed apart and excluded from the rates.
 
@@ -13,12 +15,12 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 ``real_time_factor`` (simulated seconds per wall-clock second, all envs together),
 ``engine_steps_per_s``, ``cold_start_s``, ``terminations``, and the settings (``brush``,
 ``n_bristles``, ``bodies_per_bristle``, ``model``, ``engine_dt``, ``max_substep``, ``frame_skip``,
-``control_hz``).
+``control_hz``, ``policy``).
 
     brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
                         [--engine-dt 0.004] [--max-substep 0.001] [--frame-skip 10]
                         [--fidelity LEVEL] [--policy reference|random|zero] [--episode-steps 100]
-                        [--json]
+                        [--env flat_plate|tooth_row] [--json]
 
 Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
 first: ``add_arguments`` skips options the parser already has); ``run(args)`` prints and returns
@@ -36,6 +38,8 @@ import numpy as np
 __all__ = ["bench_env", "add_arguments", "run"]
 
 ENV_ID = "brush_env/FlatPlate-v0"
+#: --env: the env ids, and the env config each runs by default
+ENVS = {"flat_plate": "brush_env/FlatPlate-v0", "tooth_row": "brush_env/ToothRow-v0"}
 DEFAULTS = {
     "steps": 300,
     "n_envs": [1, 2],
@@ -44,7 +48,8 @@ DEFAULTS = {
     "engine_dt": 0.004,
     "max_substep": 0.001,
     "frame_skip": 10,
-    "config": "flat_plate",
+    "config": None,
+    "env": "flat_plate",
     "fidelity": None,
     "policy": "reference",
     "episode_steps": 100,
@@ -53,6 +58,7 @@ POLICIES = ("reference", "random", "zero")
 
 
 def _env_kwargs(a: dict) -> dict:
+    a = {**a, "config": a["config"] or a["env"]}  # the env's own config unless one is named
     if a.get("fidelity"):  # a level's own settings, unchanged (e.g. the reduced model's)
         return {
             "config": a["config"],
@@ -75,11 +81,17 @@ class _Reference:
 
     def __init__(self, env):
         from brush_env.envs.action import make_action_type
-        from brush_env.envs.reference import CircleReference
+        from brush_env.envs.reference import CircleReference, ScrubReference
 
         u = env.unwrapped
         self.layout, self.horizon = u.layout, u.horizon
-        self.make = lambda: CircleReference(u.layout, make_action_type(u.config), u.dt, u.horizon)
+        # the env's own reference: FlatPlate-v0's circle, ToothRow-v0's scrub
+        ref = (
+            ScrubReference
+            if getattr(u, "reference_motion", "circle") == "scrub"
+            else CircleReference
+        )
+        self.make = lambda: ref(u.layout, make_action_type(u.config), u.dt, u.horizon)
         self.ctrl = []
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -124,7 +136,7 @@ def _single(a: dict) -> dict:
     import brush_env  # noqa: F401
 
     t0 = time.perf_counter()
-    env = gym.make(ENV_ID, **_env_kwargs(a))
+    env = gym.make(ENVS[a["env"]], **_env_kwargs(a))
     policy = _policy(a, env)
     obs, _ = env.reset(seed=0)
     obs, *_ = env.step(policy(obs)[0])
@@ -159,8 +171,9 @@ def _vector(a: dict, n: int) -> dict:
 
     kw = _env_kwargs(a)
     t0 = time.perf_counter()
-    venv = gym.vector.AsyncVectorEnv([lambda: gym.make(ENV_ID, **kw) for _ in range(n)])
-    probe = gym.make(ENV_ID, **kw)
+    env_id = ENVS[a["env"]]
+    venv = gym.vector.AsyncVectorEnv([lambda: gym.make(env_id, **kw) for _ in range(n)])
+    probe = gym.make(env_id, **kw)
     policy = _policy(a, probe if a["policy"] == "reference" else venv)
     obs, _ = venv.reset(seed=list(range(n)))
     obs, *_ = venv.step(policy(obs))
@@ -214,6 +227,8 @@ def bench_env(args: dict) -> list[dict]:
         )
     if int(a["steps"]) < 1:
         raise ValueError(f"steps = {a['steps']!r} is out of range: must be >= 1")
+    if a["env"] not in ENVS:
+        raise ValueError(f"env = {a['env']!r} is not allowed: must be one of {tuple(ENVS)}")
     if a["policy"] not in POLICIES:
         raise ValueError(f"policy = {a['policy']!r} is not allowed: must be one of {POLICIES}")
     if int(a["episode_steps"]) < 1:
@@ -269,7 +284,18 @@ _OPTIONS = (
             "--max-substep then do not apply",
         ),
     ),
-    ("--config", dict(default=DEFAULTS["config"], help="env config name or TOML path")),
+    (
+        "--env",
+        dict(
+            default=DEFAULTS["env"],
+            choices=tuple(ENVS),
+            help="FlatPlate-v0 or ToothRow-v0 (the reference policy: its circle or its scrub)",
+        ),
+    ),
+    (
+        "--config",
+        dict(default=DEFAULTS["config"], help="env config name or TOML path (default: --env's)"),
+    ),
     (
         "--policy",
         dict(

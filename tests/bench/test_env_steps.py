@@ -87,9 +87,27 @@ def test_bench_env_random_and_zero_policies_restart_episodes_with_the_next_seed(
     assert row["mode"] == "vector" and row["steps"] == 6
 
 
+def test_bench_env_runs_tooth_row_with_its_scrub(monkeypatch):
+    """``--env tooth_row``: ToothRow-v0 with its own config, the reference policy its scrub."""
+    from brush_env.envs import reference
+
+    made = []
+    init = reference.ScrubReference.__init__
+
+    def spy(self, *args, **kwargs):
+        made.append(type(self).__name__)
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(reference.ScrubReference, "__init__", spy)
+    (row,) = bench_env({"steps": 3, "n_envs": [1], "env": "tooth_row", "fidelity": "reduced"})
+    assert made == ["ScrubReference"] and row["steps"] == 3 and row["model"] == "prb"
+
+
 def test_bench_env_rejects_an_unknown_policy():
     with pytest.raises(ValueError, match=r"policy = 'greedy' is not allowed: .*'random'"):
         bench_env({"steps": 2, "n_envs": [1], "brush": "tiny_env", "policy": "greedy"})
+    with pytest.raises(ValueError, match=r"env = 'moon' is not allowed: .*'tooth_row'"):
+        bench_env({"steps": 2, "n_envs": [1], "brush": "tiny_env", "env": "moon"})
 
 
 def test_bench_env_cli_json(capsys):
