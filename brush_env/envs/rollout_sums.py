@@ -48,7 +48,7 @@ def rollout_sums(rec, n: int, gum: np.ndarray, lim: Limits) -> Sums:
     return Sums(*_sums(rec, n, gum, lim))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: never inherited from a caller (_kernels.HOT)
 def _sums(rec, n, gum, lim):
     f, surf = rec.fn, rec.surf
     nb = f.shape[1]
