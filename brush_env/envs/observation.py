@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
+from brush_env.engine.rotation import skew
+
 from .config import EnvConfig
 
 __all__ = [
@@ -227,10 +229,9 @@ class ObservationLayout:
         defl -= rest_tips
         defl *= 1.0 / self.max_length
         # (tip_vel - v - w x rel) R / v_tip, with (w x rel_i)^T = rel_i^T [w]x^T
-        W = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
         vrel = raw[sl["tip_velocity"]].reshape(nb, 3)
         np.matmul(tip_vel - v, R, out=vrel)
-        vrel -= rel @ (W.T @ R)
+        vrel -= rel @ (skew(w).T @ R)
         vrel *= 1.0 / cfg.tip_velocity_scale
         np.multiply(tip_force, 1.0 / cfg.tip_force_limit, out=raw[sl["tip_normal_force"]])
         raw[sl["tip_contact"]] = tip_contact
