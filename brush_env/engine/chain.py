@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from . import records as rec
 from . import shaft as shf  # shaft contact of the bodies' capsules and the head's clearance
@@ -526,18 +527,36 @@ def scene_tip_pairs(model, scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tip_contact(ts: np.ndarray) -> TipContact:
-    """The seam's ``TipContact`` of the tips' contact states (``records.TIP_STATE``), copied."""
-    fn = ts["fn"].copy()
-    touching = fn > 0.0
-    return TipContact(
-        fn,
-        ts["ft"].copy(),
-        (ts["slide"] > 0) & touching,
-        np.maximum(ts["pen"], 0.0) * touching,
-        ts["cpt"].copy(),
-        ts["ftt"].copy(),
-        np.where(touching, ts["surf"], -1).astype(np.int64),
-    )
+    """The seam's ``TipContact`` of the tips' contact states (``records.TIP_STATE``), copied (one
+    compiled pass, ``_contact_arrays``: every env step reads it)."""
+    return TipContact(*_contact_arrays(ts))
+
+
+@njit(cache=True, fastmath=False)
+def _contact_arrays(ts):
+    """``TipContact``'s arrays of the tip states ts: normal force [N], friction (nb, 3) [N],
+    sliding, penetration [mm] (0 off contact), contact point (nb, 3) [mm], tip-tip force [N] and
+    the surface touched (-1: none)."""
+    nb = ts.shape[0]
+    fn = np.empty(nb)
+    ft = np.empty((nb, 3))
+    sliding = np.empty(nb, np.bool_)
+    pen = np.empty(nb)
+    cpt = np.empty((nb, 3))
+    ftt = np.empty(nb)
+    surf = np.empty(nb, np.int64)
+    for i in range(nb):
+        st = ts[i]
+        touching = st.fn > 0.0
+        fn[i] = st.fn
+        for a in range(3):
+            ft[i, a] = st.ft[a]
+            cpt[i, a] = st.cpt[a]
+        sliding[i] = st.slide > 0 and touching
+        pen[i] = max(st.pen, 0.0) if touching else 0.0
+        ftt[i] = st.ftt
+        surf[i] = st.surf if touching else -1
+    return fn, ft, sliding, pen, cpt, ftt, surf
 
 
 def tip_penetration(ts: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from . import prb_kernels as K
 from . import prb_rollout as R_
@@ -334,6 +335,8 @@ class PRBBristles(BristleModel):
             self._pp,
             self._Rp,
             self._k,
+            st.pos,
+            st.rot,
         )
         h = s.dt / m
         sub = rec_.Substep(1.0, -1.0, 0.0, h, 1.0 / h, False, _ZERO3, ANGLE_TOL, MAX_ITER, 0)
@@ -358,11 +361,7 @@ class PRBBristles(BristleModel):
             st.tcp_p[1], st.tcp_R[1] = last
             st.time = st.time + done * s.dt
             st.steps += done
-        K.root_frames(
-            st.tcp_p[1], st.tcp_R[1], self.model.root_p, self.model.root_R, self._rootpos, self._Bw
-        )
-        K.link_poses(st.q, self.model.prm, self._rootpos, self._Bw, st.pos, st.rot, self._wk)
-        msg = None
+        msg = None  # the kernel left the roots and links where the last step done put them
         if stop == R_.STOP_DIVERGENCE:
             msg = str(
                 SimulationDivergence(
@@ -416,12 +415,10 @@ class PRBBristles(BristleModel):
         sub-step of them at ROUGH_TOL), and how many bristle sub-steps since reset only the last
         resort's ROUGH_TOL took (residual above LOOSE_TOL: a tip-force imbalance of ~1e-3 to
         ~0.1 N on a light contact)."""
-        it = self._out.iters
-        return {
-            "newton_max": int(it.max() % K.LOOSE) if it.size else 0,
-            "loose_steps": int(self._out.loose.sum()),
-            "rough_steps": int(self._out.rough.sum()),
-        }
+        c = _counts(
+            self._out.iters, self._out.loose, self._out.rough, self._tab.fallback, self._tab.outside
+        )
+        return {"newton_max": c[0], "loose_steps": c[1], "rough_steps": c[2]}
 
     @property
     def n_tip_pairs(self) -> int:
@@ -454,6 +451,30 @@ class _PairModel:
 from collections import namedtuple  # noqa: E402
 
 _Out = namedtuple("_Out", ["iters", "status", "loose", "rough"])
+
+
+@njit(cache=True, fastmath=False)
+def _counts(it, loose, rough, fallback, outside):
+    """``solver_info``'s counts in one compiled pass (every env step reads them): Newton's largest
+    iteration count of the last solver step (``_Out.iters``, modulo LOOSE), the loose and rough
+    bristle-steps, the table's fallbacks and its steps beyond it since reset
+    (``prb_kernels.Tab``)."""
+    m = 0
+    for b in range(it.shape[0]):
+        m = max(m, it[b])
+    c1 = 0
+    c2 = 0
+    for b in range(loose.shape[0]):
+        c1 += loose[b]
+        c2 += rough[b]
+    c3 = 0
+    c4 = 0
+    for b in range(fallback.shape[0]):
+        c3 += fallback[b]
+        c4 += outside[b]
+    return m % K.LOOSE, c1, c2, c3, c4
+
+
 _Work = namedtuple(
     "_Work",
     [
@@ -613,10 +634,15 @@ class TableBristles(PRBBristles):
         """The chain's (``PRBBristles.solver_info``) and, since reset, the bristle-steps the table
         could not take (``table_fallbacks``: the chain's Newton took them) and those that ended
         beyond the table (``table_outside``)."""
+        c = _counts(
+            self._out.iters, self._out.loose, self._out.rough, self._tab.fallback, self._tab.outside
+        )
         return {
-            **super().solver_info(),
-            "table_fallbacks": int(self._tab.fallback.sum()),
-            "table_outside": int(self._tab.outside.sum()),
+            "newton_max": c[0],
+            "loose_steps": c[1],
+            "rough_steps": c[2],
+            "table_fallbacks": c[3],
+            "table_outside": c[4],
         }
 
 

@@ -15,7 +15,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .prb_kernels import PRB, step_all
+from .prb_kernels import PRB, link_poses, root_frames, step_all
 from .shaft import clearance
 
 #: why a rollout stopped before its last step
@@ -42,7 +42,8 @@ STOP_REASONS = {
 Record = namedtuple(
     "Record", ["fn", "cpt", "surf", "pen_max", "beyond", "head", "p", "R", "shaft_fn", "shaft_pen"]
 )
-#: scratch and model arrays of the rollout kernel
+#: scratch and model arrays of the rollout kernel; pos (2 nb, 3) [mm], rot (2 nb, 3, 3): the
+#: links' poses at the end (``PRBState.pos``/``rot``, written by the kernel)
 Drive = namedtuple(
     "Drive",
     [
@@ -61,6 +62,8 @@ Drive = namedtuple(
         "pp",
         "Rp",
         "k",
+        "pos",
+        "rot",
     ],
 )
 Limits = namedtuple("Limits", ["force", "penetration", "warn_fraction"])
@@ -178,7 +181,17 @@ def _record_step(k, con, rec):
 def rollout(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec):
     """Up to rec.p.shape[0] engine steps (module docstring); returns (steps done, STOP_*, the
     failed bristle or -1).  drv.p, drv.R: the TCP pose now, moved along in place; each engine step
-    is drv.substeps solver steps (position linear, rotation by drv.dR_sub each)."""
+    is drv.substeps solver steps (position linear, rotation by drv.dR_sub each).  At the end the
+    roots (frames) and the links' poses (drv.pos, drv.rot) are those of the last step done."""
+    r = _run(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec)
+    root_frames(drv.p, drv.R, geo.root_p, geo.root_R, frames.rootpos, frames.Bw)
+    link_poses(joints.q, geo.prm, frames.rootpos, frames.Bw, drv.pos, drv.rot, ctx.wk)
+    return r
+
+
+@njit(**PRB, inline="always")
+def _run(geo, joints, frames, ctx, gtip, rootw, drv, lim, bk, rec):
+    """``rollout``'s steps."""
     n = rec.p.shape[0]
     q, qp, con, out = joints.q, joints.qp, ctx.con, ctx.out
     p, R, Rn, ps = drv.p, drv.R, drv.Rn, drv.ps

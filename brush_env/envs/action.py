@@ -7,6 +7,8 @@ steps of one control step (a velocity-controlled robot at the control rate).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from gymnasium import spaces
 
@@ -54,7 +56,9 @@ class TcpVelocityAction:
                 f"action has shape {a.shape}: expected ({self.dim},) for "
                 f"action_mode = {self.mode!r}, values in [-1, 1]"
             )
-        if not np.all(np.isfinite(a)):
+        # a finite sum is the common case (~2 us less than isfinite over the entries); a sum that is
+        # not finite may still be of finite entries (two near the largest float): then look
+        if not math.isfinite(a.sum()) and not np.all(np.isfinite(a)):
             raise ValueError(
                 f"action = {a.tolist()!r} is not finite: every entry must be a number in [-1, 1]"
             )

@@ -378,7 +378,9 @@ class BrushEnv(gym.Env):
         return p_obs - self.plate_offset + np.array([0.0, 0.0, self.plate_z])
 
     def _to_obs(self, p_eng: np.ndarray) -> np.ndarray:
-        return p_eng + self.plate_offset - np.array([0.0, 0.0, self.plate_z])
+        q = p_eng + self.plate_offset
+        q[2] -= self.plate_z  # (three times per env step: no array for (0, 0, plate_z))
+        return q
 
     # ------------------------------------------------------------------ step
     def step(self, action):

@@ -13,12 +13,12 @@ surface; the actual plate is offset by the (unobserved) ``plate_offset`` drawn a
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from gymnasium import spaces
-
-from brush_env.engine.rotation import skew
+from numba import njit
 
 from .config import EnvConfig
 
@@ -155,6 +155,82 @@ def _slices(blocks) -> dict[str, slice]:
     return slices
 
 
+#: the blocks ``_fill`` writes, in the order of its offsets (``ObservationLayout._off``)
+FILLED = (
+    "tip_deflection",
+    "tip_velocity",
+    "tip_normal_force",
+    "tip_contact",
+    "tcp_force",
+    "tcp_moment",
+    "tcp_position",
+    "tcp_orientation",
+    "tcp_twist",
+    "coverage_fraction",
+    "coverage_map",
+    "time_remaining",
+)
+#: ``_fill``'s inputs: the tips ((nb, 3) [mm], [mm/s], rest (nb, 3) [mm] TCP frame, normal force
+#: (nb,) [N], contact (nb,) bool) and the TCP (p [mm], R, v [mm/s], w [rad/s], force [N] and
+#: moment [N mm] in the TCP frame, p_obs [mm] about the nominal patch centre)
+TipInput = namedtuple("TipInput", ["pos", "vel", "rest", "fn", "contact"])
+TcpInput = namedtuple("TcpInput", ["p", "R", "v", "w", "force", "moment", "p_obs"])
+
+
+@njit(cache=True, fastmath=False)
+def _fill(out, off, tip, tcp, cmap, sc, task, low, high):
+    """out (size,) float32 <- ``ObservationLayout.flat``'s vector: each value scaled (sc: 1/L,
+    1/tip_velocity_scale, 1/tip_force_limit, 1/force_scale, 1/moment_scale, touch_height
+    [mm], position_scale (3,) [mm], v_max (3,), w_max (3,)), clipped to [low, high] in double
+    precision and then cast; off: each block's start (``FILLED``); task: (coverage fraction,
+    time remaining)."""
+    R, p, v, w = tcp.R, tcp.p, tcp.v, tcp.w
+    raw = np.empty(out.shape[0])
+    nb = tip.pos.shape[0]
+    rel = np.empty(3)
+    c = np.empty(3)
+    for i in range(nb):
+        for a in range(3):
+            rel[a] = tip.pos[i, a] - p[a]
+        # w x rel: the TCP's rotation carries the tip along
+        c[0] = w[1] * rel[2] - w[2] * rel[1]
+        c[1] = w[2] * rel[0] - w[0] * rel[2]
+        c[2] = w[0] * rel[1] - w[1] * rel[0]
+        for b in range(3):
+            d = rel[0] * R[0, b] + rel[1] * R[1, b] + rel[2] * R[2, b]  # (rel R)_b: TCP frame
+            raw[off[0] + 3 * i + b] = (d - tip.rest[i, b]) * sc[0]
+            u = (
+                (tip.vel[i, 0] - v[0] - c[0]) * R[0, b]
+                + (tip.vel[i, 1] - v[1] - c[1]) * R[1, b]
+                + (tip.vel[i, 2] - v[2] - c[2]) * R[2, b]
+            )
+            raw[off[1] + 3 * i + b] = u * sc[1]
+        raw[off[2] + i] = tip.fn[i] * sc[2]
+        raw[off[3] + i] = 1.0 if tip.contact[i] else 0.0
+    for a in range(3):
+        raw[off[4] + a] = tcp.force[a] * sc[3]
+        raw[off[5] + a] = tcp.moment[a] * sc[4]
+        q = tcp.p_obs[a] - (sc[5] if a == 2 else 0.0)
+        raw[off[6] + a] = q / sc[6 + a]
+        raw[off[7] + a] = R[a, 0]
+        raw[off[7] + 3 + a] = R[a, 1]
+        raw[off[8] + a] = v[a] / sc[9 + a]
+        raw[off[8] + 3 + a] = w[a] / sc[12 + a]
+    raw[off[9]] = task[0]
+    m = cmap.shape[0]
+    for i in range(m):
+        for j in range(cmap.shape[1]):
+            raw[off[10] + i * cmap.shape[1] + j] = cmap[i, j]
+    raw[off[11]] = task[1]
+    for k in range(out.shape[0]):
+        x = raw[k]
+        if x < low[k]:
+            x = low[k]
+        elif x > high[k]:
+            x = high[k]
+        out[k] = x  # a NaN stays NaN (as np.clip)
+
+
 class ObservationLayout:
     """Blocks of the observation for a brush of ``n_bristles`` tips (see the env docstring).
 
@@ -184,6 +260,23 @@ class ObservationLayout:
         self.size = sum(b.size for b in self.blocks)
         self.low = np.concatenate([np.full(b.size, b.low, np.float32) for b in self.blocks])
         self.high = np.concatenate([np.full(b.size, b.high, np.float32) for b in self.blocks])
+        # what ``_fill`` reads: each block's start (FILLED's order) and the scales
+        self._off = np.array([self.slices[n].start for n in FILLED], np.int64)
+        self._scale = np.concatenate(
+            [
+                [
+                    1.0 / self.max_length,
+                    1.0 / cfg.tip_velocity_scale,
+                    1.0 / cfg.tip_force_limit,
+                    1.0 / cfg.force_scale,
+                    1.0 / cfg.moment_scale,
+                    self.touch_height,
+                ],
+                self.position_scale,
+                self.v_max,
+                self.w_max,
+            ]
+        )
 
     # ------------------------------------------------------------------ physical -> scaled
     def values(self, **physical) -> dict[str, np.ndarray]:
@@ -218,40 +311,21 @@ class ObservationLayout:
         commanded twist; ``rest_tips``: (nb, 3) tip rest positions in the TCP frame; ``p_obs``:
         TCP position about the nominal patch centre with z above the nominal plate.
 
-        Written block by block into one buffer with numpy's out= (every env step calls it: ~5x
-        faster than a dict of blocks concatenated)."""
-        cfg, nb, sl = self.cfg, self.n_bristles, self.slices
-        raw = np.empty(self.size)
-        rel = tip_pos - p
-        # tip minus rest in the TCP frame, / L
-        defl = raw[sl["tip_deflection"]].reshape(nb, 3)
-        np.matmul(rel, R, out=defl)
-        defl -= rest_tips
-        defl *= 1.0 / self.max_length
-        # (tip_vel - v - w x rel) R / v_tip, with (w x rel_i)^T = rel_i^T [w]x^T
-        vrel = raw[sl["tip_velocity"]].reshape(nb, 3)
-        np.matmul(tip_vel - v, R, out=vrel)
-        vrel -= rel @ (skew(w).T @ R)
-        vrel *= 1.0 / cfg.tip_velocity_scale
-        np.multiply(tip_force, 1.0 / cfg.tip_force_limit, out=raw[sl["tip_normal_force"]])
-        raw[sl["tip_contact"]] = tip_contact
-        np.multiply(tcp_force_tcp, 1.0 / cfg.force_scale, out=raw[sl["tcp_force"]])
-        np.multiply(tcp_moment_tcp, 1.0 / cfg.moment_scale, out=raw[sl["tcp_moment"]])
-        pos = raw[sl["tcp_position"]]
-        pos[:] = p_obs
-        pos[2] -= self.touch_height
-        pos /= self.position_scale
-        ori = raw[sl["tcp_orientation"]]
-        ori[0:3] = R[:, 0]
-        ori[3:6] = R[:, 1]
-        tw = raw[sl["tcp_twist"]]
-        np.divide(v, self.v_max, out=tw[0:3])
-        np.divide(w, self.w_max, out=tw[3:6])
-        raw[sl["coverage_fraction"]] = coverage_fraction
-        raw[sl["coverage_map"]] = coverage_map.ravel()
-        raw[sl["time_remaining"]] = time_remaining
-        np.clip(raw, self.low, self.high, out=raw)
-        return raw.astype(np.float32)
+        One compiled pass (``_fill``): every env step calls it, and numpy's block by block
+        writes cost ~25-50 us of a ~700 us env step at the level ``table``."""
+        out = np.empty(self.size, np.float32)
+        _fill(
+            out,
+            self._off,
+            TipInput(tip_pos, tip_vel, rest_tips, tip_force, tip_contact),
+            TcpInput(p, R, v, w, tcp_force_tcp, tcp_moment_tcp, p_obs),
+            np.asarray(coverage_map, float),
+            self._scale,
+            (float(coverage_fraction), float(time_remaining)),
+            self.low,
+            self.high,
+        )
+        return out
 
     # ------------------------------------------------------------------ scaled -> physical
     def block(self, obs, name: str) -> np.ndarray:
