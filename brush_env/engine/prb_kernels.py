@@ -88,8 +88,9 @@ Ctx = namedtuple("Ctx", ["prm", "sub", "con", "wk", "out", "tab"])
 #: rnat (ntab, nt, np) [mm] and vals (ntab, 2, nr, nt, np) ``ENTRY32``, idx (nb,) each bristle's
 #: table (-1: the chain's own Newton), outside (nb,) how many of its steps ended beyond its
 #: table, fallback (nb,) how many the table could not take (the chain's Newton took them);
-#: scratch: scr (6, 3), m (3, 3, 3), v (6, 3), qv (5,), and the near partner tips of the bristle
-#: being solved as a pair list (``_near_partners``): near_ptr (nb + 1,), near_idx (most partners,)
+#: scratch: scr (16, 3) (``tip_table_kernels.lookup``'s), m (3, 3, 3), v (6, 3), qv (5,), and
+#: the near partner tips of the bristle being solved as a pair list (``_near_partners``):
+#: near_ptr (nb + 1,), near_idx (most partners,)
 Tab = namedtuple(
     "Tab",
     [
@@ -1212,15 +1213,20 @@ def _table_residual(b, pose, ctx, xln, damp):
 @njit(**PRB, inline="always")
 def _table_newton(b, B, ctx, damp, L, held, full):
     """(alpha, |dx|, held, ok): Newton's tip step dx (tab.v[3]) from
-    (Kt - B (Jg + damp D) B^T) dx = -r and the fraction alpha of it to take: at most TAB_MAX_DX
-    of the links' length, and the chain's contact limits per iterate (``_tip_limits``) against
-    ctx.con's partners (the near ones: ``_near_partners``), or all of them (``full``, the
+    (Kt - B (Jg + damp (D + T)) B^T) dx = -r and the fraction alpha of it to take: at most
+    TAB_MAX_DX of the links' length, and the chain's contact limits per iterate (``_tip_limits``)
+    against ctx.con's partners (the near ones: ``_near_partners``), or all of them (``full``, the
     contact scene) for a step longer than TAB_NEAR."""
     tab, con, wk = ctx.tab, ctx.con, ctx.wk
     Jg, D, A, r, dx = tab.m[0], tab.m[1], tab.m[2], tab.v[2], tab.v[3]
+    # the damping force damp D(xl) (xl - xln): its tangent is damp (D + T), T = dD/dxl (xl - xln)
+    # from the lookup.  With D alone (before 2026-11-27) a bristle springing back ~1 mm in a step
+    # converged only linearly (~0.85 per iterate: D changes fast near the straight chain) and ran
+    # out of iterates: 1.89 -> 1.62 fallbacks to the chain per env step under random actions
+    T = tab.scr[13:16]
     for a in range(3):
         for c in range(3):
-            wk.Ktl[a, c] = Jg[a, c] + damp * D[a, c]
+            wk.Ktl[a, c] = Jg[a, c] + damp * (D[a, c] + T[a, c])
     for a in range(3):
         for c in range(3):
             v = wk.Kt[a, c]
@@ -1294,6 +1300,8 @@ def table_solve(b, q0, pose, ctx, xs, xln):
             xl[a] = (
                 B[0, a] * (xw[0] - rw[0]) + B[1, a] * (xw[1] - rw[1]) + B[2, a] * (xw[2] - rw[2])
             )
+        for a in range(3):  # the lookup's damping tangent needs the tip's move in the step
+            tab.scr[12, a] = xl[a] - xln[a]
         s, w, out = _table_branch(tb, xl, qprev, s, tab, tab.v[0], tab.m[0], tab.m[1])
         if s < 0:
             return -1

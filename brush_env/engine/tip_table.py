@@ -149,7 +149,7 @@ def _tab(grid, rnat, vals, idx) -> K.Tab:
         idx,
         np.zeros(nb, np.int64),
         np.zeros(nb, np.int64),
-        np.zeros((6, 3)),
+        np.zeros((16, 3)),
         np.zeros((3, 3, 3)),
         np.zeros((6, 3)),
         np.zeros(5),

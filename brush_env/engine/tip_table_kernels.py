@@ -606,7 +606,10 @@ def lookup(tb, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
     """The branch s of one table (``Table``: grid, rnat, vals) at the tip xl (bristle frame
     [mm]): g (3,) <- grad U [N] and Jg (3, 3) <- its derivative in xl [N/mm] (of
     the interpolant itself: Newton's tangent), D (3, 3) <- the damping matrix [N/mm per unit of
-    beta/h], q (5,) <- the joint angles if ``want_q``; scr (6, 3) scratch.  Trilinear in the
+    beta/h], q (5,) <- the joint angles if ``want_q``; scr (16, 3) scratch, with scr[12] the
+    tip's move in the step e = xl - xln [mm] (input) and scr[13:16] <- T [N/mm per unit of
+    beta/h], T[a, m] = sum_c dD[a, c]/dxl_m e_c: the damping force's change with the tip through
+    its matrix (Newton's tangent of D e is D + T).  Trilinear in the
     layer, theta and phi over the cell's corners where the branch exists, their weights
     renormalised.
 
@@ -700,6 +703,13 @@ def lookup(tb, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
     for k in range(3):
         for m in range(3):
             gv[k, m] = 0.0
+    # the damping's change with the tip, contracted with e = scr[12] (the tip's move in the step,
+    # xl - xln; mirrored like xl): rows of tv as gv's, of D e
+    tv = scr[6:9]
+    for k in range(3):
+        for m in range(3):
+            tv[k, m] = 0.0
+    e0, e1, e2 = scr[12, 0], sy * scr[12, 1], scr[12, 2]
     for ci in range(2):
         wi = a if ci else 1.0 - a
         di = 1.0 if ci else -1.0
@@ -724,6 +734,20 @@ def lookup(tb, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
                 for n in range(6):
                     p, r = IH[n]
                     D[p, r] += wc * v.D[n]
+                vd = v.D  # IH: 00, 11, 22, 01, 02, 12
+                de0 = vd[0] * e0 + vd[3] * e1 + vd[4] * e2
+                de1 = vd[3] * e0 + vd[1] * e1 + vd[5] * e2
+                de2 = vd[4] * e0 + vd[5] * e1 + vd[2] * e2
+                w0, w1, w2 = di * wj * wm, wi * dj * wm, wi * wj * dm
+                tv[0, 0] += w0 * de0
+                tv[0, 1] += w0 * de1
+                tv[0, 2] += w0 * de2
+                tv[1, 0] += w1 * de0
+                tv[1, 1] += w1 * de1
+                tv[1, 2] += w1 * de2
+                tv[2, 0] += w2 * de0
+                tv[2, 1] += w2 * de1
+                tv[2, 2] += w2 * de2
                 if want_q:
                     for k in range(5):
                         q[k] += wc * v.q[k]
@@ -742,18 +766,23 @@ def lookup(tb, s, xl, g, Jg, D, q, want_q, scr):  # noqa: C901
         for k in range(5):
             q[k] *= inv
     # d fi = ku d rho + kr d rn, d rn = dn_j d fj + dn_m d fm
+    # T[a, m] = sum_c dD[a, c]/dxl_m e_c, the damping's change with the tip
+    T = scr[13:16]
     for m in range(3):
         dfj = fpj * dth[m]
         dfm = fpm * dph[m]
         dfi = ku * drho[m] + kr * (dn_j * dfj + dn_m * dfm)
         for k in range(3):
             Jg[k, m] = inv * (gv[0, k] * dfi + gv[1, k] * dfj + gv[2, k] * dfm)
+            T[k, m] = inv * (tv[0, k] * dfi + tv[1, k] * dfj + tv[2, k] * dfm)
     if sy < 0.0:  # back from the mirror image: y components and b1, b2, t turn sign
         g[1] = -g[1]
         for k in range(3):
             if k != 1:
                 Jg[1, k] = -Jg[1, k]
                 Jg[k, 1] = -Jg[k, 1]
+                T[1, k] = -T[1, k]
+                T[k, 1] = -T[k, 1]
                 D[1, k] = -D[1, k]
                 D[k, 1] = -D[k, 1]
         if want_q:

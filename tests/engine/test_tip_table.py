@@ -108,6 +108,76 @@ def test_every_entry_is_an_equilibrium_of_the_chain(group):
     assert checked > 1000
 
 
+def _lookup(tbk, s, xl, e):
+    """(w, out, g, Jg, D, T) of ``tip_table_kernels.lookup`` at xl with the tip's move e."""
+    g, Jg, D, q, scr = (
+        np.zeros(3),
+        np.zeros((3, 3)),
+        np.zeros((3, 3)),
+        np.zeros(5),
+        np.zeros((16, 3)),
+    )
+    scr[12] = e
+    w, out, _ = T.lookup(tbk, s, np.asarray(xl, float), g, Jg, D, q, True, scr)
+    return w, out, g, Jg, D, scr[13:16].copy()
+
+
+def test_lookup_tangents_are_the_interpolants_derivatives():
+    """Newton's tangents of the table (``lookup``): Jg = d grad U / dxl and T = dD/dxl e (the
+    damping force's change with the tip through its matrix) against central differences of the
+    interpolant, at 600 random tips (both sides of the mirror plane y = 0, both branches); those
+    inside the table where the branch holds all 8 corners of the cell are compared (about 40 %
+    are not: a branch exists in part of the space only).  A difference whose two one-sided
+    quotients disagree straddles a cell face (the interpolant's slope jumps there) and is not
+    compared either; at least 250 are."""
+    j = _joint("inner")
+    tb = tip_table.table(j)
+    tbk = T.Table(tb.grid[0], tb.rnat, tb.vals)
+    geo = np.array(j["geo"], float)
+    L = geo[1] + geo[2]
+    rng = np.random.default_rng(3)
+    h = 1e-7  # [mm]: cells are ~0.1 mm
+    checked = 0
+    for _ in range(600):
+        rho = rng.uniform(0.5, 0.95) * L
+        th, ph = np.radians(rng.uniform(5.0, 120.0)), rng.uniform(-np.pi, np.pi)
+        xl = np.array(
+            [
+                geo[0] + rho * np.cos(th),
+                rho * np.sin(th) * np.cos(ph),
+                rho * np.sin(th) * np.sin(ph),
+            ]
+        )
+        e = rng.normal(size=3) * 0.3
+        s = int(rng.integers(2))
+        w, out, g0, Jg, D0, Tm = _lookup(tbk, s, xl, e)
+        full = 1.0 - 1e-9  # the corners' weights sum to 1 (to rounding) where all 8 hold the branch
+        if w < full or out != 0:
+            continue
+        ok = True
+        fd_J, fd_T = np.zeros((3, 3)), np.zeros((3, 3))
+        for m in range(3):
+            dx = np.zeros(3)
+            dx[m] = h
+            wp, op, gp, _, Dp, _ = _lookup(tbk, s, xl + dx, e)
+            wm, om, gm, _, Dm, _ = _lookup(tbk, s, xl - dx, e)
+            if min(wp, wm) < full or op or om:
+                ok = False
+                break
+            fwd, bwd = (gp - g0) / h, (g0 - gm) / h
+            if not np.allclose(fwd, bwd, rtol=1e-3, atol=1e-6 * np.abs(Jg).max()):
+                ok = False  # a cell face between the two
+                break
+            fd_J[:, m] = (gp - gm) / (2 * h)
+            fd_T[:, m] = (Dp - Dm) @ e / (2 * h)
+        if not ok:
+            continue
+        np.testing.assert_allclose(Jg, fd_J, rtol=1e-4, atol=1e-5 * np.abs(Jg).max())
+        np.testing.assert_allclose(Tm, fd_T, rtol=1e-4, atol=1e-5 * max(np.abs(fd_T).max(), 1e-12))
+        checked += 1
+    assert checked >= 250
+
+
 def _scrub(level):
     """The brush pressed 0.3 mm past touch while it moves 20 mm/s along x and 15 mm/s down for
     40 engine steps (4 ms), then held: (tips, TCP force) at the end."""
