@@ -451,9 +451,10 @@ def pair_law(b, j, pj, con, c0_inv_h, f, C):
 
 
 @njit(**HOT)
-def penetration_step_limit(b, pt, dp, R, con, tw):
+def penetration_step_limit(b, pt, dp, R, con, tw, pmin):
     """Largest fraction of the tip step ``dp`` that keeps every penetration (surfaces and partner
-    tips) below twice the current one (at least PEN_STEP_MIN): a Newton iterate coming from
+    tips) below twice the current one (at least pmin [mm]: the chain's Newton passes
+    PEN_STEP_MIN, the tabulated law's ``prb_kernels.TAB_PEN_MIN``): a Newton iterate coming from
     outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
     back out (a limit cycle).  This replaces a "pre-search" tangent, which made Newton converge
     only linearly whenever a tip rests just outside a contact.  tw: ``records.TipScratch``."""
@@ -468,7 +469,7 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
-        allow = max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)
+        allow = max(2.0 * max(-gap, 0.0), pmin)
         # penetration after the step: -(gap + a dn) <= allow
         a = (gap + allow) / (-dn)
         if a < amax:
@@ -484,7 +485,7 @@ def penetration_step_limit(b, pt, dp, R, con, tw):
             dn = (dp[0] * d0 + dp[1] * d1 + dp[2] * d2) / dist
             if dn >= 0.0 or gap > -dn:  # moving apart, or cannot reach the partner
                 continue
-            allow = max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)
+            allow = max(2.0 * max(-gap, 0.0), pmin)
             a = (gap + allow) / (-dn)
             if a < amax:
                 amax = max(a, 0.0)

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT, block_solve, local_rot_into, reorthonormalize, rotate_left
-from .contact import in_contact, penetration_step_limit, slip_step_limit
+from .contact import PEN_STEP_MIN, in_contact, penetration_step_limit, slip_step_limit
 from .predict import load_chain, predict_start, save_chain, start_state, start_step
 from .records import Trial
 from .residual import bristle_residual, rebuild_factors, tip_refactor
@@ -180,7 +180,7 @@ def _step_cap(br, model, chain, sub, con, ws):
     pt = it.tip
     for a in range(3):
         pt[a] = chain.pos[il, a] + hl * rot[il, a, 0]
-    apen = penetration_step_limit(br.b, pt, dp, radius, con, ws.tipw)
+    apen = penetration_step_limit(br.b, pt, dp, radius, con, ws.tipw, PEN_STEP_MIN)
     if apen < alpha:
         alpha = max(apen, 1e-3)
     if not sub.static:

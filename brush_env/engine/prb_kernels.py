@@ -678,9 +678,9 @@ def _conservative_part(b, con, B, wk):
 
 
 @njit(**PRB, inline="always")
-def _partner_limit(b, x, dp, R, con, amax):
+def _partner_limit(b, x, dp, R, con, amax, pmin):
     """The fraction (at most amax) of the tip step dp from x [mm] that keeps the tip out of every
-    partner tip by more than twice its overlap now (at least PEN_STEP_MIN), along the whole
+    partner tip by more than twice its overlap now (at least pmin [mm]), along the whole
     straight path (a ray against the partner's sphere).  ``penetration_step_limit`` looks along
     the line of centres only: a massless tip springing back ~1 mm in one iterate passed across
     that line and landed 0.6 mm inside its neighbour's tip (random actions, seed 10), where the
@@ -698,7 +698,7 @@ def _partner_limit(b, x, dp, R, con, amax):
         dd = d0 * d0 + d1 * d1 + d2 * d2
         rs = R + tips[j, 6]
         gap = np.sqrt(dd) - rs
-        rt = rs - max(2.0 * max(-gap, 0.0), PEN_STEP_MIN)  # the closest the centres may come
+        rt = rs - max(2.0 * max(-gap, 0.0), pmin)  # the closest the centres may come
         c = dd - rt * rt
         if c <= 0.0:
             continue
@@ -725,8 +725,8 @@ def _contact_limit(b, B, dq, con, wk):
     for a in range(3):
         dp[a] = B[a, 0] * wk.tmp[0] + B[a, 1] * wk.tmp[1] + B[a, 2] * wk.tmp[2]
     R = con.tip_args[b].radius
-    a_pen = penetration_step_limit(b, wk.xw, dp, R, con, wk.tw)
-    return _partner_limit(b, wk.xw, dp, R, con, a_pen)
+    a_pen = penetration_step_limit(b, wk.xw, dp, R, con, wk.tw, PEN_STEP_MIN)
+    return _partner_limit(b, wk.xw, dp, R, con, a_pen, PEN_STEP_MIN)
 
 
 @njit(**PRB, inline="always")
@@ -1103,6 +1103,13 @@ TAB_JUMP = 0.02
 #: step (each is farther than R + R_j + TAB_NEAR from every point of it), so the list changes
 #: no result.  The pair list holds 23 partners per tip for the default brush, ~3 within reach
 TAB_NEAR = 0.5
+#: [mm] the penetration a Newton iterate of the tabulated law may always reach from outside a
+#: surface or partner tip (the chain's PEN_STEP_MIN is 2e-3).  A light sliding contact cycled:
+#: the free tip's step, headed for an equilibrium below the plate, was cut 2 um deep (~0.03 N on
+#: the plate, against the ~1e-3 N it carries), the next step from there left the plate, and round
+#: again until the iterates ran out -- most of the chain fallbacks.  0.2 um: 1.62 -> 1.30
+#: fallbacks per random env step (5e-5 mm: 1.32, 5e-4: 1.34), docs/benchmarks.md (2026-11-27)
+TAB_PEN_MIN = 2e-4
 
 
 @njit(**PRB, inline="always")
@@ -1246,8 +1253,8 @@ def _table_newton(b, B, ctx, damp, L, held, full):
     R = con.tip_args[b].radius
     if dn > TAB_NEAR:  # the near partners' list does not cover so long a step: all of them
         con = full
-    a_pen = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw)
-    a_pen = _partner_limit(b, wk.xw, wk.dp, R, con, a_pen)
+    a_pen = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw, TAB_PEN_MIN)
+    a_pen = _partner_limit(b, wk.xw, wk.dp, R, con, a_pen, TAB_PEN_MIN)
     alpha, held = _tip_limits(b, alpha, a_pen, con, wk, held)
     return alpha, dn, held, True
 
@@ -1345,8 +1352,8 @@ def _table_step(b, qb, qpb, pose, ctx, touching):
             wk.xw[a] = x0[a]
             wk.dp[a] = x0[3 + a] * sub.h
         R = con.tip_args[b].radius
-        lim = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw)
-        lim = _partner_limit(b, wk.xw, wk.dp, R, con, lim)
+        lim = penetration_step_limit(b, wk.xw, wk.dp, R, con, wk.tw, PEN_STEP_MIN)
+        lim = _partner_limit(b, wk.xw, wk.dp, R, con, lim, PEN_STEP_MIN)
         for a in range(3):
             xs[a] = x0[a] + lim * wk.dp[a]
         return table_solve(b, qb, pose, ctx, xs, xln)
