@@ -302,6 +302,14 @@ class SurfaceCoverage:
         w = np.where(self.reach, self.areas, 0.0)
         self._block_area = np.bincount(self._block, w, m * m)
         self.extent = (lo, hi)
+        # each block's, region's and tooth's area [mm^2] (reachable only for blocks and teeth),
+        # and how much of it is cleaned, kept as ``stamp`` cleans (the env reads them every step:
+        # reductions over every sample cost ~0.2 ms there)
+        self._region_area = np.bincount(self.region, self.areas, len(self.region_names))
+        self._tooth_area = np.bincount(self.tooth, w, len(self.tooth_names))
+        self._block_clean = np.zeros(m * m)
+        self._region_clean = np.zeros(len(self.region_names))
+        self._tooth_clean = np.zeros(len(self.tooth_names))
 
     @property
     def total(self) -> float:
@@ -314,6 +322,9 @@ class SurfaceCoverage:
     def reset(self) -> None:
         self.cleaned[:] = False
         self.count = 0.0
+        self._block_clean[:] = 0.0
+        self._region_clean[:] = 0.0
+        self._tooth_clean[:] = 0.0
 
     def sweep(self, sweep: EffectiveSweep, f: np.ndarray, cp: np.ndarray) -> float:
         """``CoverageMap.sweep``'s contract: the effective tips' segments of n engine steps
@@ -345,35 +356,38 @@ class SurfaceCoverage:
             t = np.clip(q @ ab / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(idx))
             d2 = np.sum((q - t[:, None] * ab) ** 2, axis=1)
             hit = idx[d2 <= self.clean_radius**2]
+            if hit.size == 0:
+                continue
             self.cleaned[hit] = True
-            new += float(self.areas[hit][self.reach[hit]].sum())
+            ah = self.areas[hit]
+            reach = self.reach[hit]
+            new += float(ah[reach].sum())
+            np.add.at(self._region_clean, self.region[hit], ah)
+            np.add.at(self._block_clean, self._block[hit[reach]], ah[reach])
+            np.add.at(self._tooth_clean, self.tooth[hit[reach]], ah[reach])
         self.count += new
         return new
 
     def coarse(self) -> np.ndarray:
         """(m, m) reachable fraction cleaned per block of the buccal view (empty blocks: 0)."""
-        w = np.where(self.cleaned & self.reach, self.areas, 0.0)
-        c = np.bincount(self._block, w, self.coarse_size**2)
-        out = np.divide(c, self._block_area, out=np.zeros_like(c), where=self._block_area > 0)
+        c, a = self._block_clean, self._block_area
+        out = np.divide(c, a, out=np.zeros_like(c), where=a > 0)
         return out.reshape(self.coarse_size, self.coarse_size)
 
     def by_region(self) -> dict[str, float]:
         """Cleaned fraction of each region's area (all teeth)."""
-        out = {}
-        for k, name in enumerate(self.region_names):
-            sel = self.region == k
-            tot = float(self.areas[sel].sum())
-            out[name] = float(self.areas[sel & self.cleaned].sum()) / tot if tot else 0.0
-        return out
+        return _fractions(self.region_names, self._region_clean, self._region_area)
 
     def by_tooth(self) -> dict[str, float]:
         """Cleaned fraction of each tooth's reachable area."""
-        out = {}
-        for k, name in enumerate(self.tooth_names):
-            sel = (self.tooth == k) & self.reach
-            tot = float(self.areas[sel].sum())
-            out[name] = float(self.areas[sel & self.cleaned].sum()) / tot if tot else 0.0
-        return out
+        return _fractions(self.tooth_names, self._tooth_clean, self._tooth_area)
+
+
+def _fractions(names, clean: np.ndarray, area: np.ndarray) -> dict[str, float]:
+    """name -> cleaned area / area (0 where there is no area)."""
+    return {
+        name: float(clean[k]) / float(area[k]) if area[k] else 0.0 for k, name in enumerate(names)
+    }
 
 
 def crown_samples(teeth, clean_radius: float, coarse_size: int = 8) -> SurfaceCoverage:

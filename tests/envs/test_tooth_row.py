@@ -34,6 +34,39 @@ def test_surface_coverage_cleans_exactly_the_samples_within_the_radius_of_a_segm
     assert cov.stamp(np.array([[-2.0, 0.0, 0.0]]), np.array([[2.0, 0.0, 0.0]])) == 0.0
 
 
+def test_surface_coverage_tallies_are_the_cleaned_samples_areas():
+    """``coarse``, ``by_region`` and ``by_tooth`` (kept as ``stamp`` cleans) equal their
+    definitions over the cleaned samples -- area cleaned over area, per block of the buccal view
+    and per tooth of the reachable samples, per region of all -- after 40 random strokes, and
+    are 0 again after ``reset``."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    pts = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-3, 3, n), rng.uniform(-1, 1, n)])
+    region = rng.integers(0, 4, n)  # BUCCAL .. LINGUAL (lingual: not reachable)
+    tooth = rng.integers(0, 3, n)
+    areas = rng.uniform(0.005, 0.02, n)
+    cov = SurfaceCoverage(pts, areas, region, tooth, ["A", "B", "C"], 0.5, 4)
+    for _ in range(40):
+        a = rng.uniform([-6, -3, -1], [6, 3, 1], (3, 3))
+        cov.stamp(a, a + rng.normal(size=(3, 3)))
+    c, r = cov.cleaned, cov.reach
+    assert 0 < c.sum() < n
+    lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)  # the buccal view's 4 x 4 blocks
+    ij = np.clip(((pts[:, :2] - lo) / (hi - lo + 1e-9) * 4).astype(int), 0, 3)
+    blk = ij[:, 1] * 4 + ij[:, 0]
+    w = np.where(c & r, areas, 0.0)
+    blocks = np.bincount(blk, w, 16) / np.bincount(blk, np.where(r, areas, 0.0), 16)
+    np.testing.assert_allclose(cov.coarse().ravel(), blocks, rtol=1e-12)
+    for k, name in enumerate(cov.region_names):
+        sel = region == k
+        assert cov.by_region()[name] == pytest.approx(areas[sel & c].sum() / areas[sel].sum())
+    for k, name in enumerate(["A", "B", "C"]):
+        sel = (tooth == k) & r
+        assert cov.by_tooth()[name] == pytest.approx(areas[sel & c].sum() / areas[sel].sum())
+    cov.reset()
+    assert not cov.coarse().any() and not any(cov.by_region().values())
+
+
 @pytest.fixture(scope="module")
 def reference_episode():
     env = gym.make(ID, **TINY, max_episode_steps=120)
