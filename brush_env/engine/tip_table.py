@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -112,22 +113,45 @@ def table(joint, shape=SHAPE) -> T.Table:
 
 
 def tables_for(prm: np.ndarray) -> K.Tab:
-    """The kernels' tables (``prb_kernels.Tab``) of every bristle of a brush (joints ``prm``)."""
+    """The kernels' tables (``prb_kernels.Tab``) of every bristle of a brush (joints ``prm``).
+    The tables themselves (~15 MB each) are shared by every model of the process with the same
+    distinct joint records (``_stacked``): the kernels only read them, and N envs of one brush
+    held N copies (N = 16: ~470 MB, and a kernel ~2x slower per env step than a single env's
+    from the cache misses)."""
     keys: dict[bytes, int] = {}
-    tables = []
+    joints = []
     idx = np.zeros(len(prm), np.int64)
     for b, j in enumerate(prm):
         kb = np.ascontiguousarray(j).tobytes()
         if kb not in keys:
-            keys[kb] = len(tables)
-            tables.append(table(j))
+            keys[kb] = len(joints)
+            joints.append(j)
         idx[b] = keys[kb]
-    return _tab(
-        np.concatenate([t.grid for t in tables]),
-        np.stack([t.rnat for t in tables]),
-        np.stack([t.vals for t in tables]),
-        idx,
-    )
+    grid, rnat, vals = _stacked(tuple(keys), joints)
+    return _tab(grid, rnat, vals, idx)
+
+
+#: the stacked tables by their joint records' bytes (``tables_for``), shared within the process;
+#: the last STACKS_KEPT distinct brushes' (a model holds its own arrays however long it lives)
+_STACKS: OrderedDict[tuple[bytes, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = OrderedDict()
+STACKS_KEPT = 4
+
+
+def _stacked(records: tuple[bytes, ...], joints: list):
+    """(grid, rnat, vals) of the tables of ``joints`` (their records' bytes ``records``), in
+    order: built or loaded once (``table``), the same arrays for every model after that."""
+    got = _STACKS.pop(records, None)
+    if got is None:
+        tables = [table(j) for j in joints]
+        got = (
+            np.concatenate([t.grid for t in tables]),
+            np.stack([t.rnat for t in tables]),
+            np.stack([t.vals for t in tables]),
+        )
+    _STACKS[records] = got  # the most recent last
+    while len(_STACKS) > STACKS_KEPT:
+        _STACKS.popitem(last=False)
+    return got
 
 
 def no_tables(nb: int) -> K.Tab:

@@ -189,6 +189,17 @@ def _scrub(level):
     return ro.last
 
 
+def test_models_of_one_brush_share_its_tables():
+    """Two simulators of the default brush at ``table`` read the same table arrays (N envs of one
+    brush held N copies of ~30 MB), each with its own counters; the shared tables give the same
+    steps as before: ``test_rollout_is_deterministic`` runs two models, one after the other."""
+    sc = load_scene("flat_plate")
+    a = Simulator(sc, level_settings("table", dt=4e-3)).bristles._tab
+    b = Simulator(sc, level_settings("table", dt=4e-3)).bristles._tab
+    assert a.vals is b.vals and a.grid is b.grid and a.rnat is b.rnat
+    assert a.fallback is not b.fallback and a.scr is not b.scr
+
+
 def test_rollout_is_deterministic():
     """Same start and motion at the level ``table``: the same result bit for bit."""
     a, b = _scrub("table"), _scrub("table")
