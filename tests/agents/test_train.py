@@ -145,15 +145,15 @@ def test_planar_stroke_trains_with_agents_train(tmp_path):
     env.close()
 
 
-def test_vec_env_auto_is_the_batched_env_at_fast_and_reduced(tmp_path):
-    """--vec-env auto: the batched env (gym.make_vec, vector_entry_point) at fast and reduced,
-    SubprocVecEnv at the full-chain levels; a bad choice is named."""
+def test_vec_env_auto_is_the_batched_env_at_fast_reduced_and_table(tmp_path):
+    """--vec-env auto: the batched env (gym.make_vec, vector_entry_point) at fast, reduced and
+    table, SubprocVecEnv at the full-chain levels; a bad choice is named."""
     from agents.train import check_inputs
 
     cfg = tmp_path / "ppo.toml"
     cfg.write_text(PPO_TOML)
     assert check_inputs("ppo", cfg, 10, 2, None)["vec_env"] == "batched"  # the default: fast
-    for level, want in (("reduced", "batched"), ("balanced", "subproc")):
+    for level, want in (("reduced", "batched"), ("table", "batched"), ("balanced", "subproc")):
         assert check_inputs("ppo", cfg, 10, 2, {"fidelity": level})["vec_env"] == want
     assert check_inputs("ppo", cfg, 10, 2, None, "subproc")["vec_env"] == "subproc"
     with pytest.raises(ValueError, match=r"--vec-env 'threads' is not allowed: must be one of"):
