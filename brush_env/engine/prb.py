@@ -418,7 +418,10 @@ class PRBBristles(BristleModel):
         c = _counts(
             self._out.iters, self._out.loose, self._out.rough, self._tab.fallback, self._tab.outside
         )
-        return {"newton_max": c[0], "loose_steps": c[1], "rough_steps": c[2]}
+        return dict(zip(self._INFO_KEYS, c))
+
+    #: ``solver_info``'s keys, in ``_counts``' order (a model with tables adds theirs)
+    _INFO_KEYS: tuple[str, ...] = ("newton_max", "loose_steps", "rough_steps")
 
     @property
     def n_tip_pairs(self) -> int:
@@ -630,20 +633,10 @@ class TableBristles(PRBBristles):
             stacklevel=3,
         )
 
-    def solver_info(self) -> dict:
-        """The chain's (``PRBBristles.solver_info``) and, since reset, the bristle-steps the table
-        could not take (``table_fallbacks``: the chain's Newton took them) and those that ended
-        beyond the table (``table_outside``)."""
-        c = _counts(
-            self._out.iters, self._out.loose, self._out.rough, self._tab.fallback, self._tab.outside
-        )
-        return {
-            "newton_max": c[0],
-            "loose_steps": c[1],
-            "rough_steps": c[2],
-            "table_fallbacks": c[3],
-            "table_outside": c[4],
-        }
+    #: ``solver_info``: the chain's (``PRBBristles.solver_info``) and, since reset, the
+    #: bristle-steps the table could not take (``table_fallbacks``: the chain's Newton took them)
+    #: and those that ended beyond the table (``table_outside``)
+    _INFO_KEYS = (*PRBBristles._INFO_KEYS, "table_fallbacks", "table_outside")
 
 
 class TableRangeWarning(UserWarning):
