@@ -353,6 +353,8 @@ def ensure_calibrated(brush: BrushConfig, settings) -> None:
     stderr; the shipped brushes need none)."""
     if getattr(settings, "model", "dfm") in ("prb", "table"):
         calibrate_brush(brush, verbose=True)
+    if getattr(settings, "model", "dfm") == "table":
+        table_brush(brush, verbose=True)
 
 
 def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> int:
@@ -378,6 +380,33 @@ def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool 
     return done
 
 
+def table_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> list:
+    """The tabulated tip law's tables (``engine/tip_table.py``) of every joint record of
+    ``brush`` (after ``calibrate_brush``: the joints are the calibration's): loaded, or built and
+    cached (~60 s each on one core, said on stderr); ``ship``: also stored in the package
+    (``tip_table.SHIPPED``).  Returns the shipped files (``ship``) or the records' keys (the
+    tables already stored are not read here: the model loads them once per process)."""
+    from .engine import tip_table
+    from .engine.prb import build_geometry
+
+    if not isinstance(brush, BrushConfig):
+        brush = load_brush(brush)
+    prm = build_geometry(brush).prm
+    if ship:
+        return tip_table.ship(prm)
+    joints = list(tip_table.distinct_joints(prm).values())
+    missing = [j for j in joints if not tip_table.is_stored(j)]
+    if verbose and missing:
+        print(
+            f"building the tip tables of {len(missing)} bristle record(s) (~60 s each on one "
+            "core, cached)",
+            file=sys.stderr,
+        )
+    for j in missing:
+        tip_table.table(j)
+    return [tip_table.table_key(j) for j in joints]
+
+
 def add_arguments(p) -> None:
     """``brush-env calibrate [BRUSH ...] [--all] [--ship] [--force]``."""
     p.add_argument(
@@ -390,18 +419,20 @@ def add_arguments(p) -> None:
     p.add_argument(
         "--ship",
         action="store_true",
-        help="write into the package's shipped file (engine/prb_calibrations.json), refitting",
+        help="write into the package's shipped files (engine/prb_calibrations.json and the tip "
+        "tables in engine/tip_tables/), refitting",
     )
 
 
 def run(args) -> int:
     """Fit the bristle types of the brushes that have no calibration (all of them with
     ``--ship``) and print each fit's error."""
-    from .engine import configs_dir
+    from .engine import configs_dir, tip_table
 
     names = list(args.brushes) or ["default"]
     if args.all:
         names = sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
+    shipped: set = set()
     for name in names:
         brush = load_brush(name)
         n = calibrate_brush(brush, ship=args.ship)
@@ -409,7 +440,22 @@ def run(args) -> int:
         print(
             f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}"
         )
+        tables = table_brush(brush, ship=args.ship)
+        if args.ship:
+            shipped.update(tables)
+        print(f"{name}: {len(tables)} tip table(s), {tip_table.SHIPPED if args.ship else 'cached'}")
+    if args.ship and args.all:  # the shipped tables no brush in configs/brushes uses any more
+        for path in tip_table.SHIPPED.glob("*.npz"):
+            if path not in shipped:
+                path.unlink()
     return 0
 
 
-__all__ = ["bristle_case", "calibrate_brush", "ensure_calibrated", "fit", "press_reduced"]
+__all__ = [
+    "bristle_case",
+    "calibrate_brush",
+    "ensure_calibrated",
+    "fit",
+    "press_reduced",
+    "table_brush",
+]

@@ -4,8 +4,10 @@ coordinates instead of the chain's five joint angles (``tip_table_kernels`` for 
 its branches; ``prb_kernels.table_solve`` for the step).
 
 One table per distinct joint record (a bristle type and the brush's lean: the springs, cubics,
-damping and rest angles), built in numba on first use and cached by its content under the
-user's cache directory (``prb_calibration.user_cache``'s folder).  The model that uses it is
+damping and rest angles), named by its content: those of the brushes in configs/brushes ship
+with the package (``SHIPPED``, remade by ``brush-env calibrate --all --ship``), others are built
+in numba on first use (~60 s on one core) and cached under the user's cache directory
+(``prb_calibration.user_cache``'s folder).  The model that uses it is
 registered as ``"table"`` (``prb.TableBristles``): every bristle touching nothing still takes the
 chain's free step, and a step the table cannot take (no branch under the tip) falls back to the
 chain's own Newton.
@@ -26,7 +28,7 @@ from . import tip_table_kernels as T
 from .prb_calibration import user_cache
 
 #: bump when the table or its kernels change: older cached tables are not used
-VERSION = 15
+VERSION = 17
 #: nodes along rho (the chord's length), theta (from the axis, 3 deg apart) and phi (the
 #: azimuth, -90 to 90 deg, 7.5 deg apart).  rho matters most: the chain is stiff along its
 #: chord, and 33 layers of constant rho left a 1 mN side load's deflection 21 % short of the
@@ -88,46 +90,97 @@ def build_table(joint, shape=SHAPE) -> T.Table:
     rnat = np.zeros(shape[1:])
     vals = np.zeros((2, *shape), T.ENTRY)
     T.build(T.Table(grid[0], rnat, vals), np.asarray(joint).reshape(1)[0])
-    # stored in single precision: the forces to ~1e-7 of themselves, half the memory
-    return T.Table(grid, rnat, vals.astype(T.ENTRY32))
+    # the damping matrices from the joint angles as stored (single precision): a table's D is
+    # then remade exactly from the table itself (tests/engine/test_tip_table.py)
+    vals["q"] = vals["q"].astype(np.float32)
+    T.grid_damping(T.Table(grid[0], rnat, vals), np.asarray(joint).reshape(1)[0])
+    # stored in single precision (the forces to ~1e-7 of themselves) and without the Hessian
+    # (``tip_table_kernels.ENTRY32``)
+    out = np.zeros(vals.shape, T.ENTRY32)
+    for name in T.ENTRY32.names:
+        out[name] = vals[name]
+    return T.Table(grid, rnat, out)
 
 
 def _cache_dir() -> Path:
     return user_cache().parent / "tip_tables"
 
 
-def table(joint, shape=SHAPE) -> T.Table:
-    """The table of a joint record: from the cache, else built and cached."""
-    path = _cache_dir() / f"{table_key(joint, shape)}.npz"
+#: the tables of the brushes in configs/brushes, shipped with the package (``ship``: remade by
+#: ``brush-env calibrate --all --ship``), so that a user of those brushes never builds one
+SHIPPED = Path(__file__).with_name("tip_tables")
+
+
+def load(path: Path, shape=SHAPE) -> T.Table | None:
+    """The table stored at ``path``, or None (no file, or not a table of this version)."""
     try:
         with np.load(path) as z:
-            return T.Table(z["grid"], z["rnat"], z["vals"])
+            tb = T.Table(z["grid"], z["rnat"], z["vals"])
     except (OSError, KeyError, ValueError):
-        pass
-    tb = build_table(joint, shape)
+        return None
+    if tb.vals.dtype != T.ENTRY32 or tb.vals.shape != (2, *shape):
+        return None
+    return tb
+
+
+def _save(tb: T.Table, path: Path, compressed: bool) -> None:
+    """Store ``tb`` at ``path`` (written to a temporary file and renamed: a reader never sees
+    half a table)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-    np.savez(tmp, grid=tb.grid, rnat=tb.rnat, vals=tb.vals)
+    (np.savez_compressed if compressed else np.savez)(tmp, grid=tb.grid, rnat=tb.rnat, vals=tb.vals)
     os.replace(tmp, path)
+
+
+def table(joint, shape=SHAPE) -> T.Table:
+    """The table of a joint record: shipped, else from the user's cache, else built (~60 s on
+    one core) and cached."""
+    name = f"{table_key(joint, shape)}.npz"
+    for path in (SHIPPED / name, _cache_dir() / name):
+        tb = load(path, shape)
+        if tb is not None:
+            return tb
+    tb = build_table(joint, shape)
+    _save(tb, _cache_dir() / name, compressed=False)
     return tb
+
+
+def is_stored(joint, shape=SHAPE) -> bool:
+    """Whether the table of a joint record is shipped or cached (``table`` needs no build)."""
+    name = f"{table_key(joint, shape)}.npz"
+    return (SHIPPED / name).is_file() or (_cache_dir() / name).is_file()
+
+
+def ship(prm: np.ndarray) -> list[Path]:
+    """Store the tables of the joint records ``prm`` (a brush's, ``prb.build_geometry``) in the
+    package (``SHIPPED``, compressed: ~4.8 MB each); returns their paths."""
+    out = []
+    for j in distinct_joints(prm).values():
+        path = SHIPPED / f"{table_key(j)}.npz"
+        if load(path) is None:
+            _save(table(j), path, compressed=True)
+        out.append(path)
+    return out
+
+
+def distinct_joints(prm: np.ndarray) -> dict[bytes, np.void]:
+    """The distinct joint records of ``prm`` by their bytes, in order of first use."""
+    out: dict[bytes, np.void] = {}
+    for j in prm:
+        out.setdefault(np.ascontiguousarray(j).tobytes(), j)
+    return out
 
 
 def tables_for(prm: np.ndarray) -> K.Tab:
     """The kernels' tables (``prb_kernels.Tab``) of every bristle of a brush (joints ``prm``).
-    The tables themselves (~15 MB each) are shared by every model of the process with the same
+    The tables themselves (~10.6 MB each) are shared by every model of the process with the same
     distinct joint records (``_stacked``): the kernels only read them, and N envs of one brush
     held N copies (N = 16: ~470 MB, and a kernel ~2x slower per env step than a single env's
     from the cache misses)."""
-    keys: dict[bytes, int] = {}
-    joints = []
-    idx = np.zeros(len(prm), np.int64)
-    for b, j in enumerate(prm):
-        kb = np.ascontiguousarray(j).tobytes()
-        if kb not in keys:
-            keys[kb] = len(joints)
-            joints.append(j)
-        idx[b] = keys[kb]
-    grid, rnat, vals = _stacked(tuple(keys), joints)
+    joints = distinct_joints(prm)
+    order = {kb: t for t, kb in enumerate(joints)}
+    idx = np.array([order[np.ascontiguousarray(j).tobytes()] for j in prm], np.int64)
+    grid, rnat, vals = _stacked(tuple(joints), list(joints.values()))
     return _tab(grid, rnat, vals, idx)
 
 
@@ -143,15 +196,27 @@ def _stacked(records: tuple[bytes, ...], joints: list):
     got = _STACKS.pop(records, None)
     if got is None:
         tables = [table(j) for j in joints]
-        got = (
-            np.concatenate([t.grid for t in tables]),
-            np.stack([t.rnat for t in tables]),
-            np.stack([t.vals for t in tables]),
-        )
+        vals = _aligned((len(tables), *tables[0].vals.shape), tables[0].vals.dtype)
+        for k, t in enumerate(tables):
+            vals[k] = t.vals
+        got = (np.concatenate([t.grid for t in tables]), np.stack([t.rnat for t in tables]), vals)
     _STACKS[records] = got  # the most recent last
     while len(_STACKS) > STACKS_KEPT:
         _STACKS.popitem(last=False)
     return got
+
+
+#: [bytes] the stacked tables' entries start on a cache line: an entry is one line
+#: (``tip_table_kernels.ENTRY32``), and numpy's large arrays start 16 bytes past a page
+ALIGN = 64
+
+
+def _aligned(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+    """An empty array of ``shape`` and ``dtype`` whose data start on an ALIGN-byte boundary."""
+    n = int(np.prod(shape)) * dtype.itemsize
+    raw = np.empty(n + ALIGN, np.uint8)
+    off = -raw.ctypes.data % ALIGN
+    return raw[off : off + n].view(dtype).reshape(shape)
 
 
 def no_tables(nb: int) -> K.Tab:

@@ -20,17 +20,17 @@ through; staying on a branch while it exists is the hysteresis.
 The table stores, on a grid of the tip's spherical coordinates about J1 -- rho (the chord's
 length), theta (its angle from the axis) and phi (its azimuth from local y toward z, -pi/2 to
 pi/2: the chain is its own mirror image across its x-z plane, which turns b1, b2 and t and keeps
-the branch, so a tip at -y is looked up at +y and mirrored back) -- for each branch: valid,
-U, grad U (3), its Hessian H (6), the damping matrix D (6) of the joints' stiffness-
-proportional damping seen at the tip (dq/dx^T K dq/dx) and the joint angles q (5) (for
-drawing and the state), all in the bristle frame.  The chain is stiff along its chord
-and soft across it, so the layers in rho follow the tip's unloaded path: rho_nat(theta, phi),
-where the energy along the ray from J1 is least (the chord of a tip pushed sideways only; a
-grid of constant rho crossed that path, and its nodes off the path carried the chain's
-stretching, which a 1 mN side load's interpolated deflection missed by 21 %).  Above the path
-(the chain pulled straighter) nu layers up to rho_cap, below it the rest down to rho_min,
-spaced by u = ALPHA s + (1 - ALPHA) s^2 of the span (s uniform: fine and even near the path,
-coarser far from it); theta on [0, theta_max]; phi on [-pi/2, pi/2].
+the branch, so a tip at -y is looked up at +y and mirrored back) -- for each branch: valid, U,
+grad U (3), the damping matrix D (6) of the joints' stiffness-proportional damping seen at the
+tip (dq/dx^T K dq/dx) and the joint angles q (5) (for drawing and the state), all in the bristle
+frame (the builder also computes grad U's Hessian, not stored). The chain is stiff along its
+chord and soft across it, so the layers in rho follow the tip's unloaded path: rho_nat(theta,
+phi), where the energy along the ray from J1 is least (the chord of a tip pushed sideways only;
+a grid of constant rho crossed that path, and its nodes off the path carried the chain's
+stretching, which a 1 mN side load's interpolated deflection missed by 21 %). Above the path
+(the chain pulled straighter) nu layers up to rho_cap, below it the rest down to rho_min, spaced
+by u = ALPHA s + (1 - ALPHA) s^2 of the span (s uniform: fine and even near the path, coarser
+far from it); theta on [0, theta_max]; phi on [-pi/2, pi/2].
 """
 
 from __future__ import annotations
@@ -62,13 +62,15 @@ GRID = np.dtype(
 )
 #: one node's entry per branch (module docstring): whether the branch exists (ok), U [N mm],
 #: grad U (g [N]), its Hessian (H [N/mm]: xx, yy, zz, xy, xz, yz), the damping matrix (D, the
-#: same order) and the joint angles q [rad]; built in double, stored in single precision
+#: same order) and the joint angles q [rad]; built in double
 ENTRY = np.dtype(
     [("ok", "f8"), ("U", "f8"), ("g", "f8", 3), ("H", "f8", 6), ("D", "f8", 6), ("q", "f8", 5)]
 )
-ENTRY32 = np.dtype(
-    [("ok", "f4"), ("U", "f4"), ("g", "f4", 3), ("H", "f4", 6), ("D", "f4", 6), ("q", "f4", 5)]
-)
+#: ... and stored in single precision without H: the lookup's tangent is the interpolant's own
+#: derivative (of g), never H, and 16 floats are one 64-byte cache line -- a lookup reads 8
+#: corners, 8 lines with the entries aligned to lines (``tip_table.ALIGN``) against 12-16 for the
+#: 88-byte entry with H
+ENTRY32 = np.dtype([("ok", "f4"), ("U", "f4"), ("g", "f4", 3), ("D", "f4", 6), ("q", "f4", 5)])
 #: one table as the kernels read it: grid (GRID record), rnat (nt, np) [mm], vals (2, nr, nt,
 #: np) ENTRY32
 Table = namedtuple("Table", ["grid", "rnat", "vals"])
@@ -456,8 +458,104 @@ def node_x(tb, i, jj, m, x):
 @njit(**BUILD)
 def build(tb, j):
     """tb.rnat and tb.vals (2, nr, nt, np) ENTRY <- the unloaded path and both branches' values
-    at every node of the chain with joints j (module docstring).  One thread: numba's parallel
+    at every node of the chain with joints j (module docstring; the damping matrices as each
+    node's own until ``grid_damping``).  One thread: numba's parallel
     loops do not take the records (GRID, JOINT) this reads."""
+    build_rnat(tb, j)
+    for i in range(tb.grid.nr):
+        build_layer(tb, j, i)
+
+
+@njit(**BUILD)
+def grid_damping(tb, j):
+    """Every entry's D <- dq/dx^T K dq/dx with dq/dx from the branch's joint angles at the
+    neighbouring nodes (central differences along the grid's three directions where both
+    neighbours hold the branch, one-sided where one does; solved for dq/dx from the nodes'
+    positions, least squares where a direction has none).
+
+    The nodes' own D (``node_values``: differences 0.01 mm apart) is dq/dx of the chain's
+    equilibria at a point, which grows without bound toward a branch's end (the snap-through)
+    and a chain pulled straight: interpolated over the ~0.1 mm cells beside such a node it
+    multiplied the damping of tips that move as gently as the rest by 10-20 (the largest
+    eigenvalue 47 where the equilibria 0.003-0.03 mm apart give dq/dx of at most 1.5 rad/mm)
+    and threw a dragged brush's 20 tips into the plate at 0.84 N each, against 0.11 N in the
+    chain's own Newton (docs/model.md, 2026-11-27).  Differenced between nodes, dq/dx is the
+    joints' turn across a cell, bounded by it, as is the damping of a step that crosses it."""
+    grid, vals = tb.grid, tb.vals
+    kd = np.empty(5)
+    xa = np.empty(3)
+    xb = np.empty(3)
+    X = np.zeros((3, 3))
+    Q = np.zeros((3, 5))
+    idx = np.empty(3, np.int64)
+    for s in range(2):
+        for i in range(grid.nr):
+            for jj in range(grid.nt):
+                for m in range(grid.np):
+                    v = vals[s, i, jj, m]
+                    if v.ok == 0.0:
+                        continue
+                    for d in range(3):
+                        _grid_row(tb, s, i, jj, m, d, X, Q, xa, xb, idx)
+                    # X G = Q for G = (dq/dx)^T (3, 5): least squares (a direction without
+                    # neighbours, or the axis where phi does not move the node, adds nothing)
+                    G = np.linalg.pinv(X) @ Q
+                    for r in range(4):
+                        kd[r] = j.k[r] * _w(v.q[r] - j.rest[r], j.c3[r])[1]
+                    kd[4] = j.k[4]
+                    for n in range(6):
+                        a, c = IH[n]
+                        dd = 0.0
+                        for r in range(5):
+                            dd += kd[r] * G[a, r] * G[c, r]
+                        v.D[n] = dd
+
+
+@njit(**BUILD)
+def _has_branch(tb, s, idx):
+    """Whether node idx (layer, theta, phi) lies in table tb and holds branch s."""
+    g = tb.grid
+    if idx[0] < 0 or idx[0] >= g.nr or idx[1] < 0 or idx[1] >= g.nt:
+        return False
+    if idx[2] < 0 or idx[2] >= g.np:
+        return False
+    return tb.vals[s, idx[0], idx[1], idx[2]].ok != 0.0
+
+
+@njit(**BUILD)
+def _grid_row(tb, s, i, jj, m, d, X, Q, xa, xb, idx):
+    """Row d of ``grid_damping``'s system: X[d] <- the position difference [mm] and Q[d] <- the
+    joint angles' [rad] between node (i, jj, m)'s neighbours along direction d (layer, theta,
+    phi) on branch s -- both, or one and the node itself; zeros where neither holds it."""
+    for a in range(3):
+        X[d, a] = 0.0
+    for r in range(5):
+        Q[d, r] = 0.0
+    idx[0], idx[1], idx[2] = i, jj, m
+    idx[d] += 1
+    hi_ok = _has_branch(tb, s, idx)
+    idx[d] -= 2
+    lo_ok = _has_branch(tb, s, idx)
+    if not (hi_ok or lo_ok):
+        return
+    if not lo_ok:  # the lower end: the neighbour below, else the node itself
+        idx[d] += 1
+    node_x(tb, idx[0], idx[1], idx[2], xb)
+    qb = tb.vals[s, idx[0], idx[1], idx[2]].q
+    idx[0], idx[1], idx[2] = i, jj, m
+    if hi_ok:
+        idx[d] += 1
+    node_x(tb, idx[0], idx[1], idx[2], xa)
+    qa = tb.vals[s, idx[0], idx[1], idx[2]].q
+    for a in range(3):
+        X[d, a] = xa[a] - xb[a]
+    for r in range(5):
+        Q[d, r] = qa[r] - qb[r]
+
+
+@njit(**BUILD)
+def build_rnat(tb, j):
+    """tb.rnat <- the unloaded path's chords (the layers' reference: ``node_rho``)."""
     grid = tb.grid
     for jj in range(grid.nt):
         for m in range(grid.np):
@@ -466,8 +564,6 @@ def build(tb, j):
             tb.rnat[jj, m] = _natural_rho(grid, j, jj, m)
     for m in range(1, grid.np):
         tb.rnat[0, m] = tb.rnat[0, 0]
-    for i in range(grid.nr):
-        _build_layer(tb, j, i)
 
 
 @njit(**BUILD)
@@ -556,8 +652,8 @@ def _copy_entry(src, dst):
 
 
 @njit(**BUILD)
-def _build_layer(tb, j, i):
-    """Layer i of table tb (``build``)."""
+def build_layer(tb, j, i):
+    """Layer i of table tb (``build``; each layer on its own, after ``build_rnat``)."""
     grid, vals = tb.grid, tb.vals
     geo = grid.geo
     h = 1e-3 * (geo[1] + geo[2])

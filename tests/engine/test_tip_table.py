@@ -28,6 +28,59 @@ def _joint(group: str):
     return prm[0 if group == "inner" else 20]
 
 
+def test_the_shipped_brushes_tables_ship_with_the_package():
+    """Every joint record of every brush in configs/brushes has its table in the package
+    (``tip_table.SHIPPED``): a user of a shipped brush never builds one (~60 s each), and a brush
+    or calibration changed without ``brush-env calibrate --all --ship`` fails here."""
+    from brush_env.engine import configs_dir
+
+    names = sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
+    assert "default" in names
+    for name in names:
+        for j in tip_table.distinct_joints(build_geometry(load_brush(name)).prm).values():
+            path = tip_table.SHIPPED / f"{tip_table.table_key(j)}.npz"
+            assert path.is_file(), f"{name}: {path.name} not shipped"
+
+
+@pytest.mark.parametrize("group", ["inner", "outer"])
+def test_a_fresh_table_matches_the_shipped_one(group):
+    """The unloaded path and four layers (just below the top, the unloaded path's, two below it:
+    the highest and lowest layers hold no branch) built here (their damping matrices from the
+    shipped table's joint angles),
+    from the shipped calibration, against the shipped table of the default brush's inner and
+    outer tufts: the same branches exist at every node, and their values agree to a few units of
+    the single precision they are stored in (another machine's build differs in the last bits of
+    its minima, not more)."""
+    j = _joint(group)
+    shipped = tip_table.load(tip_table.SHIPPED / f"{tip_table.table_key(j)}.npz")
+    assert shipped is not None, "the default brush's table is not shipped"
+    grid = tip_table.table_grid(j)
+    g = grid[0]
+    rnat = np.zeros(tip_table.SHAPE[1:])
+    vals = np.zeros((2, *tip_table.SHAPE), T.ENTRY)
+    fresh = T.Table(g, rnat, vals)
+    T.build_rnat(fresh, np.asarray(j).reshape(1)[0])
+    np.testing.assert_allclose(rnat, shipped.rnat, rtol=1e-9)
+    for i in (1, int(g["nu"]), 40, 60):
+        T.build_layer(fresh, np.asarray(j).reshape(1)[0], i)
+        new, old = vals[:, i], shipped.vals[:, i]
+        np.testing.assert_array_equal(new["ok"], old["ok"])
+        on = new["ok"] == 1.0
+        assert on.sum() > 100
+        for name in ("U", "g", "q"):
+            a, b = new[name][on], old[name][on].astype(float)
+            scale = np.abs(a).max()
+            np.testing.assert_allclose(a, b, rtol=0, atol=2e-6 * scale, err_msg=f"layer {i} {name}")
+    # the damping matrices come from the joint angles of the whole table (``grid_damping``):
+    # from the shipped angles, the shipped matrices (to their single precision)
+    full = np.zeros(shipped.vals.shape, T.ENTRY)
+    for name in T.ENTRY32.names:
+        full[name] = shipped.vals[name]
+    T.grid_damping(T.Table(g, shipped.rnat, full), np.asarray(j).reshape(1)[0])
+    on = full["ok"] == 1.0
+    np.testing.assert_allclose(full["D"][on], shipped.vals["D"][on], rtol=1e-6, atol=1e-12)
+
+
 def _kin(q, geo):
     x, J = np.zeros(3), np.zeros((3, K.NQ))
     K.kinematics(
@@ -214,6 +267,49 @@ def test_table_carries_the_chains_load():
     assert b.tip_in_contact.sum() > 20
     assert np.linalg.norm(a.tcp_force - b.tcp_force) <= 0.03 * np.linalg.norm(b.tcp_force)
     assert np.abs(a.tip_pos - b.tip_pos).max() < 0.05
+
+
+#: FlatPlate-v0 (3-d actions, reset seed 1018): a PPO policy's first 8 actions -- the brush
+#: lowered onto the plate, then swept sideways 2 mm in one 40 ms step while 20 tips stick
+DRAG_ACTIONS = [[-0.2948, -0.6961, -0.3883]] + [
+    [-0.2564 + 0.0032 * k, -0.6950 + 0.0023 * k, -0.3784 - 0.0013 * k] for k in range(6)
+]
+DRAG_ACTIONS.append([1.0, 0.588, -0.4661])
+
+
+def _drag_forces(level):
+    import gymnasium as gym
+
+    env = gym.make(
+        "brush_env/FlatPlate-v0",
+        fidelity=level,
+        action_mode="3d",
+        frame_skip=1,
+        max_episode_steps=1000,
+    )
+    env.reset(seed=1018)
+    out = []
+    for a in DRAG_ACTIONS:
+        for _ in range(10):  # the policy's 25 Hz: ten 4 ms engine steps per action
+            _, _, term, _, info = env.step(np.asarray(a, np.float32))
+            assert not term, info.get("termination")
+            out.append(info["total_normal_force"])
+    env.close()
+    return np.array(out)
+
+
+def test_a_dragged_brush_with_stuck_tips_carries_the_chains_force():
+    """The damping the table puts on a moving tip (``tip_table_kernels.grid_damping``): the
+    brush lowered onto the plate and dragged 2 mm sideways in 40 ms with 20 tips stuck.  The
+    chain the table tabulates (level ``reduced``) carries 2.1-2.3 N through the drag; the
+    table's force stays within 30 % of it until the step's last 4 ms (where the table's tips
+    snap to the other branch a step before the chain's and unload).  With each node's own
+    damping matrix (dq/dx differenced 0.01 mm apart, unbounded beside a branch's end) the table
+    read 8.9 and 16.8 N there: the force limit stopped the episode."""
+    a, b = _drag_forces("table"), _drag_forces("reduced")
+    assert b[-10:].min() > 1.5  # pressed: the 20 tips carry the brush's force
+    np.testing.assert_array_less(np.abs(a[:-1] - b[:-1]), 0.3 * b[:-1] + 1e-3)
+    assert a.max() <= 1.3 * b.max()
 
 
 def test_flat_plate_at_table_passes_both_env_checkers():
