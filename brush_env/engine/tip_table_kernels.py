@@ -488,6 +488,7 @@ def grid_damping(tb, j):
     X = np.zeros((3, 3))
     Q = np.zeros((3, 5))
     idx = np.empty(3, np.int64)
+    node = np.empty(3, np.int64)
     for s in range(2):
         for i in range(grid.nr):
             for jj in range(grid.nt):
@@ -495,8 +496,9 @@ def grid_damping(tb, j):
                     v = vals[s, i, jj, m]
                     if v.ok == 0.0:
                         continue
+                    node[0], node[1], node[2] = i, jj, m
                     for d in range(3):
-                        _grid_row(tb, s, i, jj, m, d, X, Q, xa, xb, idx)
+                        _grid_row(tb, s, node, d, X, Q, xa, xb, idx)
                     # X G = Q for G = (dq/dx)^T (3, 5): least squares (a direction without
                     # neighbours, or the axis where phi does not move the node, adds nothing)
                     G = np.linalg.pinv(X) @ Q
@@ -523,10 +525,11 @@ def _has_branch(tb, s, idx):
 
 
 @njit(**BUILD)
-def _grid_row(tb, s, i, jj, m, d, X, Q, xa, xb, idx):
+def _grid_row(tb, s, node, d, X, Q, xa, xb, idx):
     """Row d of ``grid_damping``'s system: X[d] <- the position difference [mm] and Q[d] <- the
-    joint angles' [rad] between node (i, jj, m)'s neighbours along direction d (layer, theta,
-    phi) on branch s -- both, or one and the node itself; zeros where neither holds it."""
+    joint angles' [rad] between the neighbours of node (layer, theta, phi) along direction d on
+    branch s -- both, or one and the node itself; zeros where neither holds it."""
+    i, jj, m = node[0], node[1], node[2]
     for a in range(3):
         X[d, a] = 0.0
     for r in range(5):
