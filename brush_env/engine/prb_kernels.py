@@ -1335,9 +1335,11 @@ def table_solve(b, q0, pose, ctx, xs, xln):
 def _table_step(b, qb, qpb, pose, ctx, touching):
     """Bristle b's step with the tabulated law (``table_solve``), from the first guess: a tip
     that touched something where it was, moved on by its last velocity as far as the contact
-    limits let it; else carried with its root -- and taken so, at no further cost, if its joints
-    had settled (turned less than SETTLED in the last step: ``_rigid_step``'s test, per bristle)
-    and the carried tip touches nothing.  Returns the iterations, or -1."""
+    limits let it (and, where the table fails, the chain's free step if that touches nothing:
+    ``_free_step``); else carried with its root -- and taken so, at no further cost, if its
+    joints had settled (turned less than SETTLED in the last step: ``_rigid_step``'s test, per
+    bristle) and the carried tip touches nothing, else the chain's free step if that touches
+    nothing, else the table.  Returns the iterations, or -1."""
     sub, wk, con = ctx.sub, ctx.wk, ctx.con
     x0, xln, xs = con.tips[b], ctx.tab.v[4], ctx.tab.v[5]
     rw, B = pose.rw, pose.B
@@ -1356,7 +1358,13 @@ def _table_step(b, qb, qpb, pose, ctx, touching):
         lim = _partner_limit(b, wk.xw, wk.dp, R, con, lim, PEN_STEP_MIN)
         for a in range(3):
             xs[a] = x0[a] + lim * wk.dp[a]
-        return table_solve(b, qb, pose, ctx, xs, xln)
+        n = table_solve(b, qb, pose, ctx, xs, xln)
+        # a tip that springs off its contact in the step: the chain's free step, where the
+        # table's Newton failed (near the bristle's axis its polar grid makes the load a cone,
+        # on which Newton oscillates across the axis until its iterates run out)
+        if n < 0 and _free_step(b, pose, ctx):
+            return 1
+        return n
     for a in range(3):
         xs[a] = rw[a] + B[a, 0] * xln[0] + B[a, 1] * xln[1] + B[a, 2] * xln[2]
     settled = not sub.static
@@ -1375,6 +1383,11 @@ def _table_step(b, qb, qpb, pose, ctx, touching):
             for i in range(NQ):
                 wk.qt[i] = qb[i]
             return 1
+    # a free bristle still moving: the chain's free step (its joints one by one: cheaper than the
+    # table's Newton, which near the axis oscillated; 4.17 -> 3.40 fallbacks to the chain per
+    # random env step, docs/benchmarks.md), the table's Newton only where that touches something
+    if not sub.static and _free_step(b, pose, ctx):
+        return 1
     return table_solve(b, qb, pose, ctx, xs, xln)
 
 
