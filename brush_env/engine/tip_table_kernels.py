@@ -23,7 +23,7 @@ pi/2: the chain is its own mirror image across its x-z plane, which turns b1, b2
 the branch, so a tip at -y is looked up at +y and mirrored back) -- for each branch: valid, U,
 grad U (3), the damping matrix D (6) of the joints' stiffness-proportional damping seen at the
 tip (dq/dx^T K dq/dx) and the joint angles q (5) (for drawing and the state), all in the bristle
-frame (the builder also computes grad U's Hessian, not stored). The chain is stiff along its
+frame. The chain is stiff along its
 chord and soft across it, so the layers in rho follow the tip's unloaded path: rho_nat(theta,
 phi), where the energy along the ray from J1 is least (the chord of a tip pushed sideways only;
 a grid of constant rho crossed that path, and its nodes off the path carried the chain's
@@ -61,15 +61,13 @@ GRID = np.dtype(
     ]
 )
 #: one node's entry per branch (module docstring): whether the branch exists (ok), U [N mm],
-#: grad U (g [N]), its Hessian (H [N/mm]: xx, yy, zz, xy, xz, yz), the damping matrix (D, the
-#: same order) and the joint angles q [rad]; built in double
-ENTRY = np.dtype(
-    [("ok", "f8"), ("U", "f8"), ("g", "f8", 3), ("H", "f8", 6), ("D", "f8", 6), ("q", "f8", 5)]
-)
-#: ... and stored in single precision without H: the lookup's tangent is the interpolant's own
-#: derivative (of g), never H, and 16 floats are one 64-byte cache line -- a lookup reads 8
-#: corners, 8 lines with the entries aligned to lines (``tip_table.ALIGN``) against 12-16 for the
-#: 88-byte entry with H
+#: grad U (g [N]), the damping matrix (D [N/mm per unit of beta/h]: xx, yy, zz, xy, xz, yz) and
+#: the joint angles q [rad]; built in double
+ENTRY = np.dtype([("ok", "f8"), ("U", "f8"), ("g", "f8", 3), ("D", "f8", 6), ("q", "f8", 5)])
+#: ... and stored in single precision: 16 floats, one 64-byte cache line -- a lookup reads 8
+#: corners, 8 lines with the entries aligned to lines (``tip_table.ALIGN``).  (grad U's Hessian,
+#: built and stored until 2026-11-27, was never read: Newton's tangent is the interpolant's own
+#: derivative; dropped with each node's own dq/dx, ``grid_damping``)
 ENTRY32 = np.dtype([("ok", "f4"), ("U", "f4"), ("g", "f4", 3), ("D", "f4", 6), ("q", "f4", 5)])
 #: one table as the kernels read it: grid (GRID record), rnat (nt, np) [mm], vals (2, nr, nt,
 #: np) ENTRY32
@@ -360,22 +358,10 @@ def envelope_grad(x, psi, t, j, g, q, fr, h):
 
 
 @njit(**BUILD)
-def _neighbour(xp, psi, t, j, he, g, qo, q, fr):
-    """The branch's minimum at xp, from (psi, t) at a neighbouring tip: its load g (3,) and
-    joint angles qo (5,); False if there is none."""
-    p, tt, e, ok = local_min(xp, psi, t, j, q, fr)
-    if not (ok and np.isfinite(e)):
-        return False
-    envelope_grad(xp, p, tt, j, g, q, fr, he)
-    ik(xp, p, tt, j.geo, qo, fr)
-    return True
-
-
-@njit(**BUILD)
 def node_values(x, psi, t, e, j, h, out, q, fr):
     """out (an ENTRY record) <- one branch's values at x from its minimum (psi, t, E): U,
-    grad U, the Hessian of U and dq/dx (differences of step h [mm] between the branch's
-    minima at the neighbouring tips; one-sided where one of them has none), D and q."""
+    grad U and q; D is left for ``grid_damping`` (from the joint angles of the neighbouring
+    nodes).  h [mm]: the scale of the load's differences."""
     geo = j.geo
     out.ok = 1.0
     out.U = e
@@ -388,42 +374,13 @@ def node_values(x, psi, t, e, j, h, out, q, fr):
     envelope_grad(x, psi, t, j, g0, q, fr, he)
     q0 = np.empty(5)
     ik(x, psi, t, geo, q0, fr)
-    Hm = np.zeros((3, 3))
-    dq = np.zeros((5, 3))
-    xp = np.empty(3)
-    gs = np.empty((2, 3))
-    qs = np.empty((2, 5))
-    for a in range(3):
-        ok = np.zeros(2, np.bool_)
-        for side in range(2):
-            for c in range(3):
-                xp[c] = x[c]
-            xp[a] = x[a] + (h if side == 0 else -h)
-            ok[side] = _neighbour(xp, psi, t, j, he, gs[side], qs[side], q, fr)
-        if not (ok[0] or ok[1]):
-            continue
-        # central where both exist, else one-sided against the node itself
-        span = 2.0 * h if ok[0] and ok[1] else h
-        for c in range(3):
-            Hm[c, a] = ((gs[0, c] if ok[0] else g0[c]) - (gs[1, c] if ok[1] else g0[c])) / span
-        for i in range(5):
-            dq[i, a] = ((qs[0, i] if ok[0] else q0[i]) - (qs[1, i] if ok[1] else q0[i])) / span
     for a in range(3):
         out.g[a] = g0[a]
     for i in range(5):
         out.q[i] = q0[i]
         q[i] = q0[i]
-    kd = np.empty(5)
-    for i in range(4):
-        kd[i] = j.k[i] * _w(q0[i] - j.rest[i], j.c3[i])[1]
-    kd[4] = j.k[4]
     for m in range(6):
-        a, c = IH[m]
-        out.H[m] = 0.5 * (Hm[a, c] + Hm[c, a])
-        d = 0.0
-        for i in range(5):
-            d += kd[i] * dq[i, a] * dq[i, c]
-        out.D[m] = d
+        out.D[m] = 0.0
 
 
 @njit(**BUILD, inline="always")
@@ -458,8 +415,8 @@ def node_x(tb, i, jj, m, x):
 @njit(**BUILD)
 def build(tb, j):
     """tb.rnat and tb.vals (2, nr, nt, np) ENTRY <- the unloaded path and both branches' values
-    at every node of the chain with joints j (module docstring; the damping matrices as each
-    node's own until ``grid_damping``).  One thread: numba's parallel
+    at every node of the chain with joints j (module docstring; the damping matrices zero until
+    ``grid_damping``).  One thread: numba's parallel
     loops do not take the records (GRID, JOINT) this reads."""
     build_rnat(tb, j)
     for i in range(tb.grid.nr):
@@ -473,9 +430,10 @@ def grid_damping(tb, j):
     neighbours hold the branch, one-sided where one does; solved for dq/dx from the nodes'
     positions, least squares where a direction has none).
 
-    The nodes' own D (``node_values``: differences 0.01 mm apart) is dq/dx of the chain's
-    equilibria at a point, which grows without bound toward a branch's end (the snap-through)
-    and a chain pulled straight: interpolated over the ~0.1 mm cells beside such a node it
+    Each node's own D (until 2026-11-27 ``node_values`` differenced the branch's minima 0.01
+    mm apart) is dq/dx of the chain's equilibria at a point, which grows without bound toward a
+    branch's end (the snap-through) and a chain pulled straight: interpolated over the ~0.1 mm
+    cells beside such a node it
     multiplied the damping of tips that move as gently as the rest by 10-20 (the largest
     eigenvalue 47 where the equilibria 0.003-0.03 mm apart give dq/dx of at most 1.5 rad/mm)
     and threw a dragged brush's 20 tips into the plate at 0.84 N each, against 0.11 N in the
@@ -648,7 +606,6 @@ def _copy_entry(src, dst):
     for a in range(3):
         dst.g[a] = src.g[a]
     for a in range(6):
-        dst.H[a] = src.H[a]
         dst.D[a] = src.D[a]
     for a in range(5):
         dst.q[a] = src.q[a]
