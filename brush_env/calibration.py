@@ -380,21 +380,17 @@ def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool 
     return done
 
 
-def table_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> list:
-    """The tabulated tip law's tables (``engine/tip_table.py``) of every joint record of
-    ``brush`` (after ``calibrate_brush``: the joints are the calibration's): loaded, or built and
-    cached (~60 s each on one core, said on stderr); ``ship``: also stored in the package
-    (``tip_table.SHIPPED``).  Returns the shipped files (``ship``) or the records' keys (the
-    tables already stored are not read here: the model loads them once per process)."""
+def table_brush(brush: BrushConfig | str, verbose: bool = True) -> list[str]:
+    """Build and cache the tabulated tip law's tables (``engine/tip_table.py``) of every joint
+    record of ``brush`` that has none shipped or cached (~50-60 s each on one core, said on
+    stderr; after ``calibrate_brush``: the joints are the calibration's).  Returns the tables'
+    keys (those already stored are not read here: the model loads them once per process)."""
     from .engine import tip_table
     from .engine.prb import build_geometry
 
     if not isinstance(brush, BrushConfig):
         brush = load_brush(brush)
-    prm = build_geometry(brush).prm
-    if ship:
-        return tip_table.ship(prm)
-    joints = list(tip_table.distinct_joints(prm).values())
+    joints = list(tip_table.distinct_joints(build_geometry(brush).prm).values())
     missing = [j for j in joints if not tip_table.is_stored(j)]
     if verbose and missing:
         print(
@@ -428,6 +424,7 @@ def run(args) -> int:
     """Fit the bristle types of the brushes that have no calibration (all of them with
     ``--ship``) and print each fit's error."""
     from .engine import configs_dir, tip_table
+    from .engine.prb import build_geometry
 
     names = list(args.brushes) or ["default"]
     if args.all:
@@ -440,9 +437,11 @@ def run(args) -> int:
         print(
             f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}"
         )
-        tables = table_brush(brush, ship=args.ship)
         if args.ship:
+            tables = tip_table.ship(build_geometry(brush).prm)
             shipped.update(tables)
+        else:
+            tables = table_brush(brush)
         print(f"{name}: {len(tables)} tip table(s), {tip_table.SHIPPED if args.ship else 'cached'}")
     if args.ship and args.all:  # the shipped tables no brush in configs/brushes uses any more
         for path in tip_table.SHIPPED.glob("*.npz"):

@@ -132,23 +132,28 @@ def _save(tb: T.Table, path: Path, compressed: bool) -> None:
     os.replace(tmp, path)
 
 
-def table(joint, shape=SHAPE) -> T.Table:
-    """The table of a joint record: shipped, else from the user's cache, else built (~60 s on
-    one core) and cached."""
+def _places(joint, shape) -> tuple[Path, Path]:
+    """Where the table of a joint record is looked for: shipped, then the user's cache."""
     name = f"{table_key(joint, shape)}.npz"
-    for path in (SHIPPED / name, _cache_dir() / name):
+    return SHIPPED / name, _cache_dir() / name
+
+
+def table(joint, shape=SHAPE) -> T.Table:
+    """The table of a joint record: shipped, else from the user's cache, else built (~50-60 s
+    on one core) and cached."""
+    places = _places(joint, shape)
+    for path in places:
         tb = load(path, shape)
         if tb is not None:
             return tb
     tb = build_table(joint, shape)
-    _save(tb, _cache_dir() / name, compressed=False)
+    _save(tb, places[1], compressed=False)
     return tb
 
 
 def is_stored(joint, shape=SHAPE) -> bool:
     """Whether the table of a joint record is shipped or cached (``table`` needs no build)."""
-    name = f"{table_key(joint, shape)}.npz"
-    return (SHIPPED / name).is_file() or (_cache_dir() / name).is_file()
+    return any(path.is_file() for path in _places(joint, shape))
 
 
 def ship(prm: np.ndarray) -> list[Path]:
@@ -156,7 +161,7 @@ def ship(prm: np.ndarray) -> list[Path]:
     package (``SHIPPED``, compressed: ~4.8 MB each); returns their paths."""
     out = []
     for j in distinct_joints(prm).values():
-        path = SHIPPED / f"{table_key(j)}.npz"
+        path = _places(j, SHAPE)[0]
         if load(path) is None:
             _save(table(j), path, compressed=True)
         out.append(path)
