@@ -1402,14 +1402,16 @@ def _solve_one(b, joints, frames, ctx, gtip):
     touching = st.fn > 0.0 or st.ftt > 0.0  # at the end of the last step
     # the shortcut only for a bristle that touched nothing either: one that did may spring back
     # off its contact only through Newton (its relaxed pose may lie past the surface)
-    if ctx.tab.idx[b] >= 0:
+    tabled = ctx.tab.idx[b] >= 0
+    if tabled:
         n = _table_step(b, q[b], qp[b], pose, ctx, touching)
         if n >= 0:
             return n
         ctx.tab.fallback[b] += 1
         for i in range(NQ):
             wk.qt[i] = q[b, i]
-    if not sub.static and not touching and _free_step(b, pose, ctx):
+    # (a bristle the table failed has had its free step there: ``_table_step``)
+    if not sub.static and not touching and not tabled and _free_step(b, pose, ctx):
         return 1
     # first guess: the joints' last motion carried on (a tip held or dragged along moves its
     # joints smoothly); from rest or after a snap (whose motion does not go on), the last angles
