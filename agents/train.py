@@ -10,7 +10,7 @@
   from the ``brush_env:brush_env/FlatPlate-v0`` id (the module prefix makes every
   ``SubprocVecEnv`` worker import brush_env, which registers the id), a ``DummyVecEnv`` for
   ``--n-envs 1``, each env in ``Monitor``.  ``auto`` (default): ``batched`` for FlatPlate-v0 and
-  ToothRow-v0 at the ``fast``, ``reduced`` and ``table`` fidelity levels (``BATCHED_LEVELS``: an
+  ToothRow-v0 at the ``fast`` and ``reduced`` fidelity levels (``BATCHED_LEVELS``: an
   env step costs about a millisecond or less, so worker processes cost more than they give, and
   in one process the envs of a brush share its tip tables), ``subproc`` otherwise.  The
   evaluation env is made the same way with one env.
@@ -50,7 +50,7 @@ TRAIN_KEYS = {"eval_freq", "eval_episodes", "checkpoint_freq", "seed"}
 ALGOS = ("ppo", "sac")
 VEC_ENVS = ("auto", "batched", "subproc")
 #: fidelity levels at which ``--vec-env auto`` trains on the batched env
-BATCHED_LEVELS = ("fast", "reduced", "table")
+BATCHED_LEVELS = ("fast", "reduced")
 
 
 def load_agent_config(path: str | Path) -> dict:

@@ -156,14 +156,14 @@ def main(argv=None) -> int:
         tips_only()
     q = a.quick
     cases = {
-        "plate_fast_mid": lambda: plate_press_drag("fast", "mid", 150 if q else 400),
-        "plate_fast_paper": lambda: plate_press_drag("fast", "paper", 150 if q else 400),
+        "plate_coarse_mid": lambda: plate_press_drag("coarse", "mid", 150 if q else 400),
+        "plate_coarse_paper": lambda: plate_press_drag("coarse", "paper", 150 if q else 400),
         "plate_balanced_mid": lambda: plate_press_drag("balanced", "mid", 80 if q else 200),
-        "tooth_row_fast": lambda: tooth_row("fast", 300 if q else 1200),
-        "env_fast": lambda: env_episode("fast", 40 if q else 100),
-        "reference_fast": lambda: reference_run("fast", 0.3 if q else 0.6),
+        "tooth_row_coarse": lambda: tooth_row("coarse", 300 if q else 1200),
+        "env_coarse": lambda: env_episode("coarse", 40 if q else 100),
+        "reference_coarse": lambda: reference_run("coarse", 0.3 if q else 0.6),
         "reference_balanced": lambda: reference_run("balanced", 0.05 if q else 0.15),
-        "env_tooth_row_fast": lambda: env_episode("fast", 30 if q else 80, "ToothRow-v0"),
+        "env_tooth_row_coarse": lambda: env_episode("coarse", 30 if q else 80, "ToothRow-v0"),
     }
     lines = []
     for name, fn in cases.items():

@@ -17,10 +17,14 @@ Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, al
 ``n_bristles``, ``bodies_per_bristle``, ``model``, ``engine_dt``, ``max_substep``, ``frame_skip``,
 ``control_hz``, ``policy``).
 
-    brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies 3]
-                        [--engine-dt 0.004] [--max-substep 0.001] [--frame-skip 10]
+    brush-env bench env [--steps 300] [--n-envs 1 2] [--brush default] [--bodies N]
+                        [--engine-dt 0.004] [--max-substep S] [--frame-skip 10]
                         [--fidelity LEVEL] [--policy reference|random|zero] [--episode-steps 100]
                         [--env flat_plate|tooth_row] [--json]
+
+The engine runs the env config's fidelity level (``fast`` by default) or ``--fidelity``'s;
+``--bodies`` and ``--max-substep``, where given, replace that level's settings (``engine_settings``
+of ``gym.make``; the reduced models of ``fast`` and ``reduced`` take 2 bodies only).
 
 Wiring: ``add_arguments(parser)`` adds the options (a parent parser may add its own ``--json``
 first: ``add_arguments`` skips options the parser already has); ``run(args)`` prints and returns
@@ -44,9 +48,9 @@ DEFAULTS = {
     "steps": 300,
     "n_envs": [1, 2],
     "brush": "default",
-    "bodies": 3,
+    "bodies": None,
     "engine_dt": 0.004,
-    "max_substep": 0.001,
+    "max_substep": None,
     "frame_skip": 10,
     "config": None,
     "env": "flat_plate",
@@ -59,21 +63,19 @@ POLICIES = ("reference", "random", "zero")
 
 def _env_kwargs(a: dict) -> dict:
     a = {**a, "config": a["config"] or a["env"]}  # the env's own config unless one is named
-    if a.get("fidelity"):  # a level's own settings, unchanged (e.g. the reduced model's)
-        return {
-            "config": a["config"],
-            "brush": a["brush"],
-            "engine_dt": a["engine_dt"],
-            "fidelity": a["fidelity"],
-            "frame_skip": a["frame_skip"],
-        }
-    return {
+    kw = {
         "config": a["config"],
         "brush": a["brush"],
         "engine_dt": a["engine_dt"],
-        "engine_settings": {"bodies_per_bristle": a["bodies"], "max_substep": a["max_substep"]},
         "frame_skip": a["frame_skip"],
     }
+    if a.get("fidelity"):
+        kw["fidelity"] = a["fidelity"]
+    given = (("bodies_per_bristle", a.get("bodies")), ("max_substep", a.get("max_substep")))
+    settings = {k: v for k, v in given if v is not None}
+    if settings:  # they replace the level's
+        kw["engine_settings"] = settings
+    return kw
 
 
 class _Reference:
@@ -265,7 +267,11 @@ _OPTIONS = (
     ("--brush", dict(default=DEFAULTS["brush"])),
     (
         "--bodies",
-        dict(type=int, default=DEFAULTS["bodies"], help="bodies per bristle (0: the brush file's)"),
+        dict(
+            type=int,
+            default=DEFAULTS["bodies"],
+            help="bodies per bristle (0: the brush file's; default: the fidelity level's)",
+        ),
     ),
     ("--engine-dt", dict(type=float, default=DEFAULTS["engine_dt"], help="engine step [s]")),
     (
@@ -273,7 +279,7 @@ _OPTIONS = (
         dict(
             type=float,
             default=DEFAULTS["max_substep"],
-            help="longest internal solver step [s] (engine_dt: no split)",
+            help="longest internal solver step [s] (engine_dt: no split; default: the level's)",
         ),
     ),
     ("--frame-skip", dict(type=int, default=DEFAULTS["frame_skip"])),
@@ -281,8 +287,8 @@ _OPTIONS = (
         "--fidelity",
         dict(
             default=None,
-            help="a fidelity level (configs/fidelity), its settings unchanged: --bodies and "
-            "--max-substep then do not apply",
+            help="a fidelity level (configs/fidelity; default: the env config's, fast); "
+            "--bodies and --max-substep, where given, replace its settings",
         ),
     ),
     (

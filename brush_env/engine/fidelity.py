@@ -8,7 +8,9 @@ error against ``reference`` and its speed; never edited by hand).  Levels shippe
 ``reference``  converged: 24 mid-element bodies, 0.125 ms solver steps (validation)
 ``paper``      the paper's model: its element (Adams FIELD) and 6 bodies, 1 ms
 ``balanced``   6 mid-element bodies, 1 ms (experiments, design studies)
-``fast``       3 mid-element bodies, 1 ms, one tip-tip sweep (RL)
+``coarse``     3 mid-element bodies, 1 ms, one tip-tip sweep (the full chain at its coarsest)
+``reduced``    the reduced model: a quasi-static 2-joint chain per bristle, 4 ms
+``fast``       the reduced model stepped by the tabulated tip law, 4 ms (RL; every env's default)
 =============  ==============================================================================
 
 Use::
@@ -34,7 +36,7 @@ from .checks import ConfigError, Limit, check_choice, check_int, check_real, did
 from .config_files import read_toml, resolve_config
 
 #: the levels shipped in configs/fidelity, most to least accurate
-LEVELS = ("reference", "paper", "balanced", "fast", "reduced", "table")
+LEVELS = ("reference", "paper", "balanced", "coarse", "reduced", "fast")
 #: what a level's [settings] table may set: these SimSettings fields, under their own names
 SETTING_KEYS = (
     "model",

@@ -3,7 +3,8 @@ bristle a quasi-static pseudo-rigid-body chain (a clamped stub and two links on 
 ``prb_kernels.py``) whose joint springs are calibrated against the continuum rod
 (``prb_calibration.py``), with the full model's tip contact: every surface kind with eq 6, the
 stick-slip friction of eq 7-10 and the tip-tip law of Table 3 (``contact.tip_load``).  The
-fidelity level ``fast`` uses it (``configs/fidelity/fast.toml``): it is what a policy trains on.
+fidelity level ``reduced`` uses it (``configs/fidelity/reduced.toml``); the level ``fast``, what a
+policy trains on, steps its touching bristles by the tabulated tip law (``TableBristles`` below).
 
 What it leaves out, and why that is what a 25 Hz policy needs (docs/model.md, "The reduced
 model"): the bristles' own inertia and their ~100 Hz bending modes (the tip is in equilibrium in

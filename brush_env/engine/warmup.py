@@ -95,12 +95,24 @@ def _reduced(t: _Tiny) -> None:
 
 
 def _tip_table(t: _Tiny) -> None:
-    """The tabulated tip law's builder (level ``table``) on a 5 x 5 x 3 table of the tiny
-    brush's first bristle: its kernels compile once here, not on a user's first table."""
+    """The tabulated tip law's builder (a new brush's tables at level ``fast``) on a 5 x 5 x 3
+    table of the tiny brush's first bristle: its kernels compile once here, not on a user's first
+    table."""
     from .prb import build_geometry
     from .tip_table import build_table
 
     build_table(build_geometry(t.scene.brush).prm[0], shape=(5, 5, 3))
+
+
+def _table_step(t: _Tiny) -> None:
+    """The tabulated tip law's step (level ``fast``, every env's default) on the tiny brush's
+    shipped tables: a press and a slide through ``Simulator.rollout`` and ``Simulator.step``."""
+    from .simulator import SimSettings, Simulator
+
+    sim = Simulator(t.scene, SimSettings(dt=4e-3, model="table", bodies_per_bristle=2))
+    sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
+    sim.rollout(np.array([5.0, 0.0, -20.0]), np.zeros(3), 10)
+    sim.step(sim.state.tcp_p[1] + np.array([0.02, 0.0, 0.0]), t.R)
 
 
 #: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
@@ -114,7 +126,8 @@ GROUPS: tuple[KernelGroup, ...] = (
     KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
     KernelGroup("static solve", _static),
     KernelGroup("reduced model (fidelity level 'reduced': quasi-static joints, rollout)", _reduced),
-    KernelGroup("tabulated tip law's builder (fidelity level 'table')", _tip_table),
+    KernelGroup("tabulated tip law's step (fidelity level 'fast', the envs' default)", _table_step),
+    KernelGroup("tabulated tip law's builder (a new brush's tables at level 'fast')", _tip_table),
 )
 
 

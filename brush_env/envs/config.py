@@ -63,8 +63,8 @@ class EnvConfig:
         "fast",
         "engine",
         "-",
-        "fidelity level (configs/fidelity: reference, paper, balanced, fast, reduced) or a TOML "
-        "path: the "
+        "fidelity level (configs/fidelity: reference, paper, balanced, coarse, reduced, fast) or "
+        "a TOML path: the "
         "engine settings (bristle model, bodies, solver step, element, integrator, tip-tip "
         "solve, Newton tolerance); empty: the engine's defaults",
     )

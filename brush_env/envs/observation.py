@@ -312,7 +312,7 @@ class ObservationLayout:
         TCP position about the nominal patch centre with z above the nominal plate.
 
         One compiled pass (``_fill``): every env step calls it, and numpy's block by block
-        writes cost ~25-50 us of a ~700 us env step at the level ``table``."""
+        writes cost ~25-50 us of a ~700 us env step at the level ``fast``."""
         out = np.empty(self.size, np.float32)
         _fill(
             out,

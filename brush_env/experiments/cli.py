@@ -82,7 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--fidelity",
         default=None,
-        help="fidelity level: reference, paper, balanced, fast (configs/fidelity) or a TOML "
+        help="fidelity level: reference, paper, balanced, coarse, reduced, fast (configs/fidelity) "
+        "or a TOML "
         "path; sets bodies, element, integrator, solver step limit and tip-tip solve "
         "(--bodies, --element, --integrator given explicitly still win)",
     )

@@ -153,7 +153,8 @@ def test_vec_env_auto_is_the_batched_env_at_fast_reduced_and_table(tmp_path):
     cfg = tmp_path / "ppo.toml"
     cfg.write_text(PPO_TOML)
     assert check_inputs("ppo", cfg, 10, 2, None)["vec_env"] == "batched"  # the default: fast
-    for level, want in (("reduced", "batched"), ("table", "batched"), ("balanced", "subproc")):
+    levels = {"reduced": "batched", "fast": "batched", "coarse": "subproc", "balanced": "subproc"}
+    for level, want in levels.items():
         assert check_inputs("ppo", cfg, 10, 2, {"fidelity": level})["vec_env"] == want
     assert check_inputs("ppo", cfg, 10, 2, None, "subproc")["vec_env"] == "subproc"
     with pytest.raises(ValueError, match=r"--vec-env 'threads' is not allowed: must be one of"):

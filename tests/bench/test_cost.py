@@ -134,7 +134,7 @@ def test_bench_steps_runs_the_paper_turn(capsys):
 
     from brush_env import cli
 
-    args = ["bench", "steps", "--motion", "turn", "--fidelity", "fast", "--window", "7230", "3"]
+    args = ["bench", "steps", "--motion", "turn", "--fidelity", "coarse", "--window", "7230", "3"]
     assert cli.main(args + ["--json"]) == 0
     row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert (row["scene"], row["motion"], row["steps"]) == ("flat_plate", "turn", 3)

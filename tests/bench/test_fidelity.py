@@ -33,7 +33,7 @@ def test_quick_rows(capsys):
     ref, fast = rows
     assert ref["turn_rms_force_error"] == 0.0 and ref["against"] == "balanced"
     assert fast["turn_status"] == "ok" and math.isfinite(fast["turn_rms_force_error"])
-    # 3 bodies against 6 in a buckled press: not the same forces (bench element: ~10 %)
+    # the tabulated tip law against 6 bodies in a buckled press: not the same forces
     assert fast["turn_rms_force_error"] > 0.01
     assert fast["env_steps"] == 3 and fast["env_steps_per_s"] > 0
     # the measures of issue 29 are there (the quick press has no stick-slip event)

@@ -29,7 +29,8 @@ def test_every_shipped_level_loads_and_sets_what_it_says(name):
 def test_levels_are_ordered_by_resolution():
     f = {n: load_fidelity(n) for n in LEVELS}
     assert f["reference"].bodies_per_bristle > f["balanced"].bodies_per_bristle
-    assert f["balanced"].bodies_per_bristle > f["fast"].bodies_per_bristle
+    assert f["balanced"].bodies_per_bristle > f["coarse"].bodies_per_bristle
+    assert f["coarse"].model == "dfm" and f["fast"].model == "table"
     assert f["reference"].max_substep < f["balanced"].max_substep
     assert f["paper"].element == "paper" and f["paper"].bodies_per_bristle == 6  # paper §3
 
@@ -69,7 +70,7 @@ def test_bad_level_file_names_the_key_and_the_value(tmp_path, text, needle):
 
 
 def test_unknown_level_lists_the_known_ones():
-    known = "known: balanced, fast, paper, reduced, reference"
+    known = "known: balanced, coarse, fast, paper, reduced, reference"
     with pytest.raises(ConfigError, match=f"balansed.*did you mean balanced.*{known}"):
         load_fidelity("balansed")
 
@@ -88,9 +89,9 @@ def test_reference_experiment_runs_at_a_level(tmp_path):
         hold_time=0.05,
         progress=False,
         plots=False,
-        fidelity="fast",
+        fidelity="coarse",
     )
     st = s["settings"]
     assert s["status"] == "ok"
-    assert st["fidelity"] == "fast" and st["bodies"] == [3] and st["tip_tip_sweeps"] == 1
-    assert st["max_substep_s"] == load_fidelity("fast").max_substep
+    assert st["fidelity"] == "coarse" and st["bodies"] == [3] and st["tip_tip_sweeps"] == 1
+    assert st["max_substep_s"] == load_fidelity("coarse").max_substep

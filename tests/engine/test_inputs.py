@@ -133,7 +133,7 @@ def test_a_rollout_refuses_a_non_finite_or_too_fast_twist(v, w, match):
     from brush_env.engine.fidelity import level_settings
     from brush_env.motion import R0
 
-    s = Simulator(load_scene("flat_plate"), level_settings("table", dt=4e-3))
+    s = Simulator(load_scene("flat_plate"), level_settings("fast", dt=4e-3))
     s.reset(np.array([0.0, 0.0, s.touch_height(R0) + 1.0]), R0)
     tips = s.bristles.tips.copy()
     with pytest.raises(ValueError, match=match):

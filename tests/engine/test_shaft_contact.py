@@ -21,7 +21,7 @@ R_DOWN = np.diag([1.0, -1.0, -1.0])
 
 def _sim(shaft: bool = True, head: bool = True) -> Simulator:
     scene = dataclasses.replace(load_scene("flat_plate"), shaft_contact=shaft, head_contact=head)
-    return Simulator(scene, load_fidelity("fast").settings(dt=4e-3))
+    return Simulator(scene, load_fidelity("coarse").settings(dt=4e-3))
 
 
 def _press(sim: Simulator, depth: float, speed: float = 20.0):

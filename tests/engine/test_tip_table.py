@@ -1,4 +1,4 @@
-"""The tabulated tip law (``engine/tip_table.py``, the level ``table``): its geometry inverts the
+"""The tabulated tip law (``engine/tip_table.py``, the level ``fast``): its geometry inverts the
 reduced chain's kinematics, every table entry is an equilibrium of the chain (the spring torques
 are the tip load's through the chain's own Jacobian, ``prb_kernels.kinematics``), and the model
 built on it carries the chain's load and runs the same twice (the Timoshenko cantilever's small
@@ -247,15 +247,15 @@ def test_models_of_one_brush_share_its_tables():
     brush held N copies of ~30 MB), each with its own counters; the shared tables give the same
     steps as before: ``test_rollout_is_deterministic`` runs two models, one after the other."""
     sc = load_scene("flat_plate")
-    a = Simulator(sc, level_settings("table", dt=4e-3)).bristles._tab
-    b = Simulator(sc, level_settings("table", dt=4e-3)).bristles._tab
+    a = Simulator(sc, level_settings("fast", dt=4e-3)).bristles._tab
+    b = Simulator(sc, level_settings("fast", dt=4e-3)).bristles._tab
     assert a.vals is b.vals and a.grid is b.grid and a.rnat is b.rnat
     assert a.fallback is not b.fallback and a.scr is not b.scr
 
 
 def test_rollout_is_deterministic():
-    """Same start and motion at the level ``table``: the same result bit for bit."""
-    a, b = _scrub("table"), _scrub("table")
+    """Same start and motion at the level ``fast``: the same result bit for bit."""
+    a, b = _scrub("fast"), _scrub("fast")
     assert np.array_equal(a.tip_pos, b.tip_pos)
     assert np.array_equal(a.tcp_force, b.tcp_force)
 
@@ -263,7 +263,7 @@ def test_rollout_is_deterministic():
 def test_table_carries_the_chains_load():
     """The brush pressed and dragged (``_scrub``): the table's TCP force within 3 % of the
     chain it tabulates (level ``reduced``), every tip within 0.05 mm of the chain's."""
-    a, b = _scrub("table"), _scrub("reduced")
+    a, b = _scrub("fast"), _scrub("reduced")
     assert b.tip_in_contact.sum() > 20
     assert np.linalg.norm(a.tcp_force - b.tcp_force) <= 0.03 * np.linalg.norm(b.tcp_force)
     assert np.abs(a.tip_pos - b.tip_pos).max() < 0.05
@@ -306,14 +306,14 @@ def test_a_dragged_brush_with_stuck_tips_carries_the_chains_force():
     snap to the other branch a step before the chain's and unload).  With each node's own
     damping matrix (dq/dx differenced 0.01 mm apart, unbounded beside a branch's end) the table
     read 8.9 and 16.8 N there: the force limit stopped the episode."""
-    a, b = _drag_forces("table"), _drag_forces("reduced")
+    a, b = _drag_forces("fast"), _drag_forces("reduced")
     assert b[-10:].min() > 1.5  # pressed: the 20 tips carry the brush's force
     np.testing.assert_array_less(np.abs(a[:-1] - b[:-1]), 0.3 * b[:-1] + 1e-3)
     assert a.max() <= 1.3 * b.max()
 
 
-def test_flat_plate_at_table_passes_both_env_checkers():
-    """FlatPlate-v0 at the level ``table``: Gymnasium's and stable-baselines3's env checkers,
+def test_flat_plate_at_fast_passes_both_env_checkers():
+    """FlatPlate-v0 at the level ``fast``: Gymnasium's and stable-baselines3's env checkers,
     and a pressed episode's first 20 steps finite."""
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env
@@ -321,7 +321,7 @@ def test_flat_plate_at_table_passes_both_env_checkers():
 
     import brush_env  # noqa: F401
 
-    env = gym.make("brush_env/FlatPlate-v0", fidelity="table")
+    env = gym.make("brush_env/FlatPlate-v0", fidelity="fast")
     check_env(env.unwrapped, skip_render_check=True)
     sb3_check_env(env.unwrapped, warn=True)
     env.reset(seed=0)
@@ -344,7 +344,7 @@ def test_a_tip_beyond_its_table_warns_once_per_reset_naming_the_bristle():
     from brush_env.engine.prb import TableRangeWarning
 
     sc = load_scene("flat_plate")
-    s = Simulator(sc, level_settings("table", dt=4e-3))
+    s = Simulator(sc, level_settings("fast", dt=4e-3))
     p = np.array([0.0, 0.0, s.touch_height(R0) + 1.0])
     s.reset(p, R0)
     tab = s.bristles._tab

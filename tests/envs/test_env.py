@@ -13,6 +13,10 @@ from brush_env.envs.flat_plate import REWARD_TERMS
 from .conftest import ENV_ID, NO_CONTACT, TINY
 
 ZERO = np.zeros(6, np.float32)
+#: the full chain (level "coarse"), whose env step is frame_skip calls of Simulator.step: the
+#: tests that recompute or inject per engine step (the default level "fast" rolls an env step out
+#: in one compiled call: tests/envs/test_rollout_env.py)
+STEPWISE = {"fidelity": "coarse"}
 
 
 def _actions(n, dim=6, seed=0, z_bias=0.0):
@@ -129,7 +133,7 @@ def test_reward_terms_recomputed_from_the_engine_outputs(make_env):
         termination_penalty=3.0,
         max_episode_steps=40,
     )
-    env = make_env(**kw)
+    env = make_env(**kw, **STEPWISE)
     u = env.unwrapped
     cfg = u.config
     lo, hi = cfg.tip_force_window
@@ -308,7 +312,7 @@ def _inject(env, **kw):
 
 
 def test_divergence_terminates_and_keeps_the_last_converged_state(make_env):
-    env = make_env()
+    env = make_env(**STEPWISE)
     u = env.unwrapped
     env.reset(seed=0)
     obs0, *_ = env.step(ZERO)
@@ -326,7 +330,7 @@ def test_divergence_terminates_and_keeps_the_last_converged_state(make_env):
 
 
 def test_hard_force_limit_terminates_within_the_step(make_env):
-    env = make_env(hard_force_limit=2.0)
+    env = make_env(hard_force_limit=2.0, **STEPWISE)
     env.reset(seed=0)
     fault = _inject(env, force_from=3, force=1.0)  # 4 tips x 1 N = 4 N > 2 N from call 3 on
     _, r, term, _, info = env.step(ZERO)
@@ -344,7 +348,7 @@ def test_force_penalties_integrate_the_excess(make_env):
         hard_force_limit=100.0,
         tip_force_window=(0.0, 10.0),
     )
-    env = make_env(**cfg_kw)
+    env = make_env(**cfg_kw, **STEPWISE)
     u = env.unwrapped
     env.reset(seed=0, options={"tcp_position": [0.0, 0.0, 12.0]})
     _inject(env, force_from=1, force=0.5)  # total 2 N, 0.4 N above each tip limit in total
@@ -403,3 +407,28 @@ def test_bad_render_mode_and_config_file(tmp_path):
     good = tmp_path / "good.toml"
     good.write_text('[engine]\nbrush = "tiny_env"\nframe_skip = 4\n')
     assert BrushEnv(config=good).dt == pytest.approx(0.016)
+
+
+def test_hard_force_limit_stops_the_compiled_rollout_at_the_step_that_crosses_it(make_env):
+    """At the default level ``fast`` an env step is one compiled ``Simulator.rollout``: pressing
+    down, it stops at the first engine step whose total tip normal force exceeds
+    ``hard_force_limit`` (the robot's protective stop), not at the control step's end.  The same
+    engine steps replayed from the saved state without a limit: the steps before it are at or
+    below the limit, the last one carries the force the info reports."""
+    env = make_env(hard_force_limit=0.3)
+    u = env.unwrapped
+    env.reset(seed=0)
+    down = np.array([0, 0, -1, 0, 0, 0], np.float32)  # 20 mm/s down (max_linear_speed[2])
+    for _ in range(20):
+        state = u.sim.get_state()
+        _, _, term, _, info = env.step(down)
+        if term:
+            break
+    assert term and info["termination"] == "force_limit"
+    done = u.sim.state.steps - state.steps
+    assert 1 <= done < u.config.frame_skip  # stopped inside the control step
+    u.sim.set_state(state)
+    ro = u.sim.rollout(u._v, u._w, done)  # the same engine steps, no limit
+    total = ro.record.fn[: ro.done].sum(axis=1)
+    assert ro.done == done and np.all(total[:-1] <= 0.3) and total[-1] > 0.3
+    assert info["peak_normal_force"] == pytest.approx(total[-1], rel=1e-12)

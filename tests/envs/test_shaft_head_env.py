@@ -80,7 +80,7 @@ def _depth(scene, pts) -> float:
 
 
 def _run(env_id, mode, seed, steps):
-    env = gym.make(f"brush_env/{env_id}", fidelity="fast")
+    env = gym.make(f"brush_env/{env_id}", fidelity="coarse")
     u = env.unwrapped
     sim = u.sim
     centres = []
@@ -132,7 +132,7 @@ def test_no_body_centre_inside_and_force_rises(env_id, mode, seed):
 
 
 def test_info_shows_the_in_step_peak_the_step_end_hides():
-    env = gym.make("brush_env/FlatPlate-v0", fidelity="fast")
+    env = gym.make("brush_env/FlatPlate-v0", fidelity="coarse")
     u = env.unwrapped
     env.reset(seed=0)
     a = np.zeros(6, np.float32)
@@ -161,7 +161,7 @@ def test_reference_press_keeps_its_forces_with_shaft_contact(monkeypatch):
 
     def run():
         with tempfile.TemporaryDirectory() as d:
-            run_reference(out_dir=d, turns=0.1, fidelity="fast", progress=False, plots=False)
+            run_reference(out_dir=d, turns=0.1, fidelity="coarse", progress=False, plots=False)
             return np.genfromtxt(Path(d) / "timeseries.csv", delimiter=",", names=True)
 
     on = run()

@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[2]
 SPEC = """
 name = "faults"
 brush = "tiny"
-fidelity = "fast"
+fidelity = "coarse"
 motions = {motions}
 [sample]
 method = "grid"

@@ -16,7 +16,7 @@ from brush_env.sweeps.report import src
 TINY = """
 name = "tiny"
 brush = "tiny"
-fidelity = "fast"
+fidelity = "coarse"
 motions = ["circle"]
 metrics = ["peak_Fh_N", "peak_Fz_N", "mean_Fn_N", "tip_load_spread", "run_time_s"]
 [sample]
@@ -46,7 +46,7 @@ def _spec(tmp_path, text, name="s.toml"):
         (("values = [5.0, 9.0]", "values = []"), r"values is empty"),
         (('unit = "mm"', 'unit = "cm"'), r"unit = 'cm', but the key is in 'mm'"),
         (('motions = ["circle"]', 'motions = ["spiral"]'), r"'spiral' is not one of"),
-        (('fidelity = "fast"', 'fidelty = "fast"'), r"unknown; did you mean fidelity"),
+        (('fidelity = "coarse"', 'fidelty = "coarse"'), r"unknown; did you mean fidelity"),
     ],
 )
 def test_bad_specs_fail_before_any_run_with_one_line(tmp_path, change, message):
