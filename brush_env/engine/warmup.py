@@ -82,12 +82,14 @@ def _static(t: _Tiny) -> None:
     sim.solve_static(np.array([0.0, 0.0, t.top - 0.1]), t.R, increments=2)
 
 
-def _reduced(t: _Tiny) -> None:
-    """The reduced model (level ``reduced``): a press and a slide through ``Simulator.rollout``
-    and through ``Simulator.step`` (its kernels, the rollout's, the static solve)."""
+def _reduced(model: str, t: _Tiny) -> None:
+    """The reduced model (``model`` "prb": level ``reduced``; "table": its tabulated tip law,
+    level ``fast``, on the tiny brush's shipped tables): a press and a slide through
+    ``Simulator.rollout`` and through ``Simulator.step`` (its kernels, the rollout's, the static
+    solve)."""
     from .simulator import SimSettings, Simulator
 
-    sim = Simulator(t.scene, SimSettings(dt=4e-3, model="prb", bodies_per_bristle=2))
+    sim = Simulator(t.scene, SimSettings(dt=4e-3, model=model, bodies_per_bristle=2))
     sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
     sim.rollout(np.array([5.0, 0.0, -20.0]), np.zeros(3), 10)
     sim.step(sim.state.tcp_p[1] + np.array([0.02, 0.0, 0.0]), t.R)
@@ -104,17 +106,6 @@ def _tip_table(t: _Tiny) -> None:
     build_table(build_geometry(t.scene.brush).prm[0], shape=(5, 5, 3))
 
 
-def _table_step(t: _Tiny) -> None:
-    """The tabulated tip law's step (level ``fast``, every env's default) on the tiny brush's
-    shipped tables: a press and a slide through ``Simulator.rollout`` and ``Simulator.step``."""
-    from .simulator import SimSettings, Simulator
-
-    sim = Simulator(t.scene, SimSettings(dt=4e-3, model="table", bodies_per_bristle=2))
-    sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
-    sim.rollout(np.array([5.0, 0.0, -20.0]), np.zeros(3), 10)
-    sim.step(sim.state.tcp_p[1] + np.array([0.02, 0.0, 0.0]), t.R)
-
-
 #: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
 #: compiles the step kernel with every kernel it calls; the later groups reuse them.
 GROUPS: tuple[KernelGroup, ...] = (
@@ -125,8 +116,14 @@ GROUPS: tuple[KernelGroup, ...] = (
     ),
     KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
     KernelGroup("static solve", _static),
-    KernelGroup("reduced model (fidelity level 'reduced': quasi-static joints, rollout)", _reduced),
-    KernelGroup("tabulated tip law's step (fidelity level 'fast', the envs' default)", _table_step),
+    KernelGroup(
+        "reduced model (fidelity level 'reduced': quasi-static joints, rollout)",
+        partial(_reduced, "prb"),
+    ),
+    KernelGroup(
+        "tabulated tip law's step (fidelity level 'fast', the envs' default)",
+        partial(_reduced, "table"),
+    ),
     KernelGroup("tabulated tip law's builder (a new brush's tables at level 'fast')", _tip_table),
 )
 

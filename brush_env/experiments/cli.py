@@ -83,8 +83,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--fidelity",
         default=None,
         help="fidelity level: reference, paper, balanced, coarse, reduced, fast (configs/fidelity) "
-        "or a TOML "
-        "path; sets bodies, element, integrator, solver step limit and tip-tip solve "
+        "or a TOML path; sets bodies, element, integrator, solver step limit and tip-tip solve "
         "(--bodies, --element, --integrator given explicitly still win)",
     )
     parser.add_argument("--speed", type=float, default=d["speed"], help="tool speed [mm/s]")
