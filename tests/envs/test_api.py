@@ -10,6 +10,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import brush_env
+from brush_env.engine.fidelity import LEVELS
 
 from .conftest import ENV_ID, TINY
 
@@ -169,3 +170,30 @@ def test_horizon_is_not_found_by_stack_walking():
     env.unwrapped.set_horizon(3)
     obs, *_ = env.step(np.zeros(6, np.float32))
     assert env.unwrapped.layout.block(obs, "time_remaining")[0] == pytest.approx(2 / 3)
+
+
+@pytest.mark.parametrize(
+    "level",
+    # the converged level's steps take ~5 s with the tiny brush, the others ~0.2 s
+    [pytest.param(v, marks=pytest.mark.slow) if v == "reference" else v for v in LEVELS],
+)
+def test_both_checkers_pass_at_every_fidelity_level(level):
+    """Gymnasium's and stable-baselines3's env checkers on FlatPlate-v0 at every shipped fidelity
+    level (the default ``fast`` is checked above for every id and variant), and the batched env
+    of the same level keeps its outputs in its spaces over a few steps."""
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make(ENV_ID, **TINY, fidelity=level)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+        sb3_check_env(env.unwrapped, warn=True)
+    env.close()
+    venv = gym.make_vec(ENV_ID, 2, vectorization_mode="vector_entry_point", **TINY, fidelity=level)
+    obs, _ = venv.reset(seed=0)
+    venv.action_space.seed(0)
+    for _ in range(3):
+        assert venv.observation_space.contains(obs)
+        obs, rew, term, trunc, _ = venv.step(venv.action_space.sample())
+        assert np.all(np.isfinite(rew)) and rew.shape == term.shape == trunc.shape == (2,)
+    venv.close()
