@@ -15,7 +15,7 @@ from .conftest import ENV_ID, NO_CONTACT, TINY
 ZERO = np.zeros(6, np.float32)
 #: the full chain (level "coarse"), whose env step is frame_skip calls of Simulator.step: the
 #: tests that recompute or inject per engine step (the default level "fast" rolls an env step out
-#: in one compiled call: tests/envs/test_rollout_env.py)
+#: in one compiled call: its protective stop is checked at the end of this module)
 STEPWISE = {"fidelity": "coarse"}
 
 
