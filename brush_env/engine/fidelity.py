@@ -104,9 +104,20 @@ class Fidelity:
         )
 
 
+#: levels renamed on 2026-11-27: a script or config still using the old name is told the new one
+#: (the old ``fast``, the 3-body chain, is ``coarse``; its name now means the tip table)
+RENAMED = {"table": "fast"}
+
+
 def fidelity_path(name_or_path: str | os.PathLike) -> Path:
     """``configs/fidelity/<name>.toml`` for a bare name, else the path itself
     (``config_files.resolve_config``; the error names the ``fidelity`` key)."""
+    if isinstance(name_or_path, str) and name_or_path in RENAMED:
+        raise ConfigError(
+            f"fidelity = {name_or_path!r}: this level is called {RENAMED[name_or_path]!r} since "
+            "2026-11-27 (the 3-body chain that was 'fast' is 'coarse'); known: "
+            f"{', '.join(LEVELS)}"
+        )
     try:
         return resolve_config("fidelity", name_or_path)
     except ConfigError as e:

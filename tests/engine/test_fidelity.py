@@ -95,3 +95,8 @@ def test_reference_experiment_runs_at_a_level(tmp_path):
     assert s["status"] == "ok"
     assert st["fidelity"] == "coarse" and st["bodies"] == [3] and st["tip_tip_sweeps"] == 1
     assert st["max_substep_s"] == load_fidelity("coarse").max_substep
+
+
+def test_a_renamed_level_names_its_new_name():
+    with pytest.raises(ConfigError, match=r"fidelity = 'table': this level is called 'fast' since"):
+        load_fidelity("table")
