@@ -39,6 +39,7 @@ from .chain import (
 )
 from .checks import ConfigError
 from .config import BrushConfig
+from .entry import entry_point
 from .prb_calibration import joint_parameters
 from .settings import SimSettings, SimulationDivergence
 from .simulator import PENETRATION_WARN_FRACTION
@@ -198,6 +199,7 @@ class PRBBristles(BristleModel):
             np.zeros((nb, 6)),
         )
         self._rec = None
+        self._rollout_entry = None  # prb_rollout.rollout's entry point (``entry.py``)
         self._Rn = np.zeros((3, 3))
         self._ps = np.zeros(3)
         self._pp = np.zeros(3)
@@ -323,7 +325,7 @@ class PRBBristles(BristleModel):
         drv = R_.Drive(
             st.tcp_p[1].copy(),
             st.tcp_R[1].copy(),
-            v,
+            np.ascontiguousarray(v, dtype=np.float64),  # the entry point's type (below)
             expmap(w * s.dt),
             s.dt,
             m,
@@ -342,7 +344,7 @@ class PRBBristles(BristleModel):
         h = s.dt / m
         sub = rec_.Substep(1.0, -1.0, 0.0, h, 1.0 / h, False, _ZERO3, ANGLE_TOL, MAX_ITER, 0)
         lim = R_.Limits(float(force_stop), float(penetration_stop), PENETRATION_WARN_FRACTION)
-        done, stop, bad = R_.rollout(
+        args = (
             self._geo,
             K.Joints(st.q, st.qp),
             self._frames,
@@ -354,6 +356,15 @@ class PRBBristles(BristleModel):
             self._backup,
             rec,
         )
+        # every argument keeps its type from call to call (the same records; the drive's
+        # arrays made here as float64 copies): after the first call through numba's dispatcher,
+        # the overload's entry point, without the dispatch (``entry.py``)
+        call = self._rollout_entry
+        if call is None:
+            done, stop, bad = R_.rollout(*args)
+            self._rollout_entry = entry_point(R_.rollout, args)
+        else:
+            done, stop, bad = call(*args)
         if done:  # the drive and the clock move on by the steps done
             last = rec.p[done - 1], rec.R[done - 1]
             before = (rec.p[done - 2], rec.R[done - 2]) if done > 1 else (st.tcp_p[1], st.tcp_R[1])
