@@ -13,7 +13,9 @@ first step: numba's cache load or JIT compile) is timed apart and excluded from 
 Row fields: ``mode`` ("single" / "vector"), ``n_envs``, ``steps`` (env steps, all envs),
 ``wall_s``, ``steps_per_s`` (all envs together), ``steps_per_s_per_env``,
 ``real_time_factor`` (simulated seconds per wall-clock second, all envs together),
-``engine_steps_per_s``, ``cold_start_s``, ``terminations``, and the settings (``brush``,
+``engine_steps_per_s``, ``cold_start_s``, ``terminations``, ``table_fallbacks_per_step`` (level
+``fast``, single env: the bristle-steps per env step that the tip table left to the reduced
+chain's Newton, ``solver_info()["table_fallbacks"]``; nan otherwise), and the settings (``brush``,
 ``n_bristles``, ``bodies_per_bristle``, ``model``, ``engine_dt``, ``max_substep``, ``frame_skip``,
 ``control_hz``, ``policy``).
 
@@ -150,6 +152,7 @@ def _single(a: dict) -> dict:
     obs, _ = env.reset(seed=0)
     if random:
         policy.seed(0)
+    fallbacks = 0  # the tip table's bristle-steps the chain took, summed before each reset
     t0 = time.perf_counter()
     for _ in range(a["steps"]):
         obs, _, term, trunc, _ = env.step(policy(obs)[0])
@@ -157,13 +160,26 @@ def _single(a: dict) -> dict:
         if term or trunc or (random and k >= a["episode_steps"]):
             terminations += int(term)
             seed, k = seed + 1, 0
+            fallbacks += _table_fallbacks(env)
             obs, _ = env.reset(seed=seed)
             if random:
                 policy.seed(seed)
     wall = time.perf_counter() - t0
+    fallbacks += _table_fallbacks(env)
     row = _row("single", 1, a["steps"], wall, cold, terminations, env.unwrapped, a)
+    row["table_fallbacks_per_step"] = fallbacks / a["steps"] if _tabled(env) else float("nan")
     env.close()
     return row
+
+
+def _tabled(env) -> bool:
+    return "table_fallbacks" in env.unwrapped.sim.bristles.solver_info()
+
+
+def _table_fallbacks(env) -> int:
+    """The bristle-steps since reset that the tip table left to the chain's Newton (level
+    ``fast``; 0 for another model)."""
+    return int(env.unwrapped.sim.bristles.solver_info().get("table_fallbacks", 0))
 
 
 def _vector(a: dict, n: int) -> dict:
@@ -189,6 +205,7 @@ def _vector(a: dict, n: int) -> dict:
         terminations += int(np.sum(term))
     wall = time.perf_counter() - t0
     row = _row("vector", n, steps * n, wall, cold, terminations, probe.unwrapped, a)
+    row["table_fallbacks_per_step"] = float("nan")  # in the worker processes
     venv.close()
     probe.close()
     return row
@@ -343,14 +360,15 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(
         "| mode | envs | steps/s | steps/s/env | real-time x | engine steps/s | cold start s "
-        "| terminations |"
+        "| terminations | table fallbacks / step |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(
             f"| {r['mode']} | {r['n_envs']} | {r['steps_per_s']:.1f} | "
             f"{r['steps_per_s_per_env']:.1f} | {r['real_time_factor']:.2f} | "
-            f"{r['engine_steps_per_s']:.0f} | {r['cold_start_s']:.2f} | {r['terminations']} |"
+            f"{r['engine_steps_per_s']:.0f} | {r['cold_start_s']:.2f} | {r['terminations']} | "
+            f"{r['table_fallbacks_per_step']:.3f} |"
         )
     r = rows[0]
     print(

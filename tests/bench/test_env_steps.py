@@ -20,6 +20,7 @@ KEYS = {
     "engine_steps_per_s",
     "cold_start_s",
     "terminations",
+    "table_fallbacks_per_step",
     "brush",
     "n_bristles",
     "bodies_per_bristle",
@@ -88,6 +89,45 @@ def test_bench_env_random_and_zero_policies_restart_episodes_with_the_next_seed(
         assert seeds == [0, 0, 1, 2]
     (row,) = bench_env({"steps": 3, "n_envs": [2], "brush": "tiny_env", "policy": "random"})
     assert row["mode"] == "vector" and row["steps"] == 6
+
+
+def test_bench_env_counts_the_tip_tables_fallbacks_of_every_timed_episode(monkeypatch):
+    """At ``fast`` (the tip table) the single row's fallbacks per step are the
+    ``solver_info()["table_fallbacks"]`` of each timed episode (counted since its reset) summed,
+    over the steps; not the cold start's; nan for the chain (``coarse``) and a vector row."""
+    import gymnasium as gym
+
+    seen = []
+    reset = gym.Wrapper.reset
+
+    def spy(self, *, seed=None, options=None):
+        if isinstance(self, gym.wrappers.TimeLimit) and hasattr(self.unwrapped, "sim"):
+            sim = self.unwrapped.sim
+            if sim.state is not None:
+                seen.append(sim.bristles.solver_info().get("table_fallbacks", 0))
+        return reset(self, seed=seed, options=options)
+
+    monkeypatch.setattr(gym.Wrapper, "reset", spy)
+    last = []
+    step = gym.Wrapper.step
+
+    def step_spy(self, action):
+        out = step(self, action)
+        if isinstance(self, gym.wrappers.TimeLimit):
+            last[:] = [self.unwrapped.sim.bristles.solver_info().get("table_fallbacks", 0)]
+        return out
+
+    monkeypatch.setattr(gym.Wrapper, "step", step_spy)
+    args = {"steps": 40, "n_envs": [1], "policy": "random", "episode_steps": 20}
+    (row,) = bench_env({**args, "fidelity": "fast"})
+    # resets: the cold start's second (after its one step), then after each timed episode but
+    # the last, whose count is read at the end
+    timed = seen[1:] + last
+    assert len(timed) == 2
+    assert sum(timed) > 0  # the random brush touches the plate within 20 steps
+    assert row["table_fallbacks_per_step"] == sum(timed) / 40
+    (row,) = bench_env({**args, "steps": 4, "brush": "tiny_env", "fidelity": "coarse"})
+    assert row["table_fallbacks_per_step"] != row["table_fallbacks_per_step"]  # nan
 
 
 def test_bench_env_runs_tooth_row_with_its_scrub(monkeypatch):
