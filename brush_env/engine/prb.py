@@ -224,6 +224,13 @@ class PRBBristles(BristleModel):
     def set_tip_forces(self, forces) -> None:
         self.tip_args["fext"] = forces
 
+    def __getstate__(self) -> dict:
+        """Pickled without the rollout's entry point (a compiled function's address, not
+        picklable): the unpickled model looks it up again at its first rollout."""
+        state = self.__dict__.copy()
+        state["_rollout_entry"] = None
+        return state
+
     def reset(self, tcp_p, tcp_R, time: float) -> None:
         m = self.model
         nb = m.n_bristles
