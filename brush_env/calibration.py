@@ -357,14 +357,18 @@ def ensure_calibrated(brush: BrushConfig, settings) -> None:
         table_brush(brush, verbose=True)
 
 
-def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool = True) -> int:
+def calibrate_brush(
+    brush: BrushConfig | str, ship: bool = False, verbose: bool = True, refitted=None
+) -> int:
     """Fit every bristle type of ``brush`` that has no calibration yet; returns how many were
-    fitted.  ``ship``: store them in the package's file (the shipped brushes)."""
+    fitted.  ``ship``: store them in the package's file (the shipped brushes), refitting those it
+    has -- but not the keys in ``refitted`` (a set: the types this run has refitted already; a
+    type shared by several brushes is fitted once, ~2-7 min each), to which it adds its own."""
     if not isinstance(brush, BrushConfig):
         brush = load_brush(brush)
     done = 0
     for key, (br, lean) in pc.bristle_types(brush).items():
-        if pc.lookup(key) is not None and not ship:
+        if pc.lookup(key) is not None and (not ship or (refitted is not None and key in refitted)):
             continue
         if verbose:
             print(
@@ -376,6 +380,8 @@ def calibrate_brush(brush: BrushConfig | str, ship: bool = False, verbose: bool 
             )
         rec = fit(br, lean, verbose=verbose)
         pc.store(key, rec, ship=ship)
+        if refitted is not None:
+            refitted.add(key)
         done += 1
     return done
 
@@ -430,9 +436,10 @@ def run(args) -> int:
     if args.all:
         names = sorted(p.stem for p in (configs_dir() / "brushes").glob("*.toml"))
     shipped: set = set()
+    refitted: set = set()
     for name in names:
         brush = load_brush(name)
-        n = calibrate_brush(brush, ship=args.ship)
+        n = calibrate_brush(brush, ship=args.ship, refitted=refitted)
         where = pc.SHIPPED if args.ship else pc.user_cache()
         print(
             f"{name}: {n} bristle type(s) fitted ({len(pc.bristle_types(brush))} in all), {where}"

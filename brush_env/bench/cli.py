@@ -7,10 +7,11 @@ force at every step size), ``branch`` (hold direction and jamming angles over st
 ``random`` (the env under random actions), ``env`` (Gymnasium env steps per second), ``teeth``
 (tooth row vs plate speed, SDF vs exact mesh), ``steps`` (one scene's scrub motion: Newton
 iterations, instructions under callgrind), ``drag`` (a pressed brush dragged toward the
-bristles' wide and thin sides), ``episodes`` (how far env episodes run and why they end),
-``cost`` (one bristle-step split into its parts by callgrind instruction counts), ``coupled``
-(the coupled tip-tip solve's cost and error on the paper turn), ``compile``
-(the first-start numba compile, in a fresh cache).  Each target has its own options
+bristles' wide and thin sides), ``touchdown`` (one bristle landing while dragged, the
+reduced models against the converged chain), ``episodes`` (how far env episodes run and why
+they end), ``cost`` (one bristle-step split into its parts by callgrind instruction counts),
+``coupled`` (the coupled tip-tip solve's cost and error on the paper turn), ``compile`` (the
+first-start numba compile, in a fresh cache).  Each target has its own options
 (``brush-env bench engine --help``); a new target is a module with ``bench_<name>(args)`` (and
 ``add_arguments(p)`` for its options) and an entry in :data:`TARGETS`.
 """
@@ -37,6 +38,7 @@ from . import (
     press,
     steps,
     teeth,
+    touchdown,
 )
 
 #: name -> (run function, its options (None: the common ones), one-line help)
@@ -75,6 +77,13 @@ TARGETS = {
         drag.add_arguments,
         "a pressed bristle and the pressed brush dragged toward the wide and the thin side: "
         "normal and lateral force at each level against the converged chain",
+    ),
+    "touchdown": (
+        touchdown.bench_touchdown,
+        touchdown.add_arguments,
+        "one bristle landing on the plate while its root is dragged (the reference circle's "
+        "touch-down): onset, peak and dragged normal force of reduced and fast against the "
+        "converged chain",
     ),
     "branch": (
         branch.bench_branch,
