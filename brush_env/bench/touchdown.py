@@ -21,12 +21,12 @@ tip stuck, the load along the axis, the column straight below its buckling load)
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 
 import numpy as np
 
+from .drag import bristle_scene
 from .harness import emit, markdown_table, open_log
 
 #: the landing's root velocity: toward the plate and along it [mm/s] (the reference circle's
@@ -46,15 +46,6 @@ ONSET = DOWN * 0.004
 AT = (1.0, 2.0, 3.0)
 #: the models against the full chain: label -> (bristle model, solver step [s])
 MODELS = {"reduced": ("prb", 4e-3), "fast": ("table", 4e-3)}
-
-
-def _scene(br, lean: float, bodies: int):
-    from ..calibration import bristle_case
-    from ..engine.scene import ContactParams
-
-    return dataclasses.replace(
-        bristle_case(br, lean, "free", bodies).scene(), contact=ContactParams()
-    )
 
 
 def landing(sim, angle_deg: float | None) -> np.ndarray:
@@ -79,7 +70,10 @@ def landing(sim, angle_deg: float | None) -> np.ndarray:
     return out
 
 
-def _summary(tr: np.ndarray, straight: bool) -> dict:
+def summary(tr: np.ndarray, straight: bool) -> dict:
+    """The row of one ``landing`` trace: the force after ONSET mm of press and the peak [N];
+    for the straight press (``straight``) the slope below buckling [N/mm], else the force at
+    each lateral travel of AT [N]."""
     press, lat, fn = tr[:, 0], tr[:, 1], tr[:, 2]
     row = {"onset_N": float(np.interp(ONSET, press, fn)), "peak_N": float(fn.max())}
     if straight:
@@ -110,16 +104,20 @@ def bristle_rows(quick: bool, log) -> list[dict]:
             what = "straight press" if ang is None else f"landing toward {ang:+.0f} deg"
             print(f"  one {br.group} bristle, {what} ...", file=log)
             t0 = time.perf_counter()
-            full = Simulator(_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=no_g))
+            full = Simulator(
+                bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=no_g)
+            )
             row = {
                 "bristle": br.group,
                 "motion": what,
                 "EA_over_L_N_per_mm": ea_l,
-                "full": _summary(landing(full, ang), ang is None),
+                "full": summary(landing(full, ang), ang is None),
             }
             for label, (model, dt) in MODELS.items():
-                sim = Simulator(_scene(br, lean, 2), SimSettings(dt=dt, model=model, gravity=no_g))
-                row[label] = _summary(landing(sim, ang), ang is None)
+                sim = Simulator(
+                    bristle_scene(br, lean, 2), SimSettings(dt=dt, model=model, gravity=no_g)
+                )
+                row[label] = summary(landing(sim, ang), ang is None)
             row["wall_s"] = time.perf_counter() - t0
             rows.append(row)
     return rows

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from brush_env.bench import drag as D
 from brush_env.bench import touchdown as T
 from brush_env.calibration import FULL_BODIES, FULL_DT
 from brush_env.engine import SimSettings, Simulator, load_brush
@@ -26,7 +27,7 @@ def _types():
 @pytest.mark.parametrize("group", ["outer", "inner"])
 def test_full_chain_pressed_straight_is_the_axial_spring_in_series_with_eq6(group):
     br, lean = _types()[group]
-    sim = Simulator(T._scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G))
+    sim = Simulator(D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G))
     tr = T.landing(sim, None)
     press, fn = tr[:, 0], tr[:, 2]
     cp = ContactParams()  # Table 2: Fn = k delta^m1 (the damping term ~ c v delta^2 is ~1e-7 N)
@@ -55,15 +56,17 @@ def test_reduced_chain_pressed_straight_ramps_as_the_full_chain(group, model, re
     # 0.03 mm and the slope below buckling follow the full chain's (the rest bend bows the
     # reduced chain a little first: ~6 % softer; the table's interpolation ~15 %)
     br, lean = _types()[group]
-    full = T._summary(
+    full = T.summary(
         T.landing(
-            Simulator(T._scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)),
+            Simulator(
+                D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)
+            ),
             None,
         ),
         True,
     )
-    sim = Simulator(T._scene(br, lean, 2), SimSettings(dt=4e-3, model=model, gravity=NO_G))
-    red = T._summary(T.landing(sim, None), True)
+    sim = Simulator(D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model=model, gravity=NO_G))
+    red = T.summary(T.landing(sim, None), True)
     for key in ("onset_N", "slope_N_per_mm", "peak_N"):
         assert red[key] == pytest.approx(full[key], rel=rel), key
 
@@ -81,16 +84,20 @@ def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
     # without the axial compliance the reduced chain buckles at once to its rest bend's side and,
     # dragged against it, presses with 3.6x the full chain's force after 3 mm (bench touchdown)
     br, lean = _types()["inner"]
-    full = T._summary(
+    full = T.summary(
         T.landing(
-            Simulator(T._scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)),
+            Simulator(
+                D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)
+            ),
             angle,
         ),
         False,
     )
-    red = T._summary(
+    red = T.summary(
         T.landing(
-            Simulator(T._scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G)),
+            Simulator(
+                D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G)
+            ),
             angle,
         ),
         False,
@@ -105,13 +112,13 @@ def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
 
 def test_landing_reads_its_columns():
     br, lean = _types()["outer"]
-    sim = Simulator(T._scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G))
+    sim = Simulator(D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G))
     tr = T.landing(sim, 90.0)
     assert tr.shape == (int(round(T.DURATION / 4e-3)), 3)
     # the root moves DOWN and LATERAL per second from the touch
     assert tr[-1, 0] == pytest.approx(T.DOWN * T.DURATION)
     assert tr[-1, 1] == pytest.approx(T.LATERAL * T.DURATION)
-    row = T._summary(tr, False)
+    row = T.summary(tr, False)
     assert set(row) == {"onset_N", "peak_N", *(f"at_{a:g}mm_N" for a in T.AT)}
     assert all(math.isfinite(v) and v >= 0.0 for v in row.values())
 
