@@ -5,6 +5,7 @@ marked as expected failures until the fix lands (no timing asserted)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -22,6 +23,18 @@ NO_G = (0.0, 0.0, 0.0)
 
 def _types():
     return {br.group: (br, lean) for br, lean in pc.bristle_types(load_brush("default")).values()}
+
+
+def _row(group: str, angle, model: str = "dfm") -> dict:
+    """``bench touchdown``'s row of one model: the full chain (FULL_BODIES at FULL_DT) or a
+    reduced one (4 ms), straight press for ``angle`` None."""
+    br, lean = _types()[group]
+    if model == "dfm":
+        scene, settings = D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT)
+    else:
+        scene, settings = D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model=model)
+    sim = Simulator(scene, dataclasses.replace(settings, gravity=NO_G))
+    return T.summary(T.landing(sim, angle), angle is None)
 
 
 @pytest.mark.parametrize("group", ["outer", "inner"])
@@ -43,6 +56,7 @@ def test_full_chain_pressed_straight_is_the_axial_spring_in_series_with_eq6(grou
 
 @pytest.mark.xfail(
     strict=True,
+    raises=AssertionError,
     reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
     "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
     "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
@@ -55,24 +69,14 @@ def test_reduced_chain_pressed_straight_ramps_as_the_full_chain(group, model, re
     # L / (E A) behind the tip, in series with eq 6 (branch axial-compliance), the force after
     # 0.03 mm and the slope below buckling follow the full chain's (the rest bend bows the
     # reduced chain a little first: ~6 % softer; the table's interpolation ~15 %)
-    br, lean = _types()[group]
-    full = T.summary(
-        T.landing(
-            Simulator(
-                D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)
-            ),
-            None,
-        ),
-        True,
-    )
-    sim = Simulator(D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model=model, gravity=NO_G))
-    red = T.summary(T.landing(sim, None), True)
+    full, red = _row(group, None), _row(group, None, model)
     for key in ("onset_N", "slope_N_per_mm", "peak_N"):
         assert red[key] == pytest.approx(full[key], rel=rel), key
 
 
 @pytest.mark.xfail(
     strict=True,
+    raises=AssertionError,
     reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
     "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
     "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
@@ -83,25 +87,7 @@ def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
     # buckles to the side the drag bends it and its normal force falls as the drag goes on;
     # without the axial compliance the reduced chain buckles at once to its rest bend's side and,
     # dragged against it, presses with 3.6x the full chain's force after 3 mm (bench touchdown)
-    br, lean = _types()["inner"]
-    full = T.summary(
-        T.landing(
-            Simulator(
-                D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G)
-            ),
-            angle,
-        ),
-        False,
-    )
-    red = T.summary(
-        T.landing(
-            Simulator(
-                D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G)
-            ),
-            angle,
-        ),
-        False,
-    )
+    full, red = _row("inner", angle), _row("inner", angle, "prb")
     assert red["at_3mm_N"] < 0.6 * red["peak_N"]  # it falls, as the full chain's
     # the dragged force, where the side shows (with the fix the peak, the buckling overshoot of
     # the rest bend, is 35 % above the full chain's against the lean: docs/benchmarks.md)
