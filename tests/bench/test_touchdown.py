@@ -19,29 +19,41 @@ from brush_env.engine import prb_calibration as pc
 from brush_env.engine.scene import ContactParams
 
 NO_G = (0.0, 0.0, 0.0)
+#: the reduced chain's departures from the full chain, expected until the fix lands
+NO_AXIAL_COMPLIANCE = pytest.mark.xfail(
+    strict=True,
+    raises=AssertionError,
+    reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
+    "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
+    "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
+)
 
 
 def _types():
     return {br.group: (br, lean) for br, lean in pc.bristle_types(load_brush("default")).values()}
 
 
-def _row(group: str, angle, model: str = "dfm") -> dict:
-    """``bench touchdown``'s row of one model: the full chain (FULL_BODIES at FULL_DT) or a
-    reduced one (4 ms), straight press for ``angle`` None."""
+def _trace(group: str, angle, model: str = "dfm") -> np.ndarray:
+    """``bench touchdown``'s landing of one model: the full chain (FULL_BODIES at FULL_DT) or a
+    reduced one (4 ms), the straight press for ``angle`` None."""
     br, lean = _types()[group]
     if model == "dfm":
         scene, settings = D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT)
     else:
         scene, settings = D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model=model)
     sim = Simulator(scene, dataclasses.replace(settings, gravity=NO_G))
-    return T.summary(T.landing(sim, angle), angle is None)
+    return T.landing(sim, angle)
+
+
+def _row(group: str, angle, model: str = "dfm") -> dict:
+    """The bench's row of that landing (``touchdown.summary``)."""
+    return T.summary(_trace(group, angle, model), angle is None)
 
 
 @pytest.mark.parametrize("group", ["outer", "inner"])
 def test_full_chain_pressed_straight_is_the_axial_spring_in_series_with_eq6(group):
-    br, lean = _types()[group]
-    sim = Simulator(D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT, gravity=NO_G))
-    tr = T.landing(sim, None)
+    br, _ = _types()[group]
+    tr = _trace(group, None)
     press, fn = tr[:, 0], tr[:, 2]
     cp = ContactParams()  # Table 2: Fn = k delta^m1 (the damping term ~ c v delta^2 is ~1e-7 N)
     ea = br.material.E * br.section.area
@@ -54,13 +66,7 @@ def test_full_chain_pressed_straight_is_the_axial_spring_in_series_with_eq6(grou
     assert np.allclose(press[low], expected, rtol=0.03)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
-    "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
-    "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
-)
+@NO_AXIAL_COMPLIANCE
 @pytest.mark.parametrize(("model", "rel"), [("prb", 0.1), ("table", 0.2)])
 @pytest.mark.parametrize("group", ["outer", "inner"])
 def test_reduced_chain_pressed_straight_ramps_as_the_full_chain(group, model, rel):
@@ -74,13 +80,7 @@ def test_reduced_chain_pressed_straight_ramps_as_the_full_chain(group, model, re
         assert red[key] == pytest.approx(full[key], rel=rel), key
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
-    "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
-    "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
-)
+@NO_AXIAL_COMPLIANCE
 @pytest.mark.parametrize("angle", [90.0, -90.0])
 def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
     # landing while its root is dragged toward (+90) or against (-90) its lean, the full chain
@@ -97,9 +97,7 @@ def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
 
 
 def test_landing_reads_its_columns():
-    br, lean = _types()["outer"]
-    sim = Simulator(D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model="prb", gravity=NO_G))
-    tr = T.landing(sim, 90.0)
+    tr = _trace("outer", 90.0, "prb")
     assert tr.shape == (int(round(T.DURATION / 4e-3)), 3)
     # the root moves DOWN and LATERAL per second from the touch
     assert tr[-1, 0] == pytest.approx(T.DOWN * T.DURATION)
