@@ -35,6 +35,15 @@ from .sdf import FAR
 from .surfaces import normal_rate, surface_gap
 
 PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
+#: [N] a tip with an axial compliance (``series_law``) may always step as deep as this load
+#: compresses it: its overlap with a surface is mostly the bristle's compression (~0.09 mm at
+#: 0.1 N for the default brush's inner bristle), which the doubling rule of
+#: ``penetration_step_limit`` would reach only over ~6 iterates from PEN_STEP_MIN
+SERIES_ALLOW_LOAD = 0.05
+#: the series law's Newton: at most this many iterates, stopping at a residual of SERIES_TOL x
+#: the overlap [mm]
+SERIES_MAXIT = 30
+SERIES_TOL = 1e-12
 
 
 @njit(**HOT)
@@ -79,6 +88,59 @@ def normal_law(delta, ddelta, k, m1, c, m2, m3):
 
 
 @njit(**HOT, inline="always")
+def compliance(args, nrm) -> float:
+    """The tip's axial compliance seen along the contact normal ``nrm`` [mm/N]:
+    ``cax (a . n)^2`` (``records.TIP_ARGS``): a normal force Fn has the axial part (a . n) Fn,
+    which shortens the bristle by cax (a . n) Fn along a, of which (a . n) moves the tip along n.
+    0 for the full chain."""
+    if args.cax == 0.0:
+        return 0.0
+    an = args.axis[0] * nrm[0] + args.axis[1] * nrm[1] + args.axis[2] * nrm[2]
+    return args.cax * an * an
+
+
+@njit(**HOT)
+def series_law(delta, ddelta, k, m1, c, m2, m3, cs):
+    """Eq 6 in series with a compliance cs [mm/N]: the geometric overlap ``delta`` [mm] of a
+    rigid tip is the contact's penetration dc plus the spring's compression cs Fn, with
+    Fn = eq 6 (dc, ddelta).  Returns (Fn, dFn/d delta, dFn/d(ddelta), dc): the slopes of the
+    series spring, kn / (1 + cs kn) and cn / (1 + cs kn) (kn, cn: eq 6's own at dc).
+
+    dc solves h(dc) = dc + cs Fn(dc) - delta = 0 by Newton from above: h rises and, for
+    m1 >= 1, is convex, so iterates from a point with h >= 0 fall monotonically onto the root.
+    The start: the smaller of delta (no compression) and the penetration that the spring's whole
+    share would load, (delta / (cs k))^(1/m1) (an upper bound when eq 6's damping term is not
+    negative: k dc^m1 <= Fn <= delta / cs).  cs = 0: eq 6 itself (``normal_law``)."""
+    if cs <= 0.0:
+        F, kn, cn = normal_law(delta, ddelta, k, m1, c, m2, m3)
+        return F, kn, cn, delta
+    if delta <= 0.0:
+        return 0.0, 0.0, 0.0, delta
+    x = delta
+    if c == 0.0 or ddelta >= 0.0:
+        xb = (delta / (cs * k)) ** (1.0 / m1)
+        if xb < x:
+            x = xb
+    F, kn, cn = normal_law(x, ddelta, k, m1, c, m2, m3)
+    for _ in range(SERIES_MAXIT):
+        h = x + cs * F - delta
+        if h <= SERIES_TOL * delta:
+            break
+        x -= h / (1.0 + cs * kn)
+        F, kn, cn = normal_law(x, ddelta, k, m1, c, m2, m3)
+    s = 1.0 / (1.0 + cs * kn)
+    return F, kn * s, cn * s, x
+
+
+@njit(**HOT, inline="always")
+def overlap(args, state, nrm) -> float:
+    """The geometric overlap [mm] of a touching tip with its surface (``state`` from the last
+    ``tip_load``, ``nrm`` its normal): the contact's penetration plus the axial compression that
+    ``series_law`` put behind it (the penetration alone for the full chain)."""
+    return state.pen + compliance(args, nrm) * state.fn
+
+
+@njit(**HOT, inline="always")
 def _from_partner(pt, tips, j):
     """(d, |d|): the vector from partner tip j's centre to ``pt`` [mm] and its length."""
     d0 = pt[0] - tips[j, 0]
@@ -120,7 +182,7 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
     for a in range(3):
         state.dnew[a] = 0.0
         state.cpt[a] = pt[a]
-    _surface_load(pt, R, sub, con, state, F, Kt, tw)
+    _surface_load(pt, con.tip_args[b], sub, con, state, F, Kt, tw)
     _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt)
 
 
@@ -134,9 +196,10 @@ def presses_on_resultant(surf) -> bool:
 
 
 @njit(**HOT, inline="always")
-def _surface_load(pt, R, sub, con, state, F, Kt, tw):
-    """Tip-surface contact: the penalty normal force of eq 6 and its tangent, then friction
-    (eq 7-10, ``_friction_load``).
+def _surface_load(pt, args, sub, con, state, F, Kt, tw):
+    """Tip-surface contact: the penalty normal force of eq 6 (in series with the tip's axial
+    compliance, ``series_law``: state.pen is then the contact's own penetration) and its tangent,
+    then friction (eq 7-10, ``_friction_load``).
 
     A plane or a triangle mesh alone (the plate): its contact, flat.  Several surfaces, or one
     curved one (``_several_surfaces``, with the curvature in the tangent): the normal
@@ -151,8 +214,9 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
     vt = tw.vt
     nrm = tw.nrm
     cpt = tw.cpt
+    R = args.radius
     if presses_on_resultant(surf):
-        Fn = _several_surfaces(pt, R, sub, con, state, F, Kt, tw)
+        Fn = _several_surfaces(pt, args, sub, con, state, F, Kt, tw)
         if Fn > 0.0 and (cp.mu_s > 0.0 or cp.mu_d > 0.0):
             # friction ~ |R|: its Newton coupling dF_t = (F_t / |R|) d|R|, d|R| = -g^T dpt with
             # g = -A^T n (tw.gres, from _several_surfaces), not kk n
@@ -170,10 +234,11 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
         return
     delta = R - best
     vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
-    Fn, kn, cn = normal_law(delta, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3)  # eq 6
+    cs = compliance(args, nrm)
+    Fn, kn, cn, dc = series_law(delta, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3, cs)  # eq 6
     for a in range(3):
         state.cpt[a] = cpt[a]
-    state.pen = delta
+    state.pen = dc
     state.surf = 0
     if Fn <= 0.0:
         return
@@ -190,7 +255,7 @@ def _surface_load(pt, R, sub, con, state, F, Kt, tw):
 
 
 @njit(**HOT)
-def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
+def _several_surfaces(pt, args, sub, con, state, F, Kt, tw):
     """Normal forces (eq 6) of every touched, not hidden surface (a contact point more than 1 um
     inside another surface is hidden in their union); adds them to F, Kt, stores the total in
     state.fn, the deepest in state.pen, .cpt, .surf.  Leaves the resultant's direction in tw.nrm and
@@ -201,6 +266,7 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
     vt = tw.vt
     nrm = tw.pnrm
     cpt = tw.pcpt
+    R = args.radius
     tw.res[0], tw.res[1], tw.res[2] = 0.0, 0.0, 0.0
     best = FAR
     ibest = -1
@@ -240,11 +306,12 @@ def _several_surfaces(pt, R, sub, con, state, F, Kt, tw):
             if hidden:
                 continue
         vn = vt[0] * nrm[0] + vt[1] * nrm[1] + vt[2] * nrm[2]
-        Fn, kn, cn = normal_law(R - gap, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3)
+        cs = compliance(args, nrm)
+        Fn, kn, cn, dc = series_law(R - gap, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3, cs)
         if s == ibest:
             for a in range(3):
                 state.cpt[a] = cpt[a]
-            state.pen = R - gap
+            state.pen = dc
             state.surf = s
         if Fn <= 0.0:
             continue
@@ -457,7 +524,9 @@ def penetration_step_limit(b, pt, dp, R, con, tw, pmin):
     PEN_STEP_MIN, the tabulated law's ``prb_kernels.TAB_PEN_MIN``): a Newton iterate coming from
     outside the stiff penalty contact otherwise lands deep inside it, and the next one is thrown
     back out (a limit cycle).  This replaces a "pre-search" tangent, which made Newton converge
-    only linearly whenever a tip rests just outside a contact.  tw: ``records.TipScratch``."""
+    only linearly whenever a tip rests just outside a contact.  A tip with an axial compliance
+    (``series_law``) may also reach the overlap that SERIES_ALLOW_LOAD compresses it by.
+    tw: ``records.TipScratch``."""
     nrm = tw.pnrm
     cpt = tw.pcpt
     surf = con.surf
@@ -469,7 +538,9 @@ def penetration_step_limit(b, pt, dp, R, con, tw, pmin):
         dn = dp[0] * nrm[0] + dp[1] * nrm[1] + dp[2] * nrm[2]
         if dn >= 0.0:
             continue
-        allow = max(2.0 * max(-gap, 0.0), pmin)
+        allow = max(
+            2.0 * max(-gap, 0.0), pmin, compliance(con.tip_args[b], nrm) * SERIES_ALLOW_LOAD
+        )
         # penetration after the step: -(gap + a dn) <= allow
         a = (gap + allow) / (-dn)
         if a < amax:

@@ -155,6 +155,13 @@ class PRBBristles(BristleModel):
         nb = m.n_bristles
         self.tip_args = np.zeros(nb, rec.TIP_ARGS)
         self.tip_args["radius"] = m.tip_radius
+        # the links are rigid: the bristle's axial compliance L / (E A) [mm/N] sits behind its
+        # tip, in series with the contact laws (``contact.series_law``; its direction is set at
+        # every step, ``prb_kernels._axial_direction``).  Without it a pressed tip loads the
+        # plate at once: 2.3x the full chain's force 0.03 mm into a press (bench touchdown)
+        self.tip_args["cax"] = [
+            br.length / (br.material.E * br.section.area) for br in scene.brush.bristles
+        ]
         self.contact_params = scene.contact.as_array()
         # friction is the reduced model's own return mapping (prb_kernels._friction): the shared
         # tip load runs without it.  And without eq 6's damping term (c v^m2 delta^m3, tip-plate

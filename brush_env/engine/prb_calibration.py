@@ -86,7 +86,7 @@ def joint_parameters(br, lean: float) -> tuple:
 
 #: [rad] the rest bend of the two joints along the fold that keeps the tip in place (see
 #: ``rest_angles``)
-REST_BEND = 0.05
+REST_BEND = 0.02
 
 
 def rest_angles(l1: float, l2: float, lean: float) -> tuple:
@@ -113,7 +113,7 @@ from pathlib import Path  # noqa: E402
 #: the calibrations that ship with the package (the brushes of configs/brushes)
 SHIPPED = Path(__file__).resolve().parent / "prb_calibrations.json"
 #: bump when the reduced model or the fit changes: older records are not used
-VERSION = 12
+VERSION = 13
 
 _override: tuple | None = None
 _memory: dict = {}

@@ -85,8 +85,11 @@ BODY = np.dtype(
 )
 
 #: a tip's arguments, ``ContactScene.tip_args`` (nb,): external dead force fext [N, world];
-#: tip sphere radius [mm]
-TIP_ARGS = np.dtype([("fext", "f8", 3), ("radius", "f8")])
+#: tip sphere radius [mm]; cax: the bristle's axial compliance L / (E A) [mm/N] behind its tip,
+#: in series with the contact laws (0 for the full chain, whose elements carry it; the reduced
+#: chain's rigid links do not: ``contact.series_law``); axis: the unit direction it acts along
+#: [world] (the reduced chain's chord at the step's start)
+TIP_ARGS = np.dtype([("fext", "f8", 3), ("radius", "f8"), ("cax", "f8"), ("axis", "f8", 3)])
 
 #: a tip's contact state, ``ContactScene.tip_state`` (nb,) (contact.py writes it):
 #: delta: stiction deformation Delta [mm, world] (committed); hist: c1 p_n + c2 p_{n-1} of the

@@ -1,7 +1,7 @@
 """``bench touchdown``: the full chain pressed straight below its buckling load is the column's
-axial spring E A / L in series with the contact's penalty law (closed form); the reduced chain's
-departures from it -- no axial compliance, the buckling side chosen by its rest bend -- are
-marked as expected failures until the fix lands (no timing asserted)."""
+axial spring E A / L in series with the contact's penalty law (closed form); the reduced chain,
+whose rigid links carry that compliance behind the tip (``contact.series_law``), ramps and
+takes its buckling side as the full chain does (no timing asserted)."""
 
 from __future__ import annotations
 
@@ -19,14 +19,6 @@ from brush_env.engine import prb_calibration as pc
 from brush_env.engine.scene import ContactParams
 
 NO_G = (0.0, 0.0, 0.0)
-#: the reduced chain's departures from the full chain, expected until the fix lands
-NO_AXIAL_COMPLIANCE = pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="the reduced chain has no axial compliance on main: it jumps to its buckling load "
-    "within ~0.03 mm and takes its rest bend's side before a drag acts (docs/benchmarks.md, "
-    "'bench touchdown'; the fix is on branch axial-compliance, issue 29)",
-)
 
 
 def _types():
@@ -40,7 +32,9 @@ def _trace(group: str, angle, model: str = "dfm") -> np.ndarray:
     if model == "dfm":
         scene, settings = D.bristle_scene(br, lean, FULL_BODIES), SimSettings(dt=FULL_DT)
     else:
-        scene, settings = D.bristle_scene(br, lean, 2), SimSettings(dt=4e-3, model=model)
+        # the levels' own solver step (``bench touchdown``)
+        scene = D.bristle_scene(br, lean, 2)
+        settings = SimSettings(dt=4e-3, max_substep=4e-3, model=model)
     sim = Simulator(scene, dataclasses.replace(settings, gravity=NO_G))
     return T.landing(sim, angle)
 
@@ -66,27 +60,25 @@ def test_full_chain_pressed_straight_is_the_axial_spring_in_series_with_eq6(grou
     assert np.allclose(press[low], expected, rtol=0.03)
 
 
-@NO_AXIAL_COMPLIANCE
 @pytest.mark.parametrize(("model", "rel"), [("prb", 0.1), ("table", 0.2)])
 @pytest.mark.parametrize("group", ["outer", "inner"])
 def test_reduced_chain_pressed_straight_ramps_as_the_full_chain(group, model, rel):
-    # the reduced chain's links are rigid: it jumps to its buckling load within the first
-    # 0.03 mm (2.3x the full chain's force there, 2.2x its slope).  With the axial compliance
-    # L / (E A) behind the tip, in series with eq 6 (branch axial-compliance), the force after
-    # 0.03 mm and the slope below buckling follow the full chain's (the rest bend bows the
-    # reduced chain a little first: ~6 % softer; the table's interpolation ~15 %)
+    # the reduced chain's links are rigid: without the axial compliance L / (E A) behind the
+    # tip, in series with eq 6, it jumped to its buckling load within the first 0.03 mm (2.3x
+    # the full chain's force there, 2.2x its slope).  With it the force after 0.03 mm and the
+    # slope below buckling follow the full chain's (the rest bend bows the reduced chain a
+    # little first: ~6 % softer; the table's interpolation ~15 %)
     full, red = _row(group, None), _row(group, None, model)
     for key in ("onset_N", "slope_N_per_mm", "peak_N"):
         assert red[key] == pytest.approx(full[key], rel=rel), key
 
 
-@NO_AXIAL_COMPLIANCE
 @pytest.mark.parametrize("angle", [90.0, -90.0])
 def test_reduced_chain_landing_under_a_drag_takes_the_full_chains_side(angle):
     # landing while its root is dragged toward (+90) or against (-90) its lean, the full chain
     # buckles to the side the drag bends it and its normal force falls as the drag goes on;
-    # without the axial compliance the reduced chain buckles at once to its rest bend's side and,
-    # dragged against it, presses with 3.6x the full chain's force after 3 mm (bench touchdown)
+    # without the axial compliance the reduced chain buckled at once to its rest bend's side and,
+    # dragged against it, pressed with 3.6x the full chain's force after 3 mm (bench touchdown)
     full, red = _row("inner", angle), _row("inner", angle, "prb")
     assert red["at_3mm_N"] < 0.6 * red["peak_N"]  # it falls, as the full chain's
     # the dragged force, where the side shows (with the fix the peak, the buckling overshoot of

@@ -402,3 +402,68 @@ def test_slip_step_limit_stops_a_newton_step_at_the_slip_turning_point(case):
         assert closest > v_d / 2 and np.isclose(np.linalg.norm(v), closest)
     else:
         assert a == 1.0
+
+
+# --------------------------------------------------------------- eq 6 in series with a spring
+SERIES_CASES = [  # (overlap [mm], rate [mm/s], compliance [mm/N], damping c)
+    (1e-4, 0.0, 0.9, 0.0),
+    (0.05, 0.0, 0.9, 0.0),  # mostly the spring's: ~0.05 N
+    (0.3, 0.0, 0.9, 0.0),
+    (0.02, 0.0, 1e-3, 0.0),  # a stiff spring: mostly eq 6's
+    (0.05, 3.0, 0.9, 0.5),  # closing, with eq 6's damping
+    (0.05, -3.0, 0.9, 0.5),  # opening
+]
+
+
+@pytest.mark.parametrize(("delta", "rate", "cs", "c"), SERIES_CASES)
+def test_series_law_splits_the_overlap_into_penetration_and_compression(delta, rate, cs, c):
+    """The rigid tip's overlap is eq 6's penetration plus the spring's compression cs Fn (two
+    springs in series), and eq 6 holds at that penetration."""
+    cp = ContactParams()
+    args = (cp.k, cp.m1, c, cp.m2, cp.m3)
+    F, kn, cn, dc = ct.series_law(delta, rate, *args, cs)
+    assert 0.0 < dc < delta and F > 0.0
+    assert dc + cs * F == pytest.approx(delta, rel=1e-10)
+    assert F == pytest.approx(ct.normal_law(dc, rate, *args)[0], rel=1e-12)
+    if c == 0.0:  # closed form: F = k dc^m1
+        assert F == pytest.approx(cp.k * dc**cp.m1, rel=1e-12)
+
+
+@pytest.mark.parametrize(("delta", "rate", "cs", "c"), SERIES_CASES)
+def test_series_law_slopes_match_central_differences(delta, rate, cs, c):
+    cp = ContactParams()
+    args = (cp.k, cp.m1, c, cp.m2, cp.m3)
+    _, kn, cn, _ = ct.series_law(delta, rate, *args, cs)
+    h = 1e-6 * delta
+    fd = (
+        ct.series_law(delta + h, rate, *args, cs)[0] - ct.series_law(delta - h, rate, *args, cs)[0]
+    ) / (2 * h)
+    assert kn == pytest.approx(fd, rel=1e-5)
+    # and the series spring's slope: 1 / (1 / k_eq6 + cs)
+    dc = ct.series_law(delta, rate, *args, cs)[3]
+    k6 = ct.normal_law(dc, rate, *args)[1]
+    assert kn == pytest.approx(1.0 / (1.0 / k6 + cs), rel=1e-10)
+    if c > 0.0:
+        hv = 1e-6
+        fv = (
+            ct.series_law(delta, rate + hv, *args, cs)[0]
+            - ct.series_law(delta, rate - hv, *args, cs)[0]
+        ) / (2 * hv)
+        assert cn == pytest.approx(fv, rel=1e-4)
+
+
+def test_series_law_without_a_spring_is_eq6_and_without_overlap_nothing():
+    cp = ContactParams()
+    args = (cp.k, cp.m1, cp.c, cp.m2, cp.m3)
+    assert ct.series_law(0.01, 2.0, *args, 0.0)[:3] == ct.normal_law(0.01, 2.0, *args)
+    assert ct.series_law(0.0, 2.0, *args, 0.9) == (0.0, 0.0, 0.0, 0.0)
+    assert ct.series_law(-0.1, 2.0, *args, 0.9)[0] == 0.0
+
+
+def test_compliance_acts_along_the_axis_squared():
+    args = np.zeros(1, rec.TIP_ARGS)[0]
+    n = np.array([0.0, 0.0, 1.0])
+    assert ct.compliance(args, n) == 0.0  # the full chain: none
+    args["cax"] = 0.9
+    args["axis"] = [0.0, np.sin(0.3), -np.cos(0.3)]
+    assert ct.compliance(args, n) == pytest.approx(0.9 * np.cos(0.3) ** 2, rel=1e-14)

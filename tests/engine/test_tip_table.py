@@ -301,13 +301,15 @@ def _drag_forces(level):
 def test_a_dragged_brush_with_stuck_tips_carries_the_chains_force():
     """The damping the table puts on a moving tip (``tip_table_kernels.grid_damping``): the
     brush lowered onto the plate and dragged 2 mm sideways in 40 ms with 20 tips stuck.  The
-    chain the table tabulates (level ``reduced``) carries 2.1-2.3 N through the drag; the
-    table's force stays within 30 % of it until the step's last 4 ms (where the table's tips
-    snap to the other branch a step before the chain's and unload).  With each node's own
-    damping matrix (dq/dx differenced 0.01 mm apart, unbounded beside a branch's end) the table
-    read 8.9 and 16.8 N there: the force limit stopped the episode."""
+    chain the table tabulates (level ``reduced``) carries 1.6 N falling to 1.0 N through the drag
+    (2.1-2.3 N before its tips had the axial compliance, session 17; the full chain at
+    ``balanced`` 1.56-1.71 N, 1.08 N at the last step); the table's force stays within 30 % of
+    the chain's until the step's last 4 ms (where the table's tips snap to the other branch a
+    step before the chain's and unload).  With each node's own damping matrix (dq/dx differenced
+    0.01 mm apart, unbounded beside a branch's end) the table read 8.9 and 16.8 N there: the
+    force limit stopped the episode."""
     a, b = _drag_forces("fast"), _drag_forces("reduced")
-    assert b[-10:].min() > 1.5  # pressed: the 20 tips carry the brush's force
+    assert b[-10:].min() > 0.9  # pressed: the 20 tips carry the brush's force
     np.testing.assert_array_less(np.abs(a[:-1] - b[:-1]), 0.3 * b[:-1] + 1e-3)
     assert a.max() <= 1.3 * b.max()
 
