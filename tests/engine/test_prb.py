@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from brush_env.calibration import DRAG_AT, FULL_BODIES, FULL_DT, fit, press_reduced
-from brush_env.engine import SimSettings, Simulator, load_scene
+from brush_env.engine import SimSettings, Simulator, load_brush, load_scene
 from brush_env.engine import prb_calibration as pc
 from brush_env.engine.fidelity import level_settings
 from brush_env.motion import R0
@@ -141,6 +141,31 @@ def test_fit_error_is_stored_with_the_shipped_calibration():
         assert len(rec["constants"]) == 9  # ... the wide side's scale, the twist, c3w
         assert len(rec["drag_error_wide"]) == len(rec["drag_error_thin"]) == 2 * len(DRAG_AT)
         assert len(rec["sliding_normal_error"]) == 2
+
+
+def test_shipped_calibrations_are_exactly_the_configs_brushes_types():
+    """``calibrate --all --ship`` leaves no record nothing looks up (an older VERSION's) and
+    misses none of the brushes in configs/brushes."""
+    import json
+
+    from brush_env.engine import configs_dir
+
+    used = set()
+    for path in (configs_dir() / "brushes").glob("*.toml"):
+        used.update(pc.bristle_types(load_brush(path.stem)))
+    assert set(json.loads(pc.SHIPPED.read_text())) == used
+
+
+def test_prune_records_keeps_only_the_named_keys(tmp_path):
+    import json
+
+    from brush_env.calibration import prune_records
+
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps({"a": {"x": 1}, "b": {"x": 2}, "c": {"x": 3}}))
+    assert prune_records(path, {"a", "c", "z"}) == 1
+    assert json.loads(path.read_text()) == {"a": {"x": 1}, "c": {"x": 3}}
+    assert list(tmp_path.iterdir()) == [path]  # no temporary file left
 
 
 @pytest.mark.slow
