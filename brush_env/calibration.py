@@ -31,13 +31,10 @@ time an env or experiment at a level with ``model = "prb"`` needs them.
 
 from __future__ import annotations
 
-import json
 import math
-import os
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -429,20 +426,6 @@ def add_arguments(p) -> None:
     )
 
 
-def prune_records(path, keep: set) -> int:
-    """Drop from the calibration file ``path`` every record whose key is not in ``keep`` (an
-    older ``prb_calibration.VERSION``'s, or a type no brush uses any more: ``calibrate --all
-    --ship`` adds the new records beside the old, whose keys nothing looks up again); written
-    through a temporary file.  Returns how many were dropped."""
-    path = Path(path)
-    data = json.loads(path.read_text())
-    kept = {k: v for k, v in data.items() if k in keep}
-    tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(kept, indent=1, sort_keys=True) + "\n")
-    os.replace(tmp, path)
-    return len(data) - len(kept)
-
-
 def run(args) -> int:
     """Fit the bristle types of the brushes that have no calibration (all of them with
     ``--ship``) and print each fit's error."""
@@ -473,7 +456,7 @@ def run(args) -> int:
         for path in tip_table.SHIPPED.glob("*.npz"):
             if path not in shipped:
                 path.unlink()
-        dropped = prune_records(pc.SHIPPED, used)
+        dropped = pc.prune(used)
         print(f"{dropped} calibration record(s) no brush uses any more dropped from {pc.SHIPPED}")
     return 0
 

@@ -179,16 +179,31 @@ def lookup(key: str) -> dict | None:
     return None
 
 
-def store(key: str, rec: dict, ship: bool = False) -> None:
-    """Add a record to the shipped file (``ship``) or the user's cache (written atomically)."""
-    path = SHIPPED if ship else user_cache()
+def _write(path: Path, data: dict) -> None:
+    """The calibration file ``path`` <- ``data``, through a temporary file (atomic)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    data = _read(path)
-    data[key] = rec
     tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
     tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, path)
+
+
+def store(key: str, rec: dict, ship: bool = False) -> None:
+    """Add a record to the shipped file (``ship``) or the user's cache (written atomically)."""
+    path = SHIPPED if ship else user_cache()
+    data = _read(path)
+    data[key] = rec
+    _write(path, data)
     _memory[key] = rec
+
+
+def prune(keep: set, path: Path = SHIPPED) -> int:
+    """Drop from the calibration file ``path`` (the shipped one by default) every record whose
+    key is not in ``keep`` -- an older VERSION's, or a type no brush uses any more: ``store``
+    adds new records beside the old, whose keys nothing looks up again.  Returns how many."""
+    data = _read(path)
+    kept = {k: v for k, v in data.items() if k in keep}
+    _write(path, kept)
+    return len(data) - len(kept)
 
 
 def set_override(constants) -> None:

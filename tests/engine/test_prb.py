@@ -156,14 +156,12 @@ def test_shipped_calibrations_are_exactly_the_configs_brushes_types():
     assert set(json.loads(pc.SHIPPED.read_text())) == used
 
 
-def test_prune_records_keeps_only_the_named_keys(tmp_path):
+def test_prune_keeps_only_the_named_keys(tmp_path):
     import json
-
-    from brush_env.calibration import prune_records
 
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"a": {"x": 1}, "b": {"x": 2}, "c": {"x": 3}}))
-    assert prune_records(path, {"a", "c", "z"}) == 1
+    assert pc.prune({"a", "c", "z"}, path) == 1
     assert json.loads(path.read_text()) == {"a": {"x": 1}, "c": {"x": 3}}
     assert list(tmp_path.iterdir()) == [path]  # no temporary file left
 
