@@ -450,7 +450,8 @@ friction_load = _friction_load
 @njit(**HOT, inline="always")
 def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
     """Tip-tip contact, no friction (Table 3): the normal law of eq 6 with the tip-tip parameters
-    along the line of centres, for every listed partner (held at its latest position)."""
+    along the line of centres, for every listed partner (held at its latest position), in
+    series with the two bristles' axial compliances seen along that line (``series_law``)."""
     pair_ptr = con.pair_ptr
     if pair_ptr.shape[0] <= b + 1:
         return
@@ -469,7 +470,15 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
         rv = 0.0
         if not sub.static:
             rv = u0 * (vt[0] - tips[j, 3]) + u1 * (vt[1] - tips[j, 4]) + u2 * (vt[2] - tips[j, 5])
-        Fn, kn, cn = normal_law(delta, -rv, cp.k_tt, cp.m1_tt, cp.c_tt, cp.m2_tt, cp.m3_tt)
+        # in series with both bristles' axial compliance along the line of centres (zero for
+        # the full chain): with the plate contact compliant and this one stiff, a tip stuck on
+        # the plate and pressed by a neighbour's ran Newton out at every halving (~1 bristle-step
+        # an env step taken at the last resort, 62 sub-steps each: a third of the env's time)
+        ab, aj = con.tip_args[b], con.tip_args[j]
+        an_b = ab.axis[0] * u0 + ab.axis[1] * u1 + ab.axis[2] * u2
+        an_j = aj.axis[0] * u0 + aj.axis[1] * u1 + aj.axis[2] * u2
+        cs = ab.cax * an_b * an_b + aj.cax * an_j * an_j
+        Fn, kn, cn, _ = series_law(delta, -rv, cp.k_tt, cp.m1_tt, cp.c_tt, cp.m2_tt, cp.m3_tt, cs)
         if Fn <= 0.0:
             continue
         state.ftt += Fn

@@ -23,6 +23,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from brush_env.engine import SimSettings, Simulator, load_scene
@@ -99,6 +100,8 @@ def kernel_tip_load(
     delta=(0.0, 0.0, 0.0),
     beta=0.0,
     partners=(),
+    cax=0.0,
+    axis=(0.0, 0.0, 0.0),
 ):
     """``contact.tip_load`` of one tip sphere (centre pt, radius) -> (F, Kt, outputs).
 
@@ -111,9 +114,14 @@ def kernel_tip_load(
     pt = np.asarray(pt, float)
     p_n = pt if p_n is None else np.asarray(p_n, float)
     p_p = p_n if p_p is None else np.asarray(p_p, float)
-    args = np.zeros(1, rec.TIP_ARGS)
-    args["fext"] = fext
+    # one row per tip the kernel may index: the tip (0) and each partner (its index in ``tips``:
+    # the tip-tip law reads the partner's axial compliance): every one with ``cax`` [mm/N] along
+    # ``axis`` (0: the full chain's)
+    args = np.zeros(max(1, len(partners)), rec.TIP_ARGS)
     args["radius"] = radius
+    args["fext"][0] = fext
+    args["cax"] = cax
+    args["axis"] = axis
     st = np.zeros(1, rec.TIP_STATE)
     st["delta"] = delta
     st["beta"] = beta
@@ -698,3 +706,24 @@ def test_residual_matches_the_twin(pressed_brush, mode):
         tnrm = max(np.abs(tres[:, :3] / fs).max(), np.abs(tres[:, 3:] / ls).max())
         assert nrm == pytest.approx(tnrm, rel=1e-9)
     assert in_contact >= 2, "the pressed brush should have tips on the plate"
+
+
+def test_tip_tip_contact_is_in_series_with_both_bristles_axial_compliance():
+    """Two reduced tips meeting along their axes: the overlap of the rigid tips is Table 3's
+    penetration plus both columns' shortening, (cax_b (a.u)^2 + cax_j (a.u)^2) Fn (the
+    closed form of ``contact.series_law``); with the axes across the line of centres, Table 3
+    alone."""
+    cp = ContactParams()
+    radius, over = 0.44, 0.05
+    axis = np.array([0.0, np.sin(0.4), -np.cos(0.4)])
+    for a, along in ((axis, axis), (axis, np.array([1.0, 0.0, 0.0]))):
+        pt = np.zeros(3)
+        pj = pt - (2 * radius - over) * along  # the partner's centre, ``over`` into the tip
+        kw = dict(radius=radius, planes=[], cp=CP, static=True)
+        _, _, out = kernel_tip_load(pt, partners=[(pj, np.zeros(3), radius)], cax=0.9, axis=a, **kw)
+        an = float(a @ along)
+        cs = 2 * 0.9 * an * an
+        dc = over
+        if cs > 0:  # dc + cs k dc^m1 = over
+            dc = brentq(lambda x, cs=cs: x + cs * cp.k_tt * x**cp.m1_tt - over, 0, over, xtol=1e-15)
+        assert out["Ftt"] == pytest.approx(cp.k_tt * dc**cp.m1_tt, rel=1e-9)
