@@ -47,7 +47,16 @@ from brush_env.engine.checks import ConfigError, check_keys
 from brush_env.engine.config_files import read_toml
 from brush_env.user_errors import OneLineParser, UserError, add_flag, run_main
 
-TOP_KEYS = {"out", "env_id", "jobs", "env_kwargs", "train", "select", "evaluate"}
+TOP_KEYS = {
+    "out",
+    "env_id",
+    "jobs",
+    "env_kwargs",
+    "train_env_kwargs",
+    "train",
+    "select",
+    "evaluate",
+}
 SELECT_KEYS = {"episodes", "seed", "level", "metric"}
 SELECT_METRICS = ("return", "coverage")
 TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
@@ -82,6 +91,15 @@ def load_campaign(path: str | Path) -> dict:
             raise ConfigError(f"{path}: missing key {key!r}")
     c.setdefault("env_id", "brush_env/FlatPlate-v0")
     c.setdefault("env_kwargs", {})
+    c.setdefault("train_env_kwargs", {})
+    for key in ("env_kwargs", "train_env_kwargs"):
+        if not isinstance(c[key], dict):
+            raise ConfigError(f"{path}: [{key}] must be a table of gym.make keywords")
+    if "fidelity" in c["train_env_kwargs"] or "config" in c["train_env_kwargs"]:
+        raise ConfigError(
+            f"{path} [train_env_kwargs]: fidelity and config belong in [env_kwargs] (the "
+            "selection and evaluation levels are set there and in [select] / [evaluate])"
+        )
     c["jobs"] = _int(f"{path}: jobs", c.get("jobs", 1))
     _check_train(path, c["train"])
     _check_evaluate(path, c["evaluate"])
@@ -199,6 +217,8 @@ def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
     ]
     for k, v in c["env_kwargs"].items():
         cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
+    for k, v in c.get("train_env_kwargs", {}).items():
+        cmd += ["--train-env-kw", f"{k}={json.dumps(v)}"]
     return cmd
 
 
@@ -415,7 +435,12 @@ def report(c: dict) -> dict:
     lines = [
         "# Campaign results",
         "",
-        f"Config: env {c['env_id']}, training env keywords {json.dumps(c['env_kwargs'])}.",
+        f"Config: env {c['env_id']}, env keywords {json.dumps(c['env_kwargs'])}"
+        + (
+            f", the training envs' own {json.dumps(c['train_env_kwargs'])}."
+            if c["train_env_kwargs"]
+            else "."
+        ),
         "Baselines: mean ± std over episodes; trained: mean ± std over training seeds of each "
         "seed's episode mean.",
     ]

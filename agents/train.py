@@ -201,10 +201,17 @@ def check_inputs(
     env_kwargs: dict | None,
     vec_env: str = "auto",
     env_id: str | None = None,
+    train_env_kwargs: dict | None = None,
 ) -> dict:
     """Validate everything the run needs in this process (nothing written, no worker started);
-    returns the resolved settings: cfg, env_id, kwargs (gym.make), hyper, seed, norm, train,
-    vec_env (``batched`` or ``subproc``, ``auto`` resolved).
+    returns the resolved settings: cfg, env_id, kwargs (gym.make), train_kwargs (the training
+    envs' own overrides, ``--train-env-kw``), hyper, seed, norm, train, vec_env (``batched`` or
+    ``subproc``, ``auto`` resolved).
+
+    ``train_env_kwargs`` change the envs the policy learns on and nothing else: the evaluations
+    during training, the saved ``env_kwargs`` (what agents/evaluate.py scores the model on) and
+    the reference's baseline keep the task's own settings.  The campaign uses it to tighten
+    the force limit in training (docs/rl.md, "A margin on the force limit").
 
     ``env_id`` (``--env``) trains on another id than the config's ``[env] id``; the config's
     ``[env] config`` names that id's env file, so the other id gets its own default (ToothRow-v0:
@@ -258,12 +265,14 @@ def check_inputs(
         if vec_env == "batched":
             raise ConfigError(f"--vec-env batched: {env_id!r} has no batched env (a BrushEnv id)")
         vec_env = "subproc"
+    _check_train_env_kwargs(env_id, kwargs, train_env_kwargs)
     hyper = dict(cfg.get("hyperparameters", {}))
     check_hyperparameters(algo, hyper, str(config))
     return {
         "cfg": cfg,
         "env_id": env_id,
         "kwargs": kwargs,
+        "train_kwargs": dict(train_env_kwargs or {}),
         "hyper": hyper,
         "norm": cfg.get("normalize", {}),
         "train": cfg.get("train", {}),
@@ -271,7 +280,25 @@ def check_inputs(
     }
 
 
-def _make_envs(run: dict, n_envs: int, seed: int):
+def _check_train_env_kwargs(env_id: str, kwargs: dict, train_env_kwargs: dict | None) -> None:
+    """The training envs' own settings (``--train-env-kw``) on top of the task's ``kwargs``:
+    known keys with allowed values, never another env file."""
+    if not train_env_kwargs:
+        return
+    if not _is_brush_env(env_id):
+        raise ConfigError(f"--train-env-kw is only for BrushEnv ids, not {env_id!r}")
+    if "config" in train_env_kwargs:
+        raise ConfigError(
+            "--train-env-kw config=...: the training envs take the task's env file; give it "
+            "with --env-kw config=..."
+        )
+    from brush_env.envs.config import load_env_config
+
+    both = {**kwargs, **train_env_kwargs}
+    load_env_config(both.pop("config"), **{k: v for k, v in both.items() if k != "render_mode"})
+
+
+def make_envs(run: dict, n_envs: int, seed: int):
     """Training vector env (``run["vec_env"]``: the batched env, or Subproc for n_envs > 1) and
     evaluation env, VecNormalize'd as the config's [normalize] says (evaluation: training
     statistics, raw rewards)."""
@@ -279,17 +306,18 @@ def _make_envs(run: dict, n_envs: int, seed: int):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     env_id, kwargs, norm = run["env_id"], run["kwargs"], run["norm"]
+    learn_kwargs = {**kwargs, **run["train_kwargs"]}  # the task's settings, as trained on
     if run["vec_env"] == "batched":
         from stable_baselines3.common.vec_env import VecMonitor
 
         from brush_env.envs.sb3 import make_sb3_vec_env
 
-        venv = VecMonitor(make_sb3_vec_env(env_id, n_envs, seed=seed, **kwargs))
+        venv = VecMonitor(make_sb3_vec_env(env_id, n_envs, seed=seed, **learn_kwargs))
         eval_env = VecMonitor(make_sb3_vec_env(env_id, 1, seed=seed + 10_000, **kwargs))
     else:
         vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
         venv = make_vec_env(
-            env_id, n_envs=n_envs, seed=seed, vec_env_cls=vec_cls, env_kwargs=kwargs
+            env_id, n_envs=n_envs, seed=seed, vec_env_cls=vec_cls, env_kwargs=learn_kwargs
         )
         eval_env = make_vec_env(env_id, n_envs=1, seed=seed + 10_000, env_kwargs=kwargs)
     if norm.get("obs", False) or norm.get("reward", False):
@@ -391,6 +419,7 @@ def train(
     verbose: int = 0,
     vec_env: str = "auto",
     env_id: str | None = None,
+    train_env_kwargs: dict | None = None,
 ) -> Path:
     """Train and save; returns the path of ``model.zip`` (see the module docstring).
 
@@ -399,7 +428,9 @@ def train(
     from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.vec_env import VecNormalize
 
-    run = check_inputs(algo, config, timesteps, n_envs, env_kwargs, vec_env, env_id)
+    run = check_inputs(
+        algo, config, timesteps, n_envs, env_kwargs, vec_env, env_id, train_env_kwargs
+    )
     tr = run["train"]
     seed = tr.get("seed", 0) if seed is None else seed
     n_eval = tr.get("eval_episodes", 3)
@@ -410,7 +441,7 @@ def train(
         f"[1/4] starting {n_envs} env(s) of {run['env_id']}, {run['vec_env']} (numba kernels "
         "load or compile)"
     )
-    venv, eval_env = _make_envs(run, n_envs, seed)
+    venv, eval_env = make_envs(run, n_envs, seed)
     if _is_brush_env(run["env_id"]):
         say(
             f"[2/4] evaluating the reference policy on {n_eval} episode(s) (its return is the "
@@ -443,6 +474,7 @@ def train(
         "algo": algo,
         "env_id": run["env_id"],
         "env_kwargs": run["kwargs"],
+        "train_env_kwargs": run["train_kwargs"],
         "timesteps": timesteps,
         "n_envs": n_envs,
         "vec_env": run["vec_env"],
@@ -501,6 +533,13 @@ def build_parser() -> OneLineParser:
         help="env id to train on (default: the config's [env] id), e.g. brush_env/ToothRow-v0",
     )
     add_env_kw(p, "TOML values")
+    p.add_argument(
+        "--train-env-kw",
+        action="append",
+        metavar="KEY=VALUE",
+        help="env setting of the training envs only, repeatable (e.g. total_force_limit=3.0: a "
+        "margin on the task's limit); evaluations and the saved env settings keep --env-kw's",
+    )
     add_flag(p, "--no-progress", "no phase lines, bar or ETA")
     p.add_argument(
         "--verbose",
@@ -527,6 +566,7 @@ def _main(argv) -> int:
         verbose=args.verbose,
         vec_env=args.vec_env,
         env_id=args.env,
+        train_env_kwargs=parse_env_kw(args.train_env_kw),
     )
     print(f"saved {path}")
     return 0

@@ -7,6 +7,7 @@ import pytest
 from agents.campaign import campaign, load_campaign
 from agents.evaluate import evaluate
 from brush_env.engine.checks import ConfigError
+from brush_env.envs.config import load_env_config
 from tests.agents.test_train import PPO_TOML  # the tiny PPO (the campaign's --env-kw win)
 
 
@@ -23,6 +24,8 @@ def _campaign_toml(tmp_path, **over) -> str:
 brush = "tiny_env"
 fidelity = "reduced"
 max_episode_steps = 8
+[train_env_kwargs]
+total_force_limit = 3.0
 [[train]]
 algo = "ppo"
 config = "{tmp_path / "ppo.toml"}"
@@ -46,6 +49,8 @@ def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, ca
     cfg.write_text(_campaign_toml(tmp_path))
     results = campaign(cfg)
     out = tmp_path / "out"
+    task_limit = load_env_config("flat_plate", brush="tiny_env").total_force_limit
+    assert task_limit != 3.0
     for s in (0, 1):
         run = out / "ppo" / f"seed_{s}"
         assert (run / "meta.json").is_file()
@@ -62,6 +67,12 @@ def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, ca
         assert (run / "selected.vecnormalize.pkl").is_file()
         ev = json.loads((out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").read_text())
         assert ev["policy"] == str(run / "selected.zip")
+        # the margin on the force limit was the training envs' alone: the policy is scored on
+        # the task's own limit
+        meta = json.loads((run / "meta.json").read_text())
+        assert meta["train_env_kwargs"] == {"total_force_limit": 3.0}
+        assert "total_force_limit" not in meta["env_kwargs"]
+        assert ev["env_settings"]["total_force_limit"] == task_limit
     table = results["levels"]["reduced"]
     assert set(table) == {"reference", "random", "ppo (2 seeds)"}
     # the trained row is the mean over seeds of each seed's episode mean
@@ -125,6 +136,14 @@ def test_campaign_config_rejects_unknown_level_and_baseline(tmp_path):
         load_campaign(cfg)
 
 
+def test_campaign_config_keeps_the_level_out_of_the_training_envs_own_keywords(tmp_path):
+    cfg = tmp_path / "campaign.toml"
+    text = _campaign_toml(tmp_path)
+    cfg.write_text(text.replace("total_force_limit = 3.0", 'fidelity = "fast"'))
+    with pytest.raises(ConfigError, match=r"\[train_env_kwargs\]: fidelity and config belong in"):
+        load_campaign(cfg)
+
+
 def test_campaign_config_rejects_validation_seeds_that_overlap_the_evaluation(tmp_path):
     cfg = tmp_path / "campaign.toml"
     cfg.write_text(_campaign_toml(tmp_path).replace("seed = 500", "seed = 100"))
@@ -137,3 +156,6 @@ def test_shipped_campaign_config_loads():
     assert {t["algo"] for t in c["train"]} == {"ppo", "sac"}
     assert all(len(t["seeds"]) >= 3 for t in c["train"])
     assert "balanced" in c["evaluate"]["levels"]
+    assert (
+        c["train_env_kwargs"]["total_force_limit"] < load_env_config("flat_plate").total_force_limit
+    )

@@ -171,6 +171,34 @@ def test_batched_two_env_ppo_run(tmp_path):
     assert model.exists() and meta["vec_env"] == "batched" and meta["n_envs"] == 2
 
 
+def test_train_env_kwargs_reach_the_learning_envs_only(tmp_path):
+    """``--train-env-kw`` (the campaign's margin on the force limit) sets the envs the policy
+    learns on; the evaluation env and the settings saved for agents/evaluate.py keep the
+    task's.  A bad key or value is named; the env file is not the training envs' own."""
+    from agents.train import check_inputs, make_envs
+    from brush_env.envs.config import load_env_config
+
+    cfg = tmp_path / "ppo.toml"
+    cfg.write_text(PPO_TOML)
+    task = load_env_config("flat_plate").total_force_limit
+    run = check_inputs("ppo", cfg, 10, 2, None, train_env_kwargs={"total_force_limit": 3.0})
+    assert "total_force_limit" not in run["kwargs"] and task != 3.0
+    for vec_env in ("batched", "subproc"):
+        venv, eval_env = make_envs({**run, "vec_env": vec_env}, 2, 0)
+        try:
+            assert [c.total_force_limit for c in venv.get_attr("config")] == [3.0, 3.0]
+            assert [c.total_force_limit for c in eval_env.get_attr("config")] == [task]
+        finally:
+            venv.close()
+            eval_env.close()
+    with pytest.raises(ValueError, match="total_force_limit"):
+        check_inputs("ppo", cfg, 10, 2, None, train_env_kwargs={"total_force_limit": -1.0})
+    with pytest.raises(ValueError, match="total_forse_limit"):
+        check_inputs("ppo", cfg, 10, 2, None, train_env_kwargs={"total_forse_limit": 3.0})
+    with pytest.raises(ValueError, match=r"--train-env-kw config=\.\.\.: the training envs"):
+        check_inputs("ppo", cfg, 10, 2, None, train_env_kwargs={"config": "tooth_row"})
+
+
 def test_env_flag_trains_on_that_id_with_its_own_env_file():
     """``--env`` (the campaign's env_id) overrides the agent config's ``[env] id``; the config's
     ``[env] config`` ("flat_plate") names the plate's env file, so the tooth row gets its own
@@ -196,3 +224,7 @@ def test_campaign_trains_on_its_env_id():
     t = {"algo": "ppo", "config": "configs/agents/ppo.toml", "timesteps": 10, "n_envs": 2}
     cmd = _train_cmd(c, {**t, "dir": "runs/x"}, 0)
     assert cmd[cmd.index("--env") + 1] == "brush_env/ToothRow-v0"
+    assert "--train-env-kw" not in cmd
+    c["train_env_kwargs"] = {"total_force_limit": 3.0}
+    cmd = _train_cmd(c, {**t, "dir": "runs/x"}, 0)
+    assert cmd[cmd.index("--train-env-kw") + 1] == "total_force_limit=3.0"
