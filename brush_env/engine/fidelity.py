@@ -46,6 +46,7 @@ SETTING_KEYS = (
     "integrator",
     "tip_tip_sweeps",
     "newton_rtol",
+    "newton_max_iter",
 )
 MEASURED_MARK = "# --- measured by `brush-env bench fidelity --write` (not edited by hand) ---"
 
@@ -56,7 +57,8 @@ class Fidelity:
     bodies_per_bristle [count]; max_substep [s] the
     longest solver step; element "mid" | "paper"; integrator "bdf2" | "euler"; tip_tip_sweeps
     [count] (1: partners one sweep behind, >1: coupled); newton_rtol [-] relative to each
-    bristle's force scale; measured: the bench's figures (errors [-], speeds) or empty."""
+    bristle's force scale; newton_max_iter [count] Newton iterations per attempt before the
+    solver step is halved; measured: the bench's figures (errors [-], speeds) or empty."""
 
     name: str
     description: str
@@ -67,6 +69,7 @@ class Fidelity:
     integrator: str = "bdf2"
     tip_tip_sweeps: int = 8
     newton_rtol: float = 1e-7
+    newton_max_iter: int = 100
     measured: dict = field(default_factory=dict)
     path: Path | None = None
 
@@ -88,6 +91,7 @@ class Fidelity:
             integrator=self.integrator,
             tip_tip_sweeps=self.tip_tip_sweeps,
             newton_rtol=self.newton_rtol,
+            newton_max_iter=self.newton_max_iter,
         )
         kw.update(overrides)
         kw.setdefault("dt", min(1e-3, kw["max_substep"]))

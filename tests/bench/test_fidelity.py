@@ -148,3 +148,24 @@ def test_stored_turn_and_episodes_round_trip(tmp_path):
     got = load_reference_episodes("reference", 2, 4, p)
     assert [len(e["F"]) for e in got] == [4, 2]
     assert got[0]["wall_s"] == pytest.approx(2.0 * 4 / 5) and got[1]["end"] == "force_limit"
+
+
+@pytest.mark.slow  # one 100-step random episode at `balanced` (~30 s)
+def test_balanced_follows_the_reference_through_a_hard_random_episode():
+    """Random-policy episode 1 of ``bench fidelity`` (the stored `reference` run: 24 bodies,
+    0.125 ms) is the hardest of the 20 for the full chain: its tips stick, slip and lift off
+    while tip-tip contacts come and go.  At `balanced` (6 bodies, 1 ms) the TCP force stays
+    within 10 % RMS of the reference's -- issue 29's line for a fast model, here asked of the
+    accurate one.  With 100 Newton iterations per attempt (``newton_max_iter``, `balanced`'s
+    setting until 2026-11-28) it read 17.1 %: long attempts on stale factors wandered to other
+    roots instead of halving the step as the small-step run does (docs/benchmarks.md, "Newton's
+    iteration cap")."""
+    from brush_env.bench.fidelity import episode_run
+    from brush_env.bench.fidelity_metrics import pooled_rms_error
+
+    ref = load_reference_episodes("reference", 20, 100)
+    assert ref is not None, "tests/data holds the reference level's random episodes"
+    run = episode_run("balanced", 1, 100)
+    n = min(len(run["F"]), len(ref[1]["F"]))
+    assert n == len(ref[1]["F"])  # ran as long as the reference did
+    assert pooled_rms_error([(run["F"][:n], ref[1]["F"][:n])]) <= 0.10

@@ -54,6 +54,10 @@ def test_reference_level_is_the_stored_converged_reference():
         ("[settings]\nbodies_per_bristle = 3\nmax_substep = 1e-3\nbodys = 2\n", "settings.bodys"),
         ("[settings]\nmax_substep = 1e-3\n", "settings.bodies_per_bristle is missing"),
         ("[settings]\nbodies_per_bristle = 0\nmax_substep = 1e-3\n", "bodies_per_bristle"),
+        (
+            "[settings]\nbodies_per_bristle = 3\nmax_substep = 1e-3\nnewton_max_iter = 0\n",
+            "newton_max_iter",
+        ),
         ("[settings]\nbodies_per_bristle = 3\nmax_substep = 0.5\n", "max_substep"),
         (
             '[settings]\nbodies_per_bristle = 3\nmax_substep = 1e-3\nelement = "fem"\n',
