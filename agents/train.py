@@ -211,7 +211,7 @@ def check_inputs(
     ``train_env_kwargs`` change the envs the policy learns on and nothing else: the evaluations
     during training, the saved ``env_kwargs`` (what agents/evaluate.py scores the model on) and
     the reference's baseline keep the task's own settings.  The campaign uses it to tighten
-    the force limit in training (docs/rl.md, "A margin on the force limit").
+    the force limit in training (docs/rl.md, "Training: the campaign").
 
     ``env_id`` (``--env``) trains on another id than the config's ``[env] id``; the config's
     ``[env] config`` names that id's env file, so the other id gets its own default (ToothRow-v0:
