@@ -713,7 +713,7 @@ def test_tip_tip_contact_is_in_series_with_both_bristles_axial_compliance():
     penetration plus both columns' shortening, (cax_b (a.u)^2 + cax_j (a.u)^2) Fn (the
     closed form of ``contact.series_law``); with the axes across the line of centres, Table 3
     alone."""
-    cp = ContactParams()
+    k, m1 = CP["k_tt"], CP["m1_tt"]
     radius, over = 0.44, 0.05
     axis = np.array([0.0, np.sin(0.4), -np.cos(0.4)])
     for a, along in ((axis, axis), (axis, np.array([1.0, 0.0, 0.0]))):
@@ -725,5 +725,5 @@ def test_tip_tip_contact_is_in_series_with_both_bristles_axial_compliance():
         cs = 2 * 0.9 * an * an
         dc = over
         if cs > 0:  # dc + cs k dc^m1 = over
-            dc = brentq(lambda x, cs=cs: x + cs * cp.k_tt * x**cp.m1_tt - over, 0, over, xtol=1e-15)
-        assert out["Ftt"] == pytest.approx(cp.k_tt * dc**cp.m1_tt, rel=1e-9)
+            dc = brentq(lambda x, cs=cs: x + cs * k * x**m1 - over, 0, over, xtol=1e-15)
+        assert out["Ftt"] == pytest.approx(k * dc**m1, rel=1e-9)
