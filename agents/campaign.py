@@ -18,6 +18,10 @@ Stages (each prints its wall time; the whole run prints its total):
 3. **evaluate** -- the baselines (``reference``, ``random``) and every run's policy with
    ``agents/evaluate.py`` on the same fixed-seed episodes (``[evaluate] seed`` + i), at each level
    of ``[evaluate] levels`` (level -> number of episodes), in ``OUT/eval/<level>/<name>/``.
+   With ``[evaluate] chunk = K`` an evaluation runs as tasks of at most K episodes
+   (``OUT/eval/<level>/<name>/parts/seed_<first>/``), ``jobs`` at a time, joined into the
+   evaluation's ``summary.json`` (``agents.evaluate.join_summaries``: the episodes are the single
+   run's, each resets with its own seed and the policies act deterministically).
 4. **report** -- ``OUT/results.md`` and ``OUT/results.json``: per level, each policy's coverage,
    time above the force limit, peak and mean total force, peak tip force and return; for trained
    policies the mean +- std over training seeds of each seed's episode mean, for the baselines the
@@ -60,7 +64,7 @@ TOP_KEYS = {
 SELECT_KEYS = {"episodes", "seed", "level", "metric"}
 SELECT_METRICS = ("return", "coverage")
 TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
-EVAL_KEYS = {"episodes", "seed", "baselines", "levels"}
+EVAL_KEYS = {"episodes", "seed", "baselines", "levels", "chunk"}
 BASELINES = ("reference", "random")
 #: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
 METRICS = {
@@ -138,6 +142,8 @@ def _check_evaluate(path: Path, ev: dict) -> None:
     ev.setdefault("seed", 1000)
     ev.setdefault("baselines", list(BASELINES))
     _int(f"{path} [evaluate] seed", ev["seed"], 0)
+    if "chunk" in ev:
+        _int(f"{path} [evaluate] chunk", ev["chunk"])
     for b in ev["baselines"]:
         if b not in BASELINES:
             raise ConfigError(
@@ -388,7 +394,7 @@ def train_stage(c: dict, jobs: int, dry: bool) -> list[str]:
 
 
 def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
-    tasks = []
+    tasks, joins = [], []
     root = Path(c["out"]) / "eval"
     for level, name, spec, n in _evals(c):
         d = root / level / name
@@ -400,14 +406,25 @@ def evaluate_stage(c: dict, jobs: int, dry: bool) -> list[str]:
         if spec not in BASELINES and not Path(spec).is_file():
             print(f"  skip {level}/{name}: no model {spec} (its training failed?)")
             continue
-        tasks.append(
-            (
-                f"evaluate {name} at {level}",
-                _eval_cmd(c, level, spec, n, d),
-                root / level / f"{name}.log",
-            )
-        )
-    return _launch(tasks, jobs, dry)
+        parts = eval_parts(c["evaluate"], n)
+        if len(parts) == 1:
+            label, log = f"evaluate {name} at {level}", root / level / f"{name}.log"
+            tasks.append((label, _eval_cmd(c, level, spec, n, d), log))
+            continue
+        for s, k in parts:
+            part = d / "parts" / f"seed_{s}"
+            if _summary(part, spec, k, s) is not None:
+                print(f"  kept {level}/{name} episodes {s}..{s + k - 1}")
+                continue
+            label = f"evaluate {name} at {level}, episodes {s}..{s + k - 1}"
+            log = root / level / f"{name}_{s}.log"
+            tasks.append((label, _eval_cmd(c, level, spec, k, part, s), log))
+        joins.append((d, spec, parts))
+    failed = _launch(tasks, jobs, dry)
+    for d, spec, parts in [] if dry else joins:
+        if not _join_parts(d, spec, parts):
+            print(f"  {d}: a part is missing, not joined (running the command again retries it)")
+    return failed
 
 
 def _cell(values: list[float], key: str) -> str:
@@ -418,14 +435,39 @@ def _cell(values: list[float], key: str) -> str:
     return f"{fmt.format(v.mean())} ± {fmt.format(v.std())}"
 
 
-def _summary(d: Path, spec: str, n: int) -> dict | None:
-    """The evaluation in ``d`` if it is of the policy ``spec`` over ``n`` episodes (a table never
-    mixes in an evaluation of another checkpoint or episode count), else None."""
+def _summary(d: Path, spec: str, n: int, seed: int | None = None) -> dict | None:
+    """The evaluation in ``d`` if it is of the policy ``spec`` over ``n`` episodes (from reset
+    seed ``seed``, if given) -- a table never mixes in an evaluation of another checkpoint or
+    episode count -- else None."""
     f = d / "summary.json"
     if not f.is_file():
         return None
     done = json.loads(f.read_text())
+    if seed is not None and done.get("seed") != seed:
+        return None
     return done if done.get("policy") == spec and done.get("episodes") == n else None
+
+
+def eval_parts(ev: dict, n: int) -> list[tuple[int, int]]:
+    """(first reset seed, episodes) of the tasks an evaluation of ``n`` episodes runs as: one
+    task, or with ``[evaluate] chunk`` tasks of at most ``chunk`` episodes, so that one long
+    evaluation (a trained policy at `balanced`: 1-4 min an episode) keeps every worker busy."""
+    chunk = ev.get("chunk") or n
+    return [(ev["seed"] + i, min(chunk, n - i)) for i in range(0, n, chunk)]
+
+
+def _join_parts(d: Path, spec: str, parts: list[tuple[int, int]]) -> bool:
+    """Write ``d/summary.json`` (and ``table.md``) from the finished parts in ``d/parts/``;
+    False if a part is missing."""
+    from agents.evaluate import episode_table, join_summaries
+
+    done = [_summary(d / "parts" / f"seed_{s}", spec, k, s) for s, k in parts]
+    if any(p is None for p in done):
+        return False
+    joined = join_summaries([p for p in done if p is not None])
+    (d / "summary.json").write_text(json.dumps(joined, indent=2))
+    (d / "table.md").write_text(episode_table(joined["per_episode"]) + "\n")
+    return True
 
 
 def report(c: dict) -> dict:

@@ -205,7 +205,8 @@ def run_episode(
     return metrics, series, frames
 
 
-def _table(rows: list[dict]) -> str:
+def episode_table(rows: list[dict]) -> str:
+    """The per-episode markdown table (``table.md``)."""
     cols = [
         "seed",
         "return",
@@ -322,14 +323,6 @@ def evaluate(
     wall = time.perf_counter() - t0
     cfg = env.unwrapped.config
     env.close()
-    keys = [k for k, v in rows[0].items() if isinstance(v, (int, float)) and k != "seed"]
-    agg = {
-        k: {
-            "mean": float(np.mean([r[k] for r in rows])),
-            "std": float(np.std([r[k] for r in rows])),
-        }
-        for k in keys
-    }
     summary = {
         "policy": policy,
         "episodes": episodes,
@@ -340,12 +333,11 @@ def evaluate(
         "env_settings": _jsonable({f.name: getattr(cfg, f.name) for f in fields(cfg)}),
         "wall_time_s": wall,
         "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
-        "mean": {k: v["mean"] for k, v in agg.items()},
-        "std": {k: v["std"] for k, v in agg.items()},
+        **_aggregate(rows),
         "per_episode": rows,
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    table = _table(rows)
+    table = episode_table(rows)
     (out / "table.md").write_text(table + "\n")
     _plots(
         out,
@@ -356,10 +348,59 @@ def evaluate(
     if not quiet:
         print(table)
         print(
-            f"mean return {agg['return']['mean']:.3f} +- {agg['return']['std']:.3f}, "
-            f"coverage {100 * agg['coverage']['mean']:.2f} %, written to {out}"
+            f"mean return {summary['mean']['return']:.3f} +- {summary['std']['return']:.3f}, "
+            f"coverage {100 * summary['mean']['coverage']:.2f} %, written to {out}"
         )
     return summary
+
+
+def _aggregate(rows: list[dict]) -> dict:
+    """``{"mean": ..., "std": ...}`` over episodes of every numeric per-episode metric."""
+    keys = [k for k, v in rows[0].items() if isinstance(v, (int, float)) and k != "seed"]
+    return {
+        "mean": {k: float(np.mean([r[k] for r in rows])) for k in keys},
+        "std": {k: float(np.std([r[k] for r in rows])) for k in keys},
+    }
+
+
+def join_summaries(parts: list[dict]) -> dict:
+    """One summary of consecutive evaluations of the same policy and settings (``parts``, e.g.
+    episodes 1000-1009 and 1010-1019 run as two tasks): the summary one run over all their
+    episodes writes, but for ``wall_time_s`` (the parts' sum) and ``parts``.  Episode i resets
+    with seed ``seed + i`` and a trained policy acts deterministically, so the joined episodes are
+    the single run's.  Raises ``ConfigError`` if the parts do not follow on or differ in policy,
+    env or settings."""
+    if not parts:
+        raise ConfigError("join_summaries: no parts to join")
+    parts = sorted(parts, key=lambda p: p["seed"])
+    first = parts[0]
+    same = ("policy", "env_id", "config", "env_kwargs", "env_settings")
+    expect = first["seed"]
+    for p in parts:
+        for k in same:
+            if p.get(k) != first.get(k):
+                raise ConfigError(
+                    f"join_summaries: part at seed {p['seed']} has another {k} than the part at "
+                    f"seed {first['seed']}: {p.get(k)!r} against {first.get(k)!r}"
+                )
+        if p["seed"] != expect:
+            raise ConfigError(
+                f"join_summaries: the parts do not follow on: a part starts at seed {p['seed']}, "
+                f"expected {expect}"
+            )
+        expect += p["episodes"]
+    rows = [r for p in parts for r in p["per_episode"]]
+    wall = sum(p["wall_time_s"] for p in parts)
+    return {
+        **{k: first.get(k) for k in ("policy", "env_id", "config", "env_kwargs", "env_settings")},
+        "episodes": len(rows),
+        "seed": first["seed"],
+        "wall_time_s": wall,
+        "env_steps_per_s": sum(r["steps"] for r in rows) / wall,
+        **_aggregate(rows),
+        "per_episode": rows,
+        "parts": [{"seed": p["seed"], "episodes": p["episodes"]} for p in parts],
+    }
 
 
 def _jsonable(d: dict) -> dict:

@@ -4,11 +4,13 @@ import json
 
 import pytest
 
-from agents.campaign import campaign, load_campaign
-from agents.evaluate import evaluate
+from agents.campaign import campaign, eval_parts, load_campaign
+from agents.evaluate import evaluate, join_summaries
 from brush_env.engine.checks import ConfigError
 from brush_env.envs.config import load_env_config
 from tests.agents.test_train import PPO_TOML  # the tiny PPO (the campaign's --env-kw win)
+
+ENV_KW = {"brush": "tiny_env", "fidelity": "reduced", "max_episode_steps": 8}
 
 
 def _campaign_toml(tmp_path, **over) -> str:
@@ -39,11 +41,12 @@ seed = 500
 episodes = 1
 seed = 100
 baselines = ["reference", "random"]
-levels = {{ reduced = 1 }}
+levels = {{ reduced = 2 }}
+chunk = 1
 """
 
 
-@pytest.mark.slow  # two tiny trainings and ten evaluations in worker processes (~35 s)
+@pytest.mark.slow  # two tiny trainings and 14 evaluations in worker processes (~45 s)
 def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, capsys):
     cfg = tmp_path / "campaign.toml"
     cfg.write_text(_campaign_toml(tmp_path))
@@ -73,8 +76,16 @@ def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, ca
         assert meta["train_env_kwargs"] == {"total_force_limit": 3.0}
         assert "total_force_limit" not in meta["env_kwargs"]
         assert ev["env_settings"]["total_force_limit"] == task_limit
+    # [evaluate] chunk = 1: each evaluation ran as two one-episode tasks, joined into the
+    # summary a single two-episode run writes (the same episodes, bit for bit)
+    ref = json.loads((out / "eval" / "reduced" / "reference" / "summary.json").read_text())
+    assert ref["parts"] == [{"seed": 100, "episodes": 1}, {"seed": 101, "episodes": 1}]
+    whole = evaluate("reference", 2, tmp_path / "whole", seed=100, quiet=True, env_kwargs=ENV_KW)
+    assert ref["per_episode"] == json.loads(json.dumps(whole["per_episode"]))
+    assert ref["mean"] == whole["mean"] and ref["episodes"] == 2 and ref["seed"] == 100
     table = results["levels"]["reduced"]
     assert set(table) == {"reference", "random", "ppo (2 seeds)"}
+    assert table["reference"]["coverage"]["n"] == 2  # the two joined episodes
     # the trained row is the mean over seeds of each seed's episode mean
     per_seed = [
         json.loads((out / "eval" / "reduced" / f"ppo_seed_{s}" / "summary.json").read_text())[
@@ -101,7 +112,7 @@ def test_tiny_campaign_trains_selects_evaluates_reports_and_resumes(tmp_path, ca
     # --report-only runs nothing; an evaluation of another episode count is left out of the table
     f = out / "eval" / "reduced" / "random" / "summary.json"
     done = json.loads(f.read_text())
-    f.write_text(json.dumps({**done, "episodes": 2}))
+    f.write_text(json.dumps({**done, "episodes": 3}))
     capsys.readouterr()
     again = campaign(cfg, report_only=True)
     assert "start " not in capsys.readouterr().out
@@ -128,7 +139,8 @@ def test_campaign_config_errors_name_the_key(tmp_path, over, needle):
 def test_campaign_config_rejects_unknown_level_and_baseline(tmp_path):
     cfg = tmp_path / "campaign.toml"
     text = _campaign_toml(tmp_path)
-    cfg.write_text(text.replace("levels = { reduced = 1 }", "levels = { reduce = 1 }"))
+    assert "levels = { reduced = 2 }" in text
+    cfg.write_text(text.replace("levels = { reduced = 2 }", "levels = { reduce = 2 }"))
     with pytest.raises(ConfigError, match="'reduce' is not a fidelity level"):
         load_campaign(cfg)
     cfg.write_text(text.replace('["reference", "random"]', '["reference", "idle"]'))
@@ -159,3 +171,40 @@ def test_shipped_campaign_config_loads():
     assert (
         c["train_env_kwargs"]["total_force_limit"] < load_env_config("flat_plate").total_force_limit
     )
+
+
+def test_eval_parts_cover_the_episodes_once():
+    assert eval_parts({"seed": 1000}, 20) == [(1000, 20)]
+    assert eval_parts({"seed": 1000, "chunk": 10}, 20) == [(1000, 10), (1010, 10)]
+    assert eval_parts({"seed": 5, "chunk": 3}, 7) == [(5, 3), (8, 3), (11, 1)]
+
+
+def test_join_summaries_refuses_parts_that_do_not_fit():
+    def part(seed, n, policy="reference"):
+        rows = [{"seed": seed + i, "return": 1.0, "coverage": 0.5, "steps": 10} for i in range(n)]
+        return {
+            "policy": policy,
+            "env_id": "x",
+            "config": None,
+            "env_kwargs": {},
+            "env_settings": {},
+            "seed": seed,
+            "episodes": n,
+            "wall_time_s": 1.0,
+            "per_episode": rows,
+        }
+
+    j = join_summaries([part(10, 2), part(12, 1)])
+    assert j["episodes"] == 3 and [r["seed"] for r in j["per_episode"]] == [10, 11, 12]
+    assert j["mean"]["coverage"] == 0.5 and j["env_steps_per_s"] == 30 / 2.0
+    with pytest.raises(ConfigError, match="do not follow on: a part starts at seed 13"):
+        join_summaries([part(10, 2), part(13, 1)])
+    with pytest.raises(ConfigError, match="another policy"):
+        join_summaries([part(10, 2), part(12, 1, policy="random")])
+
+
+def test_campaign_config_chunk_must_be_a_positive_integer(tmp_path):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_campaign_toml(tmp_path).replace("chunk = 1", "chunk = 0"))
+    with pytest.raises(ConfigError, match=r"\[evaluate\] chunk = 0 is out of range"):
+        load_campaign(cfg)
