@@ -63,7 +63,17 @@ TOP_KEYS = {
 }
 SELECT_KEYS = {"episodes", "seed", "level", "metric"}
 SELECT_METRICS = ("return", "coverage")
-TRAIN_KEYS = {"algo", "config", "timesteps", "n_envs", "seeds"}
+TRAIN_KEYS = {
+    "algo",
+    "config",
+    "timesteps",
+    "n_envs",
+    "seeds",
+    "name",
+    "init",
+    "train_env_kwargs",
+    "evaluate",
+}
 EVAL_KEYS = {"episodes", "seed", "baselines", "levels", "chunk"}
 BASELINES = ("reference", "random")
 #: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
@@ -115,16 +125,20 @@ def load_campaign(path: str | Path) -> dict:
 def _check_train(path: Path, train) -> None:
     if not isinstance(train, list) or not train:
         raise ConfigError(f"{path}: [[train]] must be one or more tables")
-    seen = set()
+    seen: dict = {}
     for i, t in enumerate(train):
         where = f"{path} [[train]] #{i + 1}"
         check_keys(where, t, sorted(TRAIN_KEYS))
         for key in ("algo", "config", "timesteps", "seeds"):
             if key not in t:
                 raise ConfigError(f"{where}: missing key {key!r}")
-        if t["algo"] in seen:
-            raise ConfigError(f"{where}: algo = {t['algo']!r} appears twice")
-        seen.add(t["algo"])
+        t.setdefault("name", t["algo"])
+        if t["name"] in seen:
+            raise ConfigError(
+                f"{where}: name = {t['name']!r} appears twice (name defaults to algo)"
+            )
+        _check_stage(where, t, seen)
+        seen[t["name"]] = t
         _int(f"{where} timesteps", t["timesteps"])
         t["n_envs"] = _int(f"{where} n_envs", t.get("n_envs", 1))
         if not isinstance(t["seeds"], list) or not t["seeds"]:
@@ -161,6 +175,46 @@ def _check_evaluate(path: Path, ev: dict) -> None:
         _int(f"{path} [evaluate] levels.{level}", n)
 
 
+def _check_stage(where: str, t: dict, earlier: dict) -> None:
+    """A [[train]] entry's stage keys: ``init`` names an earlier entry of the same algorithm that
+    trains every seed of this one; ``train_env_kwargs`` is a table without fidelity or config;
+    ``evaluate`` is a bool."""
+    t.setdefault("train_env_kwargs", {})
+    t.setdefault("evaluate", True)
+    if not isinstance(t["evaluate"], bool):
+        raise ConfigError(f"{where}: evaluate = {t['evaluate']!r} must be true or false")
+    if not isinstance(t["train_env_kwargs"], dict):
+        raise ConfigError(f"{where}: train_env_kwargs must be a table of gym.make keywords")
+    if "fidelity" in t["train_env_kwargs"] or "config" in t["train_env_kwargs"]:
+        raise ConfigError(f"{where} train_env_kwargs: fidelity and config belong in [env_kwargs]")
+    if "init" not in t:
+        return
+    first = earlier.get(t["init"])
+    if first is None:
+        raise ConfigError(
+            f"{where}: init = {t['init']!r} is not the name of an earlier [[train]] entry "
+            f"(earlier: {sorted(earlier) or 'none'})"
+        )
+    if first["algo"] != t["algo"]:
+        raise ConfigError(
+            f"{where}: init = {t['init']!r} trains {first['algo']!r}, not algo = {t['algo']!r}"
+        )
+    missing = sorted(set(t["seeds"]) - set(first["seeds"]))
+    if missing:
+        raise ConfigError(f"{where}: seeds {missing} are not trained by init = {t['init']!r}")
+
+
+def _waves(c: dict) -> list[list[dict]]:
+    """The [[train]] entries in the order they can run: an entry after the one it starts from
+    (``init``)."""
+    depth: dict = {}
+    for t in c["train"]:  # an init names an earlier entry (_check_stage)
+        depth[t["name"]] = depth[t["init"]] + 1 if "init" in t else 0
+    return [
+        [t for t in c["train"] if depth[t["name"]] == d] for d in range(max(depth.values()) + 1)
+    ]
+
+
 def _check_select(path: Path, c: dict) -> None:
     from brush_env.engine.fidelity import LEVELS
 
@@ -189,13 +243,18 @@ def _check_select(path: Path, c: dict) -> None:
         )
 
 
-def _runs(c: dict) -> list[tuple[str, int, dict]]:
+def _runs(c: dict, entries: list[dict] | None = None) -> list[tuple[str, int, dict]]:
+    """(entry name, seed, the entry with its run folder "dir") of every run (of ``entries``)."""
     out = Path(c["out"])
     return [
-        (t["algo"], s, {**t, "dir": out / t["algo"] / f"seed_{s}"})
-        for t in c["train"]
+        (t["name"], s, {**t, "dir": out / t["name"] / f"seed_{s}"})
+        for t in (c["train"] if entries is None else entries)
         for s in t["seeds"]
     ]
+
+
+def _entry(c: dict, name: str) -> dict:
+    return next(t for t in c["train"] if t["name"] == name)
 
 
 def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
@@ -223,8 +282,12 @@ def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
     ]
     for k, v in c["env_kwargs"].items():
         cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
-    for k, v in c.get("train_env_kwargs", {}).items():
+    for k, v in {**c.get("train_env_kwargs", {}), **t.get("train_env_kwargs", {})}.items():
         cmd += ["--train-env-kw", f"{k}={json.dumps(v)}"]
+    if "init" in t:
+        first = _entry(c, t["init"])
+        start = {**first, "dir": Path(c["out"]) / first["name"] / f"seed_{seed}"}
+        cmd += ["--init-model", str(policy_of(c, start))]
     return cmd
 
 
@@ -274,7 +337,7 @@ def _stage(run: Path, model: Path, vn: Path, dest: Path, extra: dict | None = No
     return Path(f"{dest}.zip")
 
 
-def select_stage(c: dict, jobs: int, dry: bool) -> list[str]:
+def select_stage(c: dict, jobs: int, dry: bool, entries: list[dict] | None = None) -> list[str]:
     """Evaluate every run's candidates (``_candidates``) on the validation episodes and keep the
     best as ``selected.zip`` (module docstring)."""
     if "select" not in c:
@@ -282,7 +345,7 @@ def select_stage(c: dict, jobs: int, dry: bool) -> list[str]:
         return []
     sel = c["select"]
     tasks, pending = [], []
-    for algo, seed, t in _runs(c):
+    for algo, seed, t in _runs(c, entries):
         d = t["dir"]
         if (d / "selected.json").is_file():
             print(f"  kept {algo} seed {seed}'s choice ({d}/selected.json)")
@@ -329,7 +392,7 @@ def _evals(c: dict) -> list[tuple[str, str, str, int]]:
     """(level, name, policy spec, episodes) of every evaluation."""
     ev = c["evaluate"]
     policies = [(b, b) for b in ev["baselines"]]
-    policies += [(f"{a}_seed_{s}", str(policy_of(c, t))) for a, s, t in _runs(c)]
+    policies += [(f"{a}_seed_{s}", str(policy_of(c, t))) for a, s, t in _runs(c) if t["evaluate"]]
     # the most accurate level first: its episodes are the long ones, and two workers finish
     # together when the long tasks start first
     levels = list(ev["levels"].items())[::-1]
@@ -377,9 +440,9 @@ def _launch(tasks: list[tuple[str, list[str], Path]], jobs: int, dry: bool) -> l
     return _parallel(jobs, tasks)
 
 
-def train_stage(c: dict, jobs: int, dry: bool) -> list[str]:
+def train_stage(c: dict, jobs: int, dry: bool, entries: list[dict] | None = None) -> list[str]:
     tasks = []
-    for algo, seed, t in _runs(c):
+    for algo, seed, t in _runs(c, entries):
         d = t["dir"]
         if (d / "meta.json").is_file():
             print(f"  kept {algo} seed {seed} ({d}/meta.json exists)")
@@ -514,15 +577,15 @@ def report(c: dict) -> dict:
                 rows[b] = {k: [r[k] for r in per if k in r] for k in METRICS}
         for t in c["train"]:
             seeds = []
-            for s in t["seeds"]:
-                run = {**t, "dir": out / t["algo"] / f"seed_{s}"}
+            for s in t["seeds"] if t["evaluate"] else ():
+                run = {**t, "dir": out / t["name"] / f"seed_{s}"}
                 done = _summary(
-                    out / "eval" / level / f"{t['algo']}_seed_{s}", str(policy_of(c, run)), n
+                    out / "eval" / level / f"{t['name']}_seed_{s}", str(policy_of(c, run)), n
                 )
                 if done is not None:
                     seeds.append(done["mean"])
             if seeds:
-                rows[f"{t['algo']} ({len(seeds)} seeds)"] = {
+                rows[f"{t['name']} ({len(seeds)} seeds)"] = {
                     k: [m[k] for m in seeds if k in m] for k in METRICS
                 }
         results["levels"][level] = {
@@ -558,7 +621,7 @@ def learning_curves(c: dict, path: Path) -> None:
     for t in c["train"]:
         curves = []
         for s in t["seeds"]:
-            d = Path(c["out"]) / t["algo"] / f"seed_{s}"
+            d = Path(c["out"]) / t["name"] / f"seed_{s}"
             f = d / "eval" / "evaluations.npz"
             if f.is_file():
                 z = np.load(f)
@@ -570,7 +633,9 @@ def learning_curves(c: dict, path: Path) -> None:
         n = min(len(x) for x, _ in curves)
         x = curves[0][0][:n]
         y = np.array([r[:n] for _, r in curves])
-        (line,) = ax.plot(x, y.mean(0), label=f"{t['algo'].upper()} ({len(curves)} seeds)")
+        stage = f", from {t['init']}: steps added" if "init" in t else ""
+        label = f"{t['name']} ({t['algo'].upper()}, {len(curves)} seeds{stage})"
+        (line,) = ax.plot(x, y.mean(0), label=label)
         ax.fill_between(x, y.min(0), y.max(0), color=line.get_color(), alpha=0.25)
     if refs:
         ax.axhline(float(np.mean(refs)), color="k", ls="--", label="reference circle")
@@ -585,24 +650,24 @@ def learning_curves(c: dict, path: Path) -> None:
 
 
 def best_run(c: dict, results: dict) -> tuple[str, int]:
-    """(algo, seed) to ship: the algorithm with the highest mean coverage over its seeds at the
-    most accurate evaluated level (the last of ``[evaluate] levels``), then its seed with the
-    highest coverage there."""
+    """(entry name, seed) to ship: the evaluated [[train]] entry with the highest mean coverage
+    over its seeds at the most accurate evaluated level (the last of ``[evaluate] levels``), then
+    its seed with the highest coverage there."""
     level, n = list(c["evaluate"]["levels"].items())[-1]
     root = Path(c["out"]) / "eval" / level
     best = None
     for t in c["train"]:
         covs = {}
-        for s in t["seeds"]:
-            run = {**t, "dir": Path(c["out"]) / t["algo"] / f"seed_{s}"}
-            done = _summary(root / f"{t['algo']}_seed_{s}", str(policy_of(c, run)), n)
+        for s in t["seeds"] if t["evaluate"] else ():
+            run = {**t, "dir": Path(c["out"]) / t["name"] / f"seed_{s}"}
+            done = _summary(root / f"{t['name']}_seed_{s}", str(policy_of(c, run)), n)
             if done is not None:
                 covs[s] = done["mean"]["coverage"]
         if covs:
             mean = float(np.mean(list(covs.values())))
             seed = max(covs, key=lambda k: covs[k])
             if best is None or mean > best[0]:
-                best = (mean, t["algo"], seed)
+                best = (mean, t["name"], seed)
     if best is None:
         raise RuntimeError(f"no trained policy was evaluated at {level}: nothing to ship")
     return best[1], best[2]
@@ -613,14 +678,15 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
     ``.meta.json`` and ``.vecnormalize.pkl`` (agents/evaluate.py finds them beside it), and
     write its card section into ``DEST/README.md``: command, commit, seeds, wall time and the
     evaluation table at every level."""
-    algo, seed = best_run(c, results)
+    entry, seed = best_run(c, results)
+    algo = _entry(c, entry)["algo"]
     scene = c["env_id"].split("/")[-1].split("-")[0]
     stem = "".join("_" + ch.lower() if ch.isupper() else ch for ch in scene).lstrip("_")
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
-    run = Path(c["out"]) / algo / f"seed_{seed}"
+    run = Path(c["out"]) / entry / f"seed_{seed}"
     name = f"{stem}_{algo}"
-    t = next(t for a, s_, t in _runs(c) if a == algo and s_ == seed)
+    t = next(t for a, s_, t in _runs(c) if a == entry and s_ == seed)
     from agents.evaluate import commit_id, companions
 
     model = policy_of(c, t)
@@ -681,11 +747,19 @@ def campaign(
     jobs = c["jobs"] if jobs is None else _int("--jobs", jobs)
     t0 = time.perf_counter()
     failed = []
-    stages = (("train", train_stage), ("select", select_stage), ("evaluate", evaluate_stage))
-    for name, stage in () if report_only else stages:
+    # train and select each wave of entries (an entry that starts from another's policy, init,
+    # after that one's selection), then evaluate
+    waves = _waves(c)
+    stages = [
+        (f"{name}{f' (stage {k + 1} of {len(waves)})' if len(waves) > 1 else ''}", stage, wave)
+        for k, wave in enumerate(waves)
+        for name, stage in (("train", train_stage), ("select", select_stage))
+    ]
+    stages.append(("evaluate", lambda c, jobs, dry, _: evaluate_stage(c, jobs, dry), None))
+    for name, stage, wave in [] if report_only else stages:
         t = time.perf_counter()
         print(f"[{name}] {jobs} job(s) at a time", flush=True)
-        failed += stage(c, jobs, dry_run)
+        failed += stage(c, jobs, dry_run, wave)
         print(f"[{name}] {(time.perf_counter() - t) / 60:.1f} min", flush=True)
     if dry_run:
         return None

@@ -380,6 +380,54 @@ def _make_model(algo: str, run: dict, venv, seed: int, out: Path, verbose: int):
     return model, policy
 
 
+def check_init_model(path: str | Path, algo: str, env_id: str) -> dict:
+    """The model ``--init-model`` names: a file saved by this script for the same algorithm and
+    env id (its meta.json beside it, agents.evaluate.companions).  Returns {"model", "meta",
+    "vecnormalize"} (vecnormalize: the statistics' path, or None)."""
+    from agents.evaluate import companions
+
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"--init-model {str(path)!r}: no such file (a model.zip of agents/train)")
+    meta_path, vn = companions(path)
+    if not meta_path.is_file():
+        raise ConfigError(
+            f"--init-model {str(path)!r}: no meta.json beside it (saved by agents/train.py?)"
+        )
+    meta = json.loads(meta_path.read_text())
+    if meta.get("algo") != algo:
+        raise ConfigError(
+            f"--init-model {str(path)!r} is a {meta.get('algo')!r} model: must be --algo {algo!r}"
+        )
+    if meta.get("env_id", "").split(":")[-1] != env_id.split(":")[-1]:
+        raise ConfigError(
+            f"--init-model {str(path)!r} was trained on {meta.get('env_id')!r}, not {env_id!r}"
+        )
+    return {"model": path, "meta": meta, "vecnormalize": vn if vn.is_file() else None}
+
+
+def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out: Path, verbose):
+    """``_make_model`` from a saved model (``check_init_model``): its weights, hyperparameters
+    and optimiser, on the new envs; its observation and return statistics copied into the new
+    VecNormalize wrappers (which go on updating them while training)."""
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    tb = str(out / "tb") if importlib.util.find_spec("tensorboard") else None
+    cls = {"ppo": PPO, "sac": SAC}[algo]
+    model = cls.load(init["model"], env=venv, device="cpu", seed=seed, tensorboard_log=tb)
+    model.verbose = verbose
+    if init["vecnormalize"] is not None and isinstance(venv, VecNormalize):
+        stats = VecNormalize.load(str(init["vecnormalize"]), venv.venv)
+        for w in (venv, eval_env):
+            w.obs_rms = stats.obs_rms.copy()
+        venv.ret_rms = stats.ret_rms.copy()
+    formats = ["csv"] + (["stdout"] if verbose > 1 else []) + (["tensorboard"] if tb else [])
+    model.set_logger(configure(str(out), formats))
+    return model, init["meta"].get("policy", run["cfg"].get("policy", "MlpPolicy"))
+
+
 def _eval_and_checkpoint(algo, tr: dict, n_envs: int, eval_env, out: Path, ref_mean, normalize):
     """The evaluation callback (``[train] eval_freq``, ``eval_episodes``; logs the gap to the
     reference policy's mean return ``ref_mean``) and the checkpoint callback
@@ -420,8 +468,14 @@ def train(
     vec_env: str = "auto",
     env_id: str | None = None,
     train_env_kwargs: dict | None = None,
+    init_model: str | Path | None = None,
 ) -> Path:
     """Train and save; returns the path of ``model.zip`` (see the module docstring).
+
+    ``init_model`` (``--init-model``): start from a model saved by this script (its weights,
+    its hyperparameters and optimiser state, and its VecNormalize statistics beside it) instead
+    of a fresh network, e.g. to go on learning under other training settings; ``timesteps`` are
+    the steps added.
 
     Stages: check inputs -> envs -> reference evaluation -> model -> learn (evaluations and
     checkpoints) -> final evaluation/checkpoint if the run was too short for one -> save."""
@@ -433,6 +487,7 @@ def train(
     )
     tr = run["train"]
     seed = tr.get("seed", 0) if seed is None else seed
+    init = None if init_model is None else check_init_model(init_model, algo, run["env_id"])
     n_eval = tr.get("eval_episodes", 3)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -452,8 +507,12 @@ def train(
     else:
         ref_mean = None
         say(f"[2/4] {run['env_id']} has no reference policy: evaluations are logged alone")
-    model, policy = _make_model(algo, run, venv, seed, out, verbose)
     normalize = isinstance(venv, VecNormalize)
+    if init is None:
+        model, policy = _make_model(algo, run, venv, seed, out, verbose)
+    else:
+        say(f"      starting from {init_model}")
+        model, policy = _load_model(algo, init, run, venv, eval_env, seed, out, verbose)
     eval_cb, ckpt_cb = _eval_and_checkpoint(algo, tr, n_envs, eval_env, out, ref_mean, normalize)
     say(f"[3/4] training {algo.upper()} for {timesteps} env steps")
     t0 = time.perf_counter()
@@ -486,6 +545,7 @@ def train(
         "wall_time_s": wall,
         "env_steps_per_s": timesteps / wall,
         "reference_mean_reward": ref_mean,
+        "init_model": None if init_model is None else str(init_model),
         "stable_baselines3": stable_baselines3.__version__,
         "commit": _commit(),
     }
@@ -540,6 +600,13 @@ def build_parser() -> OneLineParser:
         help="env setting of the training envs only, repeatable (e.g. total_force_limit=3.0: a "
         "margin on the task's limit); evaluations and the saved env settings keep --env-kw's",
     )
+    p.add_argument(
+        "--init-model",
+        default=None,
+        metavar="PATH",
+        help="start from this saved model (a model.zip or checkpoint of agents/train, with its "
+        "statistics) instead of a fresh network; --timesteps are the steps added",
+    )
     add_flag(p, "--no-progress", "no phase lines, bar or ETA")
     p.add_argument(
         "--verbose",
@@ -567,6 +634,7 @@ def _main(argv) -> int:
         vec_env=args.vec_env,
         env_id=args.env,
         train_env_kwargs=parse_env_kw(args.train_env_kw),
+        init_model=args.init_model,
     )
     print(f"saved {path}")
     return 0

@@ -208,3 +208,90 @@ def test_campaign_config_chunk_must_be_a_positive_integer(tmp_path):
     cfg.write_text(_campaign_toml(tmp_path).replace("chunk = 1", "chunk = 0"))
     with pytest.raises(ConfigError, match=r"\[evaluate\] chunk = 0 is out of range"):
         load_campaign(cfg)
+
+
+def _staged_toml(tmp_path, second: str = "") -> str:
+    (tmp_path / "ppo.toml").write_text(PPO_TOML)
+    return f"""out = "{tmp_path / "out"}"
+jobs = 1
+[env_kwargs]
+brush = "tiny_env"
+fidelity = "reduced"
+max_episode_steps = 8
+[train_env_kwargs]
+total_force_limit = 3.0
+[[train]]
+algo = "ppo"
+config = "{tmp_path / "ppo.toml"}"
+timesteps = 32
+seeds = [0]
+evaluate = false
+[[train]]
+name = "ppo_ft"
+init = "ppo"
+algo = "ppo"
+config = "{tmp_path / "ppo.toml"}"
+timesteps = 32
+seeds = [0]
+train_env_kwargs = {{ hard_force_limit = 4.0 }}
+{second}
+[select]
+episodes = 1
+seed = 500
+[evaluate]
+seed = 100
+baselines = ["reference"]
+levels = {{ reduced = 1 }}
+"""
+
+
+@pytest.mark.slow  # two tiny trainings, their selections and two evaluations (~30 s)
+def test_staged_campaign_starts_the_second_entry_from_the_first_ones_policy(tmp_path):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_staged_toml(tmp_path))
+    results = campaign(cfg)
+    out = tmp_path / "out"
+    meta = json.loads((out / "ppo_ft" / "seed_0" / "meta.json").read_text())
+    assert meta["init_model"] == str(out / "ppo" / "seed_0" / "selected.zip")
+    # the entry's own training settings on top of the campaign's
+    assert meta["train_env_kwargs"] == {"total_force_limit": 3.0, "hard_force_limit": 4.0}
+    first = json.loads((out / "ppo" / "seed_0" / "meta.json").read_text())
+    assert first["train_env_kwargs"] == {"total_force_limit": 3.0} and first["init_model"] is None
+    # evaluate = false: the first stage is neither evaluated nor tabulated
+    assert sorted(p.name for p in (out / "eval" / "reduced").iterdir() if p.is_dir()) == [
+        "ppo_ft_seed_0",
+        "reference",
+    ]
+    assert set(results["levels"]["reduced"]) == {"reference", "ppo_ft (1 seeds)"}
+
+
+@pytest.mark.parametrize(
+    "second, needle",
+    [
+        (
+            '[[train]]\nname = "x"\ninit = "nope"\nalgo = "ppo"\nconfig = "{cfg}"\ntimesteps = 8\n'
+            "seeds = [0]",
+            "init = 'nope' is not the name of an earlier",
+        ),
+        (
+            '[[train]]\nname = "y"\ninit = "ppo"\nalgo = "ppo"\nconfig = "{cfg}"\ntimesteps = 8\n'
+            "seeds = [0, 1]",
+            r"seeds \[1\] are not trained by init = 'ppo'",
+        ),
+        (
+            '[[train]]\nname = "ppo_ft"\nalgo = "ppo"\nconfig = "{cfg}"\ntimesteps = 8\n'
+            "seeds = [0]",
+            "name = 'ppo_ft' appears twice",
+        ),
+        (
+            '[[train]]\nname = "z"\nalgo = "ppo"\nconfig = "{cfg}"\ntimesteps = 8\nseeds = [0]\n'
+            'evaluate = "no"',
+            "evaluate = 'no' must be true or false",
+        ),
+    ],
+)
+def test_staged_campaign_config_errors_name_the_entry(tmp_path, second, needle):
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_staged_toml(tmp_path, second.format(cfg=tmp_path / "ppo.toml")))
+    with pytest.raises(ConfigError, match=needle):
+        load_campaign(cfg)

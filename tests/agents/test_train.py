@@ -199,6 +199,63 @@ def test_train_env_kwargs_reach_the_learning_envs_only(tmp_path):
         check_inputs("ppo", cfg, 10, 2, None, train_env_kwargs={"config": "tooth_row"})
 
 
+@pytest.mark.slow  # two short trainings
+def test_init_model_goes_on_from_the_saved_weights_optimiser_and_statistics(tmp_path):
+    """``--init-model``: the second run continues the first -- its optimiser has taken the
+    first run's updates plus its own, and its observation statistics hold both runs' samples
+    -- while its envs take the new training settings; a model of another algorithm or without
+    its meta.json is refused by name."""
+    import pickle
+    import shutil
+
+    from stable_baselines3 import PPO
+
+    from agents.train import check_init_model
+
+    cfg = tmp_path / "ppo.toml"
+    cfg.write_text(PPO_TOML)
+    first = train("ppo", cfg, 128, 1, tmp_path / "a", progress=False)
+    second = train(
+        "ppo",
+        cfg,
+        128,
+        1,
+        tmp_path / "b",
+        progress=False,
+        init_model=first,
+        train_env_kwargs={"hard_force_limit": 4.0},
+    )
+
+    def adam_steps(path):
+        state = PPO.load(path, device="cpu").policy.optimizer.state_dict()["state"]
+        return int(next(iter(state.values()))["step"])
+
+    # PPO_TOML: 64 steps per rollout, 2 epochs of 2 minibatches -> 4 Adam steps per rollout
+    assert adam_steps(first) == 2 * 4
+    assert adam_steps(second) == adam_steps(first) + 2 * 4
+    a, b = (pickle.loads((tmp_path / d / "vecnormalize.pkl").read_bytes()) for d in "ab")
+    # a run counts its first reset and its 128 steps (RunningMeanStd starts at count 1e-4); the
+    # second run's statistics go on from the first's
+    assert a.obs_rms.count == pytest.approx(1e-4 + 1 + 128)
+    assert b.obs_rms.count == pytest.approx(a.obs_rms.count + 1 + 128)
+    meta = json.loads((tmp_path / "b" / "meta.json").read_text())
+    assert meta["init_model"] == str(first)
+    assert meta["train_env_kwargs"] == {"hard_force_limit": 4.0}
+    with pytest.raises(ValueError, match="is a 'ppo' model: must be --algo 'sac'"):
+        check_init_model(first, "sac", "brush_env/FlatPlate-v0")
+    with pytest.raises(
+        ValueError, match="was trained on .*FlatPlate-v0.*, not 'brush_env/ToothRow"
+    ):
+        check_init_model(first, "ppo", "brush_env/ToothRow-v0")
+    lone = tmp_path / "lone" / "model.zip"
+    lone.parent.mkdir()
+    shutil.copyfile(first, lone)
+    with pytest.raises(ValueError, match="no meta.json beside it"):
+        check_init_model(lone, "ppo", "brush_env/FlatPlate-v0")
+    with pytest.raises(ValueError, match="no such file"):
+        check_init_model(tmp_path / "none.zip", "ppo", "brush_env/FlatPlate-v0")
+
+
 def test_env_flag_trains_on_that_id_with_its_own_env_file():
     """``--env`` (the campaign's env_id) overrides the agent config's ``[env] id``; the config's
     ``[env] config`` ("flat_plate") names the plate's env file, so the tooth row gets its own
