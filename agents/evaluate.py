@@ -143,8 +143,11 @@ def check_env_id(env_id: str, where: str = "--env") -> None:
 def run_episode(
     env, policy, seed: int, transform=None, video: bool = False, deterministic: bool = True
 ) -> tuple[dict, dict, list]:
-    """One episode; returns (metrics, time series, frames)."""
+    """One episode; returns (metrics, time series, frames).  A policy with ``seed_episode``
+    (random actions) is reseeded for it: episode ``seed`` is the same in any evaluation."""
     obs, info = env.reset(seed=seed)
+    if hasattr(policy, "seed_episode"):
+        policy.seed_episode(seed)
     u = env.unwrapped
     cfg = u.config
     p0 = np.asarray(info["tcp_position"], float)

@@ -114,6 +114,14 @@ class RandomPolicy:
         self.action_space = action_space
         self.action_space.seed(seed)
 
+    def seed_episode(self, seed: int) -> None:
+        """Reseed for the episode the env resets with ``seed`` (agents/evaluate.run_episode):
+        an episode's actions then depend on its own seed alone, not on the episodes before it,
+        so an evaluation split into parts (the campaign's ``chunk``) runs the same episodes.
+        The stream is derived from the seed, not the seed itself, which the env's own
+        generator already uses."""
+        self.action_space.seed(int(np.random.SeedSequence([seed, 0x5EED]).generate_state(1)[0]))
+
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         if isinstance(observation, dict):
             n = np.asarray(next(iter(observation.values()))).shape[0]

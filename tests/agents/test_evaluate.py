@@ -96,3 +96,26 @@ def test_reference_press_variants_by_name():
         "reference-static": "static",
         "reference-sliding": "sliding",
     }
+
+
+def test_random_episode_depends_on_its_own_seed_alone():
+    """Random actions are reseeded per episode, so episode 101 is the same whether it follows
+    episode 100 in one evaluation or starts an evaluation of its own (the campaign's chunks)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from agents.evaluate import load_policy, run_episode
+
+    env = gym.make("brush_env/FlatPlate-v0", **SHORT)
+    try:
+        after, _ = load_policy("random", env, seed=100)
+        run_episode(env, after, 100)
+        _, s_after, _ = run_episode(env, after, 101)
+        alone, _ = load_policy("random", env, seed=101)
+        _, s_alone, _ = run_episode(env, alone, 101)
+        _, s_other, _ = run_episode(env, alone, 102)
+    finally:
+        env.close()
+    assert s_after["tcp_x"] == s_alone["tcp_x"] and s_after["tcp_y"] == s_alone["tcp_y"]
+    n = min(len(s_after["tcp_x"]), len(s_other["tcp_x"]))
+    assert not np.allclose(s_after["tcp_x"][1:n], s_other["tcp_x"][1:n])  # the actions matter
