@@ -868,8 +868,8 @@ MEASURED_KEYS = (
     ("random_tip_force_error", "[-]"),
     ("random_coverage_diff_points", "[points]"),
     ("env_steps_per_s", "[1/s] one env, one core"),
-    ("env_steps_per_s_vec16", "[1/s] batched, N = 16 (nan: no batched env)"),
-    ("env_steps_per_s_vec64", "[1/s] batched, N = 64 (nan: no batched env)"),
+    ("env_steps_per_s_vec16", "[1/s] batched, N = 16 (nan: not measured)"),
+    ("env_steps_per_s_vec64", "[1/s] batched, N = 64 (nan: not measured)"),
 )
 
 

@@ -474,10 +474,8 @@ def _tip_tip_load(b, pt, R, sub, con, state, F, Kt, vt):
         # the full chain): with the plate contact compliant and this one stiff, a tip stuck on
         # the plate and pressed by a neighbour's ran Newton out at every halving (~1 bristle-step
         # an env step taken at the last resort, 62 sub-steps each: a third of the env's time)
-        ab, aj = con.tip_args[b], con.tip_args[j]
-        an_b = ab.axis[0] * u0 + ab.axis[1] * u1 + ab.axis[2] * u2
-        an_j = aj.axis[0] * u0 + aj.axis[1] * u1 + aj.axis[2] * u2
-        cs = ab.cax * an_b * an_b + aj.cax * an_j * an_j
+        u = (u0, u1, u2)
+        cs = compliance(con.tip_args[b], u) + compliance(con.tip_args[j], u)
         Fn, kn, cn, _ = series_law(delta, -rv, cp.k_tt, cp.m1_tt, cp.c_tt, cp.m2_tt, cp.m3_tt, cs)
         if Fn <= 0.0:
             continue

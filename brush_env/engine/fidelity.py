@@ -58,7 +58,7 @@ class Fidelity:
     longest solver step; element "mid" | "paper"; integrator "bdf2" | "euler"; tip_tip_sweeps
     [count] (1: partners one sweep behind, >1: coupled); newton_rtol [-] relative to each
     bristle's force scale; newton_max_iter [count] Newton iterations per attempt before the
-    solver step is halved; measured: the bench's figures (errors [-], speeds) or empty."""
+    solver step is halved (these two: None takes ``SimSettings``' default); measured: the bench's figures (errors [-], speeds) or empty."""
 
     name: str
     description: str
@@ -68,8 +68,9 @@ class Fidelity:
     element: str = "mid"
     integrator: str = "bdf2"
     tip_tip_sweeps: int = 8
-    newton_rtol: float = 1e-7
-    newton_max_iter: int = 100
+    # None: SimSettings' own default (one source, so the two cannot drift apart)
+    newton_rtol: float | None = None
+    newton_max_iter: int | None = None
     measured: dict = field(default_factory=dict)
     path: Path | None = None
 
@@ -90,9 +91,11 @@ class Fidelity:
             element=self.element,
             integrator=self.integrator,
             tip_tip_sweeps=self.tip_tip_sweeps,
-            newton_rtol=self.newton_rtol,
-            newton_max_iter=self.newton_max_iter,
         )
+        if self.newton_rtol is not None:
+            kw["newton_rtol"] = self.newton_rtol
+        if self.newton_max_iter is not None:
+            kw["newton_max_iter"] = self.newton_max_iter
         kw.update(overrides)
         kw.setdefault("dt", min(1e-3, kw["max_substep"]))
         return SimSettings(**kw)
