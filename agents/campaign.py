@@ -673,6 +673,24 @@ def best_run(c: dict, results: dict) -> tuple[str, int]:
     return best[1], best[2]
 
 
+def _started_from(meta: dict) -> str:
+    """The card's words on the model a run went on from (``init_model``), if any."""
+    init = meta.get("init_model")
+    if not init:
+        return ""
+    from agents.evaluate import companions
+
+    first = companions(init)[0]
+    if not first.is_file():
+        return f", going on from `{init}`"
+    m = json.loads(first.read_text())
+    chosen = m.get("selected", {}).get("checkpoint", "its final model")
+    return (
+        f", going on from `{init}` ({chosen} of {m['timesteps']} env steps with the training envs' "
+        f"own {json.dumps(m.get('train_env_kwargs', {}))}, {m['wall_time_s'] / 60:.1f} min)"
+    )
+
+
 def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
     """Copy the best run's model (:func:`best_run`) to ``DEST/<scene>_<algo>.zip`` with its
     ``.meta.json`` and ``.vecnormalize.pkl`` (agents/evaluate.py finds them beside it), and
@@ -709,12 +727,15 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
     card = [
         f"## `{name}.zip`",
         "",
-        f"{algo.upper()} seed {seed} of the campaign (the best algorithm by mean coverage at "
-        f"`{list(c['evaluate']['levels'])[-1]}`, then its best seed), trained with the code of "
-        f"commit `{meta.get('commit', 'unknown')}`; {which}.",
+        f"{algo.upper()} seed {seed} of the campaign's entry `{entry}` (the evaluated entry with "
+        f"the best mean coverage at `{list(c['evaluate']['levels'])[-1]}`, then its best seed), "
+        f"trained with the code of commit `{meta.get('commit', 'unknown')}`; {which}.",
         f"Trained {meta['timesteps']} env steps on {c['env_id']} with "
-        f"{json.dumps(meta['env_kwargs'])}, {meta['n_envs']} envs, in "
-        f"{meta['wall_time_s'] / 60:.1f} min ({meta['env_steps_per_s']:.0f} env steps/s).",
+        f"{json.dumps(meta['env_kwargs'])} (the training envs' own "
+        f"{json.dumps(meta.get('train_env_kwargs', {}))}), {meta['n_envs']} envs, in "
+        f"{meta['wall_time_s'] / 60:.1f} min ({meta['env_steps_per_s']:.0f} env steps/s)"
+        + _started_from(meta)
+        + ".",
         "",
         "Made by `python -m agents.campaign --config configs/agents/campaign.toml --ship`.",
         f"Run it: `python -m agents.evaluate --policy {dest}/{name}.zip --episodes 20`.",

@@ -58,7 +58,8 @@ class Fidelity:
     longest solver step; element "mid" | "paper"; integrator "bdf2" | "euler"; tip_tip_sweeps
     [count] (1: partners one sweep behind, >1: coupled); newton_rtol [-] relative to each
     bristle's force scale; newton_max_iter [count] Newton iterations per attempt before the
-    solver step is halved (these two: None takes ``SimSettings``' default); measured: the bench's figures (errors [-], speeds) or empty."""
+    solver step is halved (these two: None takes ``SimSettings``' default); measured: the
+    bench's figures (errors [-], speeds) or empty."""
 
     name: str
     description: str

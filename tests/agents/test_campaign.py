@@ -263,6 +263,11 @@ def test_staged_campaign_starts_the_second_entry_from_the_first_ones_policy(tmp_
         "reference",
     ]
     assert set(results["levels"]["reduced"]) == {"reference", "ppo_ft (1 seeds)"}
+    # the shipped card names the stage the model went on from
+    campaign(cfg, ship_to=str(tmp_path / "models"), report_only=True)
+    card = (tmp_path / "models" / "flat_plate_ppo.md").read_text()
+    assert "entry `ppo_ft`" in card
+    assert f"going on from `{out / 'ppo' / 'seed_0' / 'selected.zip'}`" in card
 
 
 @pytest.mark.parametrize(
