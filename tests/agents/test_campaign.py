@@ -11,6 +11,12 @@ from brush_env.envs.config import load_env_config
 from tests.agents.test_train import PPO_TOML  # the tiny PPO (the campaign's --env-kw win)
 
 ENV_KW = {"brush": "tiny_env", "fidelity": "reduced", "max_episode_steps": 8}
+#: the campaigns' [env_kwargs] (ENV_KW) and [train_env_kwargs] tables
+ENV_TABLES = (
+    "[env_kwargs]\n"
+    + "".join(f"{k} = {json.dumps(v)}\n" for k, v in ENV_KW.items())
+    + "[train_env_kwargs]\ntotal_force_limit = 3.0\n"
+)
 
 
 def _campaign_toml(tmp_path, **over) -> str:
@@ -22,13 +28,7 @@ def _campaign_toml(tmp_path, **over) -> str:
     body.update(over)
     head = "\n".join(f"{k} = {v}" for k, v in body.items())
     return f"""{head}
-[env_kwargs]
-brush = "tiny_env"
-fidelity = "reduced"
-max_episode_steps = 8
-[train_env_kwargs]
-total_force_limit = 3.0
-[[train]]
+{ENV_TABLES}[[train]]
 algo = "ppo"
 config = "{tmp_path / "ppo.toml"}"
 timesteps = 32
@@ -214,13 +214,7 @@ def _staged_toml(tmp_path, second: str = "") -> str:
     (tmp_path / "ppo.toml").write_text(PPO_TOML)
     return f"""out = "{tmp_path / "out"}"
 jobs = 1
-[env_kwargs]
-brush = "tiny_env"
-fidelity = "reduced"
-max_episode_steps = 8
-[train_env_kwargs]
-total_force_limit = 3.0
-[[train]]
+{ENV_TABLES}[[train]]
 algo = "ppo"
 config = "{tmp_path / "ppo.toml"}"
 timesteps = 32
