@@ -6,12 +6,16 @@ Stages (each prints its wall time; the whole run prints its total):
 
 1. **train** -- every ``[[train]]`` entry at every one of its seeds, with ``agents/train.py``
    (``python -m agents.train ... --no-progress`` in a worker process, its output in
-   ``OUT/<algo>/seed_<k>.log``), ``jobs`` runs at a time.
-2. **select** (with a ``[select]`` table) -- each run's checkpoints (``OUT/<algo>/seed_<k>/
+   ``OUT/<name>/seed_<k>.log``; ``name`` defaults to ``algo``), ``jobs`` runs at a time.  An
+   entry with ``init = "<name>"`` starts each seed from that earlier entry's policy
+   (``--init-model``) with its own ``train_env_kwargs`` on top of the campaign's: entries
+   are trained and selected in waves, each after the one it starts from (stages 1-2 per
+   wave).  ``evaluate = false`` leaves an entry out of stage 3 and the table.
+2. **select** (with a ``[select]`` table) -- each run's checkpoints (``OUT/<name>/seed_<k>/
    checkpoints/``, each with its own VecNormalize statistics) and its final model are evaluated
    on validation episodes (``[select] seed`` + i at ``[select] level``: seeds that are neither
    the evaluation's nor the training's) and the one with the best mean ``[select] metric`` is
-   the run's policy (``OUT/<algo>/seed_<k>/selected.zip`` with its statistics and
+   the run's policy (``OUT/<name>/seed_<k>/selected.zip`` with its statistics and
    ``selected.json``), as the RL Zoo keeps its best evaluated model: PPO's evaluation return
    swings by tens of points between checkpoints (docs/rl.md), and the last one is not the best.
    Without ``[select]`` every run's policy is its final ``model.zip``.
@@ -245,12 +249,16 @@ def _check_select(path: Path, c: dict) -> None:
 
 def _runs(c: dict, entries: list[dict] | None = None) -> list[tuple[str, int, dict]]:
     """(entry name, seed, the entry with its run folder "dir") of every run (of ``entries``)."""
-    out = Path(c["out"])
     return [
-        (t["name"], s, {**t, "dir": out / t["name"] / f"seed_{s}"})
+        (t["name"], s, _run(c, t, s))
         for t in (c["train"] if entries is None else entries)
         for s in t["seeds"]
     ]
+
+
+def _run(c: dict, t: dict, seed: int) -> dict:
+    """The entry ``t`` with the run folder of its seed ``seed`` ("dir": OUT/<name>/seed_<k>)."""
+    return {**t, "dir": Path(c["out"]) / t["name"] / f"seed_{seed}"}
 
 
 def _entry(c: dict, name: str) -> dict:
@@ -286,8 +294,7 @@ def _train_cmd(c: dict, t: dict, seed: int) -> list[str]:
         cmd += ["--train-env-kw", f"{k}={json.dumps(v)}"]
     if "init" in t:
         first = _entry(c, t["init"])
-        start = {**first, "dir": Path(c["out"]) / first["name"] / f"seed_{seed}"}
-        cmd += ["--init-model", str(policy_of(c, start))]
+        cmd += ["--init-model", str(policy_of(c, _run(c, first, seed)))]
     return cmd
 
 
@@ -578,7 +585,7 @@ def report(c: dict) -> dict:
         for t in c["train"]:
             seeds = []
             for s in t["seeds"] if t["evaluate"] else ():
-                run = {**t, "dir": out / t["name"] / f"seed_{s}"}
+                run = _run(c, t, s)
                 done = _summary(
                     out / "eval" / level / f"{t['name']}_seed_{s}", str(policy_of(c, run)), n
                 )
@@ -621,7 +628,7 @@ def learning_curves(c: dict, path: Path) -> None:
     for t in c["train"]:
         curves = []
         for s in t["seeds"]:
-            d = Path(c["out"]) / t["name"] / f"seed_{s}"
+            d = _run(c, t, s)["dir"]
             f = d / "eval" / "evaluations.npz"
             if f.is_file():
                 z = np.load(f)
@@ -659,7 +666,7 @@ def best_run(c: dict, results: dict) -> tuple[str, int]:
     for t in c["train"]:
         covs = {}
         for s in t["seeds"] if t["evaluate"] else ():
-            run = {**t, "dir": Path(c["out"]) / t["name"] / f"seed_{s}"}
+            run = _run(c, t, s)
             done = _summary(root / f"{t['name']}_seed_{s}", str(policy_of(c, run)), n)
             if done is not None:
                 covs[s] = done["mean"]["coverage"]
@@ -697,14 +704,13 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
     write its card section into ``DEST/README.md``: command, commit, seeds, wall time and the
     evaluation table at every level."""
     entry, seed = best_run(c, results)
-    algo = _entry(c, entry)["algo"]
+    t = _run(c, _entry(c, entry), seed)
+    algo, run = t["algo"], t["dir"]
     scene = c["env_id"].split("/")[-1].split("-")[0]
     stem = "".join("_" + ch.lower() if ch.isupper() else ch for ch in scene).lstrip("_")
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
-    run = Path(c["out"]) / entry / f"seed_{seed}"
     name = f"{stem}_{algo}"
-    t = next(t for a, s_, t in _runs(c) if a == entry and s_ == seed)
     from agents.evaluate import commit_id, companions
 
     model = policy_of(c, t)
