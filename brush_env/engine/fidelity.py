@@ -69,13 +69,19 @@ class Fidelity:
     element: str = "mid"
     integrator: str = "bdf2"
     tip_tip_sweeps: int = 8
-    # None: SimSettings' own default (one source, so the two cannot drift apart)
+    # None: SimSettings' own default, set at construction (one source: they cannot drift apart)
     newton_rtol: float | None = None
     newton_max_iter: int | None = None
     measured: dict = field(default_factory=dict)
     path: Path | None = None
 
     def __post_init__(self):
+        from .settings import SimSettings
+
+        # a setting the level leaves out takes SimSettings' default (one source of it)
+        for key in ("newton_rtol", "newton_max_iter"):
+            if getattr(self, key) is None:
+                object.__setattr__(self, key, SimSettings.__dataclass_fields__[key].default)
         p = f"fidelity {self.name!r}: settings."
         check_int(p + "bodies_per_bristle", self.bodies_per_bristle, Limit("count", ge=1, le=64))
         # the rest is checked by SimSettings; build one now so a bad file fails at load
@@ -92,11 +98,9 @@ class Fidelity:
             element=self.element,
             integrator=self.integrator,
             tip_tip_sweeps=self.tip_tip_sweeps,
+            newton_rtol=self.newton_rtol,
+            newton_max_iter=self.newton_max_iter,
         )
-        if self.newton_rtol is not None:
-            kw["newton_rtol"] = self.newton_rtol
-        if self.newton_max_iter is not None:
-            kw["newton_max_iter"] = self.newton_max_iter
         kw.update(overrides)
         kw.setdefault("dt", min(1e-3, kw["max_substep"]))
         return SimSettings(**kw)
