@@ -377,7 +377,7 @@ def join_summaries(parts: list[dict]) -> dict:
         raise ConfigError("join_summaries: no parts to join")
     parts = sorted(parts, key=lambda p: p["seed"])
     first = parts[0]
-    same = ("policy", "env_id", "config", "env_kwargs", "env_settings")
+    same = ("policy", "env_id", "config", "env_kwargs", "env_settings")  # kept from the first
     expect = first["seed"]
     for p in parts:
         for k in same:
@@ -395,7 +395,7 @@ def join_summaries(parts: list[dict]) -> dict:
     rows = [r for p in parts for r in p["per_episode"]]
     wall = sum(p["wall_time_s"] for p in parts)
     return {
-        **{k: first.get(k) for k in ("policy", "env_id", "config", "env_kwargs", "env_settings")},
+        **{k: first.get(k) for k in same},
         "episodes": len(rows),
         "seed": first["seed"],
         "wall_time_s": wall,

@@ -361,22 +361,34 @@ def _evaluate_reference(run: dict, seed: int, n_eval: int, out: Path) -> float:
     return float(ref_mean)
 
 
+def _tensorboard_dir(out: Path, verbose: int) -> str | None:
+    """OUT/tb when tensorboard is importable, else None (said once when verbose)."""
+    tb = str(out / "tb") if importlib.util.find_spec("tensorboard") else None
+    if tb is None and verbose:
+        _say("tensorboard is not installed: logging to stdout/CSV only")
+    return tb
+
+
+def _set_logger(model, out: Path, verbose: int, tb: str | None) -> None:
+    """CSV (progress.csv) always, stdout at verbose > 1, TensorBoard when ``tb``."""
+    from stable_baselines3.common.logger import configure
+
+    formats = ["csv"] + (["stdout"] if verbose > 1 else []) + (["tensorboard"] if tb else [])
+    model.set_logger(configure(str(out), formats))
+
+
 def _make_model(algo: str, run: dict, venv, seed: int, out: Path, verbose: int):
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.logger import configure
 
     policy = run["cfg"].get("policy", "MlpPolicy")
     if run["kwargs"].get("observation_mode") == "dict":
         policy = "MultiInputPolicy"
-    tb = str(out / "tb") if importlib.util.find_spec("tensorboard") else None
-    if tb is None and verbose:
-        _say("tensorboard is not installed: logging to stdout/CSV only")
+    tb = _tensorboard_dir(out, verbose)
     cls = {"ppo": PPO, "sac": SAC}[algo]
     model = cls(
         policy, venv, seed=seed, verbose=verbose, tensorboard_log=tb, device="cpu", **run["hyper"]
     )
-    formats = ["csv"] + (["stdout"] if verbose > 1 else []) + (["tensorboard"] if tb else [])
-    model.set_logger(configure(str(out), formats))
+    _set_logger(model, out, verbose, tb)
     return model, policy
 
 
@@ -411,10 +423,9 @@ def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out
     and optimiser, on the new envs; its observation and return statistics copied into the new
     VecNormalize wrappers (which go on updating them while training)."""
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
-    tb = str(out / "tb") if importlib.util.find_spec("tensorboard") else None
+    tb = _tensorboard_dir(out, verbose)
     cls = {"ppo": PPO, "sac": SAC}[algo]
     model = cls.load(init["model"], env=venv, device="cpu", seed=seed, tensorboard_log=tb)
     model.verbose = verbose
@@ -423,8 +434,7 @@ def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out
         for w in (venv, eval_env):
             w.obs_rms = stats.obs_rms.copy()
         venv.ret_rms = stats.ret_rms.copy()
-    formats = ["csv"] + (["stdout"] if verbose > 1 else []) + (["tensorboard"] if tb else [])
-    model.set_logger(configure(str(out), formats))
+    _set_logger(model, out, verbose, tb)
     return model, init["meta"].get("policy", run["cfg"].get("policy", "MlpPolicy"))
 
 
