@@ -165,12 +165,17 @@ def test_campaign_config_rejects_validation_seeds_that_overlap_the_evaluation(tm
 
 def test_shipped_campaign_config_loads():
     c = load_campaign("configs/agents/campaign.toml")
-    assert {t["algo"] for t in c["train"]} == {"ppo", "sac"}
+    task = load_env_config("flat_plate")
     assert all(len(t["seeds"]) >= 3 for t in c["train"])
     assert "balanced" in c["evaluate"]["levels"]
-    assert (
-        c["train_env_kwargs"]["total_force_limit"] < load_env_config("flat_plate").total_force_limit
-    )
+    assert c["train_env_kwargs"]["total_force_limit"] < task.total_force_limit
+    # the tabulated stage learns with its episodes ended inside the task's own limits (margins)
+    [last] = [t for t in c["train"] if t["evaluate"]]
+    kw = {**c["train_env_kwargs"], **last["train_env_kwargs"]}
+    assert kw["hard_force_limit"] < task.total_force_limit
+    assert kw["workspace_xy"] < task.workspace_xy
+    assert kw["workspace_xy"] > task.patch_size / 2  # the patch stays reachable
+    assert kw["termination_penalty"] > task.termination_penalty
 
 
 def test_eval_parts_cover_the_episodes_once():
