@@ -354,17 +354,27 @@ def _draw_shapes(ax_s, ax_t, rec, k, pose, m, colours, span, times, arrow) -> No
     body = rec.shapes["body"][k].astype(float)
     tips = rec.shapes["tip"][k].astype(float)
     cont = rec.shapes["contact"][k]
-    roots = p_tcp + m.root_p @ R_tcp.T
-    for j in range(m.n_bristles):
-        line = np.vstack([roots[j], body[m.bstart[j] : m.bstart[j + 1]], tips[j]])
-        rel = line - [p_tcp[0], p_tcp[1], 0.0]
-        col = colours[j]
-        ax_s.plot(rel[:, 0], rel[:, 2], "-", color=col, lw=1.0, alpha=0.8)
-        ax_t.plot(rel[:, 0], rel[:, 1], "-", color=col, lw=1.0, alpha=0.8)
-        tc = "r" if cont[j] else "k"
-        ax_s.plot(rel[-1, 0], rel[-1, 2], "o", color=tc, ms=2.5)
-        ax_t.plot(rel[-1, 0], rel[-1, 1], "o", color=tc, ms=2.5)
-        ax_t.plot(rel[0, 0], rel[0, 1], "s", color=col, ms=2.5)
+    from matplotlib.collections import LineCollection
+
+    shift = np.array([p_tcp[0], p_tcp[1], 0.0])
+    roots = p_tcp + m.root_p @ R_tcp.T - shift
+    tips = tips - shift
+    body = body - shift
+    # one collection per view and one marker line per colour: a Line2D per bristle and view
+    # (~200 artists per panel) made this figure most of the run's plotting time
+    lines = [
+        np.vstack([roots[j], body[m.bstart[j] : m.bstart[j + 1]], tips[j]])
+        for j in range(m.n_bristles)
+    ]
+    for ax, c in ((ax_s, 2), (ax_t, 1)):
+        segs = [ln[:, [0, c]] for ln in lines]
+        ax.add_collection(LineCollection(segs, colors=colours, linewidths=1.0, alpha=0.8))
+        for touching, tc in ((False, "k"), (True, "r")):
+            sel = cont == touching
+            ax.plot(tips[sel, 0], tips[sel, c], "o", ls="", color=tc, ms=2.5)
+    for col in dict.fromkeys(colours):
+        sel = np.array([cj == col for cj in colours])
+        ax_t.plot(roots[sel, 0], roots[sel, 1], "s", ls="", color=col, ms=2.5)
     spanx, spany = span
     ax_s.axhline(0.0, color="0.3", lw=1.5)
     ax_s.set_xlim(-spanx, spanx)
