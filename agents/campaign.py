@@ -78,7 +78,7 @@ TRAIN_KEYS = {
     "train_env_kwargs",
     "evaluate",
 }
-EVAL_KEYS = {"episodes", "seed", "baselines", "levels", "chunk"}
+EVAL_KEYS = {"seed", "baselines", "levels", "chunk"}
 BASELINES = ("reference", "random")
 #: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
 METRICS = {
@@ -156,6 +156,11 @@ def _check_train(path: Path, train) -> None:
 def _check_evaluate(path: Path, ev: dict) -> None:
     from brush_env.engine.fidelity import LEVELS
 
+    if "episodes" in ev:  # an earlier key, read by nothing: say where the counts are given
+        raise ConfigError(
+            f"{path} [evaluate] episodes = {ev['episodes']!r} is not read: give each level's "
+            "number of episodes in levels = {{ <level> = <episodes>, ... }}"
+        )
     check_keys(f"{path} [evaluate]", ev, sorted(EVAL_KEYS))
     ev.setdefault("seed", 1000)
     ev.setdefault("baselines", list(BASELINES))

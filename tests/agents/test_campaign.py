@@ -38,7 +38,6 @@ seeds = [0, 1]
 episodes = 1
 seed = 500
 [evaluate]
-episodes = 1
 seed = 100
 baselines = ["reference", "random"]
 levels = {{ reduced = 2 }}
@@ -145,6 +144,10 @@ def test_campaign_config_rejects_unknown_level_and_baseline(tmp_path):
         load_campaign(cfg)
     cfg.write_text(text.replace('["reference", "random"]', '["reference", "idle"]'))
     with pytest.raises(ConfigError, match="'idle' is not allowed"):
+        load_campaign(cfg)
+    # a count given where nothing reads it is refused, pointing at where the counts go
+    cfg.write_text(text.replace("seed = 100\n", "seed = 100\nepisodes = 20\n"))
+    with pytest.raises(ConfigError, match=r"\[evaluate\] episodes = 20 is not read: .*levels = "):
         load_campaign(cfg)
 
 
