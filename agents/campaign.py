@@ -403,8 +403,10 @@ def select_stage(c: dict, jobs: int, dry: bool, entries: list[dict] | None = Non
 def _evals(c: dict) -> list[tuple[str, str, str, int]]:
     """(level, name, policy spec, episodes) of every evaluation."""
     ev = c["evaluate"]
-    policies = [(b, b) for b in ev["baselines"]]
-    policies += [(f"{a}_seed_{s}", str(policy_of(c, t))) for a, s, t in _runs(c) if t["evaluate"]]
+    # the trained policies first: they are what the campaign is for, and their episodes are the
+    # longest (a baseline's rows can come from a run beside the training, on a core it leaves idle)
+    policies = [(f"{a}_seed_{s}", str(policy_of(c, t))) for a, s, t in _runs(c) if t["evaluate"]]
+    policies += [(b, b) for b in ev["baselines"]]
     # the most accurate level first: its episodes are the long ones, and two workers finish
     # together when the long tasks start first
     levels = list(ev["levels"].items())[::-1]

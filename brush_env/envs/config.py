@@ -273,6 +273,15 @@ class EnvConfig:
         lo=-50.0,
         hi=200.0,
     )
+    workspace_edge: str = _f(
+        "end",
+        "episode",
+        "-",
+        'at the workspace edge: "end" the episode (termination "workspace") or "stop" the TCP '
+        "there (each velocity component limited so the step ends inside, as a robot "
+        "controller's workspace limits do; tilt beyond max_tilt_deg still ends it)",
+        choices=("end", "stop"),
+    )
     max_tilt_deg: float = _f(
         30.0,
         "episode",

@@ -94,7 +94,9 @@ at a solver step (``info["head_clearance_mm"] <= 0``: a rigid stop, the step end
 of the control step -- the in-step peak ``info["max_tip_penetration_mm"]`` /
 ``info["max_shaft_penetration_mm"]``, not the step-end value, which hides contact-onset overshoot
 (the penalty law is not meant for it); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
-(TCP z - z_t) or tilted more than ``max_tilt_deg``.  Stepping a terminated episode raises
+(TCP z - z_t) or tilted more than ``max_tilt_deg``; with ``workspace_edge = "stop"`` the TCP
+velocity is instead limited, component by component, so each control step ends inside that box
+(the robot's Cartesian limits) and only the tilt ends the episode.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
 env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
@@ -141,6 +143,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | max_penetration | 0.2 | mm | tip or shaft penetration at any solver step that terminates |
 | workspace_xy | 45.0 | mm | workspace half-width |
 | workspace_height | (-5.0, 15.0) | mm | TCP height range above touching |
+| workspace_edge | "end" | - | at the workspace edge: "end" the episode or "stop" the TCP |
 | max_tilt_deg | 30.0 | deg | largest tilt of the bristle axis |
 | start_center | (0.0, 0.0) | mm | centre of the start positions |
 | start_xy_range | 5.0 | mm | start x, y spread |
@@ -243,6 +246,10 @@ class BrushEnv(gym.Env):
         # touch height: lowest tip sphere of the straight brush at the start orientation R_START
         rest = self.sim.rest_tips()
         self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
+        self._stop_at_edge = cfg.workspace_edge == "stop"
+        xy, (h_lo, h_hi) = cfg.workspace_xy, cfg.workspace_height
+        self._edge_lo = np.array([-xy, -xy, h_lo])  # mm: TCP x, y and height above z_t
+        self._edge_hi = np.array([xy, xy, h_hi])
         self.action_type = make_action_type(cfg)
         self.action_space = self.action_type.space()
         self.layout = ObservationLayout(cfg, self.n_bristles, self.L, self.touch_height)
@@ -390,6 +397,8 @@ class BrushEnv(gym.Env):
             raise RuntimeError("the episode has terminated: call reset() before step()")
         a = self.action_type.check(action)
         self._v, self._w = self.action_type.twist(a)
+        if self._stop_at_edge:
+            self._v = self._limit_to_workspace(self._v)
         sim = self._simulate()
         self._steps += 1
         obs = self._get_obs()
@@ -449,11 +458,28 @@ class BrushEnv(gym.Env):
         shaft = out.extra.get("shaft_normal_force")
         return fn if shaft is None else fn + float(shaft.sum())
 
+    def _limit_to_workspace(self, v: np.ndarray) -> np.ndarray:
+        """``workspace_edge = "stop"``: each component of the TCP velocity [mm/s] limited so that
+        the control step (``frame_skip`` engine steps at constant v) ends inside the workspace box
+        (|x|, |y| <= workspace_xy, height in workspace_height): a component towards an edge
+        slows to reach it exactly, as a robot controller's Cartesian limits stop the tool, and
+        the episode goes on.  The TCP's path is a straight line, so its end bounds the step."""
+        cfg = self.config
+        p = self._to_obs(self._p)
+        p[2] -= self.touch_height
+        lo, hi = self._edge_lo - p, self._edge_hi - p
+        # inside the box lo <= 0 <= hi, so v = 0 is always allowed; a pose a rounding error
+        # past an edge (the previous step ended on it) only forbids moving further out
+        t = cfg.engine_dt * cfg.frame_skip
+        return np.minimum(np.maximum(v, np.minimum(lo, 0.0) / t), np.maximum(hi, 0.0) / t)
+
     def _in_workspace(self) -> bool:
         cfg = self.config
         p = self._to_obs(self._p)
         h = p[2] - self.touch_height
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -self._R[2, 2]))))
+        if self._stop_at_edge:  # the step was limited to end inside: only the tilt can end it
+            return tilt <= cfg.max_tilt_deg
         return (
             abs(p[0]) <= cfg.workspace_xy
             and abs(p[1]) <= cfg.workspace_xy
