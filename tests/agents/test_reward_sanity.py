@@ -104,6 +104,30 @@ def test_idling_or_leaving_scores_below_the_reference(fast_env, reference_fast, 
         assert r["return"] <= 0.5 * reference_fast["return"], (name, r)
 
 
+@pytest.mark.parametrize("name", ["leave (up)", "leave (side)"])
+def test_running_into_the_edge_that_stops_scores_below_the_reference(reference_fast, name):
+    """``workspace_edge = "stop"`` (the campaign's): leaving is held at the edge instead of ended;
+    holding there, above the plate or beside the patch, cleans nothing and scores 0."""
+    env = gym.make(ENV_ID, max_episode_steps=QUICK_STEPS, workspace_edge="stop")
+    try:
+        r = episode(env, make_probe(name, env), 0, HIGH_PLATE)
+    finally:
+        env.close()
+    assert r["termination"] is None and r["coverage"] == 0.0 and r["return"] == 0.0, (name, r)
+    assert r["return"] < reference_fast["return"], (name, r, reference_fast)
+
+
+def test_the_reference_never_meets_the_edge(reference_fast):
+    """The reference circle stays far inside the workspace: with ``workspace_edge = "stop"`` its
+    episode is the same bit for bit (so its rows do not depend on the setting)."""
+    env = gym.make(ENV_ID, max_episode_steps=QUICK_STEPS, workspace_edge="stop")
+    try:
+        r = episode(env, ReferencePolicy.for_env(env), 0, HIGH_PLATE)
+    finally:
+        env.close()
+    assert r == reference_fast
+
+
 def test_pressing_hard_scores_below_the_reference(fast_env, reference_fast):
     """Pressing down to the workspace floor and holding: above the limit, below the reference."""
     r = episode(fast_env, make_probe("press hard", fast_env), 0, HIGH_PLATE)

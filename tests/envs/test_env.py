@@ -273,6 +273,41 @@ def test_leaving_the_workspace_terminates(make_env):
         env.unwrapped.step(ZERO)
 
 
+@pytest.mark.parametrize(
+    "axis, sign", [(0, 1.0), (0, -1.0), (1, 1.0), (2, 1.0)], ids=["+x", "-x", "+y", "up"]
+)
+def test_stop_at_the_workspace_edge_holds_the_tcp_there(make_env, axis, sign):
+    """``workspace_edge = "stop"``: full speed towards an edge ends on it, exactly, and the episode
+    goes on (a robot's Cartesian limit); the way back in is free."""
+    env = make_env(workspace_edge="stop", workspace_xy=6.0, max_episode_steps=1000)
+    cfg, u = env.unwrapped.config, env.unwrapped
+    _, info = env.reset(seed=0, options=NO_CONTACT)
+    p0 = info["tcp_position"].copy()
+    edge = cfg.workspace_xy * sign if axis < 2 else cfg.workspace_height[1] + u.touch_height
+    a = np.zeros(6, np.float32)
+    a[axis] = sign
+    for _ in range(40):  # 40 steps of 0.04 s at 20-50 mm/s: 32-80 mm, past every edge
+        *_, term, trunc, info = env.step(a)
+        assert not term and not trunc, info["termination"]
+    p = info["tcp_position"]
+    assert p[axis] == pytest.approx(edge, abs=1e-9)
+    others = [k for k in range(3) if k != axis]
+    assert np.allclose(p[others], p0[others], atol=1e-9)  # the other components held
+    *_, info = env.step(-a)
+    step = cfg.engine_dt * cfg.frame_skip * cfg.max_linear_speed[axis]
+    assert info["tcp_position"][axis] == pytest.approx(edge - sign * step, abs=1e-9)
+
+
+def test_stop_at_the_workspace_edge_still_ends_on_tilt(make_env):
+    env = make_env(workspace_edge="stop", max_tilt_deg=5.0)
+    env.reset(seed=0, options=NO_CONTACT)
+    for _ in range(50):
+        *_, term, _, info = env.step(np.array([0, 0, 0, 1, 0, 0], np.float32))
+        if term:
+            break
+    assert info["termination"] == "workspace"
+
+
 def test_tilting_too_far_terminates(make_env):
     env = make_env(max_tilt_deg=5.0)
     env.reset(seed=0, options=NO_CONTACT)
