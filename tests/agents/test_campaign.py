@@ -172,13 +172,13 @@ def test_shipped_campaign_config_loads():
     assert all(len(t["seeds"]) >= 3 for t in c["train"])
     assert "balanced" in c["evaluate"]["levels"]
     assert c["train_env_kwargs"]["total_force_limit"] < task.total_force_limit
-    # the tabulated stage learns with its episodes ended inside the task's own limits (margins)
+    # the tabulated stage learns with its episodes ended inside the task's force limit (a margin)
     [last] = [t for t in c["train"] if t["evaluate"]]
     kw = {**c["train_env_kwargs"], **last["train_env_kwargs"]}
     assert kw["hard_force_limit"] < task.total_force_limit
-    assert kw["workspace_xy"] < task.workspace_xy
-    assert kw["workspace_xy"] > task.patch_size / 2  # the patch stays reachable
-    assert kw["termination_penalty"] > task.termination_penalty
+    # trained and evaluated with the TCP stopped at the workspace edge, the patch inside it
+    assert c["env_kwargs"]["workspace_edge"] == "stop"
+    assert "workspace_edge" not in kw and task.workspace_xy > task.patch_size / 2
 
 
 def test_eval_parts_cover_the_episodes_once():
