@@ -5,7 +5,8 @@ below touching (half the bristle length), and slides the brush at up to 50 mm/s 
 solver step at t = 1.196 s, in 6 of the campaign's 60 `balanced` episodes in this regime.  The
 policy's 30 actions of episode 1018 are kept (``tests/data/balanced_deep_slide_actions_1018.npy``):
 replayed, the episode is the same bit for bit (the env is deterministic), so the failure stays
-reproducible after the policy is gone."""
+reproducible after the policy is gone.  The same actions run to the end with the solver step at
+0.25 ms, or at 1 ms without tip-tip contact: the coupled tip-tip solve at 1 ms is what fails."""
 
 from __future__ import annotations
 
