@@ -277,10 +277,11 @@ class EnvConfig:
         "end",
         "episode",
         "-",
-        'at the workspace edge: "end" the episode (termination "workspace") or "stop" the TCP '
+        'at the workspace edge: "end" the episode (termination "workspace"), "stop" the TCP '
         "there (each velocity component limited so the step ends inside, as a robot "
-        "controller's workspace limits do; tilt beyond max_tilt_deg still ends it)",
-        choices=("end", "stop"),
+        "controller's workspace limits do; tilt beyond max_tilt_deg still ends it) or "
+        '"stop_xy" (x and y stopped, leaving the height range ends it)',
+        choices=("end", "stop", "stop_xy"),
     )
     max_tilt_deg: float = _f(
         30.0,

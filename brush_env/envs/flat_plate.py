@@ -96,7 +96,8 @@ of the control step -- the in-step peak ``info["max_tip_penetration_mm"]`` /
 (the penalty law is not meant for it); ``"workspace"`` the TCP left ``|x|, |y| <= workspace_xy``, ``workspace_height``
 (TCP z - z_t) or tilted more than ``max_tilt_deg``; with ``workspace_edge = "stop"`` the TCP
 velocity is instead limited, component by component, so each control step ends inside that box
-(the robot's Cartesian limits) and only the tilt ends the episode.  Stepping a terminated episode raises
+(the robot's Cartesian limits) and only the tilt ends the episode; with ``"stop_xy"`` only x and
+y are limited, and leaving the height range still ends it.  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
 env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
@@ -143,7 +144,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | max_penetration | 0.2 | mm | tip or shaft penetration at any solver step that terminates |
 | workspace_xy | 45.0 | mm | workspace half-width |
 | workspace_height | (-5.0, 15.0) | mm | TCP height range above touching |
-| workspace_edge | "end" | - | at the workspace edge: "end" the episode or "stop" the TCP |
+| workspace_edge | "end" | - | at the workspace edge: "end" the episode, "stop" the TCP, or "stop_xy" |
 | max_tilt_deg | 30.0 | deg | largest tilt of the bristle axis |
 | start_center | (0.0, 0.0) | mm | centre of the start positions |
 | start_xy_range | 5.0 | mm | start x, y spread |
@@ -246,8 +247,10 @@ class BrushEnv(gym.Env):
         # touch height: lowest tip sphere of the straight brush at the start orientation R_START
         rest = self.sim.rest_tips()
         self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
-        self._stop_at_edge = cfg.workspace_edge == "stop"
+        self._stop_at_edge = cfg.workspace_edge != "end"
         xy, (h_lo, h_hi) = cfg.workspace_xy, cfg.workspace_height
+        if cfg.workspace_edge == "stop_xy":  # the height range is not limited: it ends
+            h_lo, h_hi = -math.inf, math.inf
         self._edge_lo = np.array([-xy, -xy, h_lo])  # mm: TCP x, y and height above z_t
         self._edge_hi = np.array([xy, xy, h_hi])
         self.action_type = make_action_type(cfg)
@@ -463,7 +466,8 @@ class BrushEnv(gym.Env):
         the control step (``frame_skip`` engine steps at constant v) ends inside the workspace box
         (|x|, |y| <= workspace_xy, height in workspace_height): a component towards an edge
         slows to reach it exactly, as a robot controller's Cartesian limits stop the tool, and
-        the episode goes on.  The TCP's path is a straight line, so its end bounds the step."""
+        the episode goes on.  The TCP's path is a straight line, so its end bounds the step.
+        ``"stop_xy"``: x and y only (the height bounds are infinite here)."""
         cfg = self.config
         p = self._to_obs(self._p)
         p[2] -= self.touch_height
@@ -478,8 +482,11 @@ class BrushEnv(gym.Env):
         p = self._to_obs(self._p)
         h = p[2] - self.touch_height
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -self._R[2, 2]))))
-        if self._stop_at_edge:  # the step was limited to end inside: only the tilt can end it
-            return tilt <= cfg.max_tilt_deg
+        if self._stop_at_edge:  # the step was limited to end inside x, y (and the height)
+            ok = tilt <= cfg.max_tilt_deg
+            if cfg.workspace_edge == "stop_xy":
+                ok = ok and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]
+            return ok
         return (
             abs(p[0]) <= cfg.workspace_xy
             and abs(p[1]) <= cfg.workspace_xy

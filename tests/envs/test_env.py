@@ -298,6 +298,25 @@ def test_stop_at_the_workspace_edge_holds_the_tcp_there(make_env, axis, sign):
     assert info["tcp_position"][axis] == pytest.approx(edge - sign * step, abs=1e-9)
 
 
+def test_stop_xy_stops_the_tcp_in_x_and_y_and_ends_below_the_floor(make_env):
+    """``workspace_edge = "stop_xy"``: x and y held on their edge, the height range still ends
+    the episode (the floor is not a press depth the controller holds)."""
+    env = make_env(workspace_edge="stop_xy", workspace_xy=6.0, max_episode_steps=1000)
+    cfg = env.unwrapped.config
+    env.reset(seed=0, options=NO_CONTACT)
+    for _ in range(20):  # 20 steps of 2 mm (50 mm/s, 0.04 s) along +x: held at 6 mm
+        *_, term, _, info = env.step(np.array([1, 0, 0, 0, 0, 0], np.float32))
+        assert not term, info["termination"]
+    assert info["tcp_position"][0] == pytest.approx(cfg.workspace_xy, abs=1e-9)
+    for _ in range(100):  # down at 20 mm/s: past the floor (5 mm below touching) within 1 s
+        *_, term, _, info = env.step(np.array([0, 0, -1, 0, 0, 0], np.float32))
+        if term:
+            break
+    assert term and info["termination"] == "workspace"
+    h = info["tcp_position"][2] - env.unwrapped.touch_height
+    assert h < cfg.workspace_height[0]
+
+
 def test_stop_at_the_workspace_edge_still_ends_on_tilt(make_env):
     env = make_env(workspace_edge="stop", max_tilt_deg=5.0)
     env.reset(seed=0, options=NO_CONTACT)
