@@ -248,6 +248,9 @@ class BrushEnv(gym.Env):
         rest = self.sim.rest_tips()
         self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
         self._stop_at_edge = cfg.workspace_edge != "end"
+        # which bounds end the episode (the others the TCP is stopped at)
+        self._xy_ends = cfg.workspace_edge == "end"
+        self._height_ends = cfg.workspace_edge != "stop"
         xy, (h_lo, h_hi) = cfg.workspace_xy, cfg.workspace_height
         if cfg.workspace_edge == "stop_xy":  # the height range is not limited: it ends
             h_lo, h_hi = -math.inf, math.inf
@@ -482,15 +485,9 @@ class BrushEnv(gym.Env):
         p = self._to_obs(self._p)
         h = p[2] - self.touch_height
         tilt = math.degrees(math.acos(min(1.0, max(-1.0, -self._R[2, 2]))))
-        if self._stop_at_edge:  # the step was limited to end inside x, y (and the height)
-            ok = tilt <= cfg.max_tilt_deg
-            if cfg.workspace_edge == "stop_xy":
-                ok = ok and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]
-            return ok
         return (
-            abs(p[0]) <= cfg.workspace_xy
-            and abs(p[1]) <= cfg.workspace_xy
-            and cfg.workspace_height[0] <= h <= cfg.workspace_height[1]
+            (not self._xy_ends or (abs(p[0]) <= cfg.workspace_xy and abs(p[1]) <= cfg.workspace_xy))
+            and (not self._height_ends or cfg.workspace_height[0] <= h <= cfg.workspace_height[1])
             and tilt <= cfg.max_tilt_deg
         )
 
