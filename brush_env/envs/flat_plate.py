@@ -247,13 +247,11 @@ class BrushEnv(gym.Env):
         # touch height: lowest tip sphere of the straight brush at the start orientation R_START
         rest = self.sim.rest_tips()
         self.touch_height = float(np.max(rest[:, 2] + model.tip_radius))
-        self._stop_at_edge = cfg.workspace_edge != "end"
-        # which bounds end the episode (the others the TCP is stopped at)
+        # which bounds end the episode (workspace_edge); the TCP is stopped at the others
         self._xy_ends = cfg.workspace_edge == "end"
         self._height_ends = cfg.workspace_edge != "stop"
-        xy, (h_lo, h_hi) = cfg.workspace_xy, cfg.workspace_height
-        if cfg.workspace_edge == "stop_xy":  # the height range is not limited: it ends
-            h_lo, h_hi = -math.inf, math.inf
+        xy = cfg.workspace_xy
+        h_lo, h_hi = (-math.inf, math.inf) if self._height_ends else cfg.workspace_height
         self._edge_lo = np.array([-xy, -xy, h_lo])  # mm: TCP x, y and height above z_t
         self._edge_hi = np.array([xy, xy, h_hi])
         self.action_type = make_action_type(cfg)
@@ -403,7 +401,7 @@ class BrushEnv(gym.Env):
             raise RuntimeError("the episode has terminated: call reset() before step()")
         a = self.action_type.check(action)
         self._v, self._w = self.action_type.twist(a)
-        if self._stop_at_edge:
+        if not self._xy_ends:  # workspace_edge "stop" / "stop_xy"
             self._v = self._limit_to_workspace(self._v)
         sim = self._simulate()
         self._steps += 1
@@ -470,7 +468,8 @@ class BrushEnv(gym.Env):
         (|x|, |y| <= workspace_xy, height in workspace_height): a component towards an edge
         slows to reach it exactly, as a robot controller's Cartesian limits stop the tool, and
         the episode goes on.  The TCP's path is a straight line, so its end bounds the step.
-        ``"stop_xy"``: x and y only (the height bounds are infinite here)."""
+        ``"stop_xy"``: x and y only (the height bounds, which end the episode, are infinite
+        here)."""
         cfg = self.config
         p = self._to_obs(self._p)
         p[2] -= self.touch_height
