@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import brush_env  # noqa: F401  (registers the ids)
+from agents.campaign import load_campaign
 from agents.probe_reward import make_probe
 from agents.reference import ReferencePolicy
 
@@ -118,9 +119,16 @@ def test_running_into_the_edge_that_stops_scores_below_the_reference(reference_f
 
 
 def test_the_reference_never_meets_the_edge(reference_fast):
-    """The reference circle stays far inside the workspace: with ``workspace_edge = "stop"`` its
-    episode is the same bit for bit (so its rows do not depend on the setting)."""
-    env = gym.make(ENV_ID, max_episode_steps=QUICK_STEPS, workspace_edge="stop")
+    """The reference circle stays inside the campaign's workspace (its floor 0.5 mm below the
+    reference's press): with ``workspace_edge = "stop"`` there its episode is the same bit for
+    bit (so its rows do not depend on the setting)."""
+    ws = load_campaign("configs/agents/campaign.toml")["env_kwargs"]
+    env = gym.make(
+        ENV_ID,
+        max_episode_steps=QUICK_STEPS,
+        workspace_edge=ws["workspace_edge"],
+        workspace_height=tuple(ws["workspace_height"]),
+    )
     try:
         r = episode(env, ReferencePolicy.for_env(env), 0, HIGH_PLATE)
     finally:
