@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .advance import advance_bristle, scheme_coefficients
+from .advance import OK, advance_bristle, scheme_coefficients
 from .coupling import PLACE_OVERLAP, place_partners, store_tip_load
 from .predict import save_chain
 from .records import Bristle
@@ -78,6 +78,16 @@ def _max_partner_move(nb, con, used):
     for b in range(nb):
         m = max(m, _partner_move(b, con, used))
     return m
+
+
+@njit(**HOT, inline="always")
+def _any_failed(status, nb):
+    """True if some bristle's last solve failed (``advance.NEWTON_FAILED``: restored to its
+    start)."""
+    for b in range(nb):
+        if status[b] != OK:
+            return True
+    return False
 
 
 @njit(**HOT, inline="always")
@@ -251,7 +261,8 @@ def start_sweeps(model, chain, drive, prm, con, ws, out):
 def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     """After the first sweep: while touching partners moved by more than prm.tttol since a
     bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN);
-    out of sweeps far from settled: the plain sweep (SWEEP_PLAIN).  Sets sw.count."""
+    out of sweeps far from settled, or a bristle failed against led or placed partners: the
+    plain sweep (SWEEP_PLAIN).  Sets sw.count."""
     nb = model.bstart.shape[0] - 1
     sw = ws.sw
     sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
@@ -260,6 +271,13 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     c0 = scheme_coefficients(prm, True)[0]
     c0_inv_h = 0.0 if prm.static else c0 / prm.h
     for sweep in range(1, sweeps + 1):
+        if sweeps > 1 and _any_failed(out.status, nb):
+            # a bristle's Newton failed on its smallest sub-step against led or placed partners
+            # (tips packed under a brush bent over, docs/model.md): the plain sweep instead, whose
+            # partners sit at their start; a bristle failing there fails the step
+            sw.count[2] = 2
+            sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+            break
         moved = _max_partner_move(nb, con, sw.used)
         if moved <= prm.tttol:
             break
