@@ -25,6 +25,11 @@ SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at t
 #: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
 #: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
 FALLBACK_MOVE = 1e-4
+#: a step whose sweeps have run more Newton iterations than this many times the first sweep's
+#: falls back to the plain sweep: never reached on the paper turn (its re-solves cost a fraction
+#: of a sweep), reached early where packed tips make every re-solve sub-step (the deep-slide
+#: reproducer's hardest env step: 1.7 s of CPU instead of 67 s; docs/benchmarks.md)
+ITER_BUDGET = 10
 #: halvings of a tip's lead before it is held at its start (``lead_partners``)
 LEAD_HALVINGS = 6
 #: the longest lead, in tip radii: the penalty law's range (eq 6 is fitted to 10 % of the radius);
@@ -78,6 +83,15 @@ def _max_partner_move(nb, con, used):
     for b in range(nb):
         m = max(m, _partner_move(b, con, used))
     return m
+
+
+@njit(**HOT, inline="always")
+def _iterations(out, nb):
+    """Newton iterations of the step so far, all bristles and sweeps."""
+    n = 0
+    for b in range(nb):
+        n += out.iters[b]
+    return n
 
 
 @njit(**HOT, inline="always")
@@ -270,11 +284,13 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     # (it only steers the placement of partners; each bristle's own step uses its own c0)
     c0 = scheme_coefficients(prm, True)[0]
     c0_inv_h = 0.0 if prm.static else c0 / prm.h
+    budget = ITER_BUDGET * max(_iterations(out, nb), nb)  # after the first sweep
     for sweep in range(1, sweeps + 1):
-        if sweeps > 1 and _any_failed(out.status, nb):
-            # a bristle's Newton failed on its smallest sub-step against led or placed partners
-            # (tips packed under a brush bent over, docs/model.md): the plain sweep instead, whose
-            # partners sit at their start; a bristle failing there fails the step
+        if sweeps > 1 and (_any_failed(out.status, nb) or _iterations(out, nb) > budget):
+            # a bristle's Newton failed on its smallest sub-step against led or placed partners,
+            # or the re-solves cost more than ITER_BUDGET first sweeps (tips packed under a brush
+            # bent over, docs/model.md): the plain sweep instead, whose partners sit at their
+            # start; a bristle failing there fails the step
             sw.count[2] = 2
             sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
             break

@@ -7,8 +7,8 @@ policy's 30 actions of episode 1018 are kept (``tests/data/balanced_deep_slide_a
 replayed, the episode is the same bit for bit (the env is deterministic), so the failure stays
 reproducible after the policy is gone.  The same actions run to the end with the solver step at
 0.25 ms, at 1 ms without tip-tip contact, or with one plain sweep: the coupled tip-tip solve at
-1 ms failed, and now falls back to the plain sweep when a bristle fails (docs/model.md, "Coupled
-tip-tip solve", item 4)."""
+1 ms failed, and now falls back to the plain sweep when a bristle fails or the re-solves run
+over their budget (docs/model.md, "Coupled tip-tip solve", item 4)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ import brush_env  # noqa: F401  (registers the ids)
 ACTIONS = Path(__file__).parents[1] / "data" / "balanced_deep_slide_actions_1018.npy"
 
 
-@pytest.mark.slow  # 30 control steps of the default brush at `balanced` (~90 s: the last one ~70)
+@pytest.mark.slow  # 30 control steps of the default brush at `balanced` (~20 s)
 def test_balanced_slides_on_the_workspace_floor_without_diverging():
     env = gym.make(
         "brush_env/FlatPlate-v0", fidelity="balanced", action_mode="3d", workspace_edge="stop"
