@@ -666,20 +666,23 @@ def learning_curves(c: dict, path: Path) -> None:
 def best_run(c: dict, results: dict) -> tuple[str, int]:
     """(entry name, seed) to ship: the evaluated [[train]] entry with the highest mean coverage
     over its seeds at the most accurate evaluated level (the last of ``[evaluate] levels``), then
-    its seed with the highest coverage there."""
+    its seed with the highest coverage there among those that never spent time above the force
+    limit (the task's rule: a model shipped as the env's trained policy keeps it), or the highest
+    coverage if every seed did."""
     level, n = list(c["evaluate"]["levels"].items())[-1]
     root = Path(c["out"]) / "eval" / level
     best = None
     for t in c["train"]:
-        covs = {}
+        covs, within = {}, {}
         for s in t["seeds"] if t["evaluate"] else ():
             run = _run(c, t, s)
             done = _summary(root / f"{t['name']}_seed_{s}", str(policy_of(c, run)), n)
             if done is not None:
                 covs[s] = done["mean"]["coverage"]
+                within[s] = done["mean"]["time_above_force_limit"] == 0.0
         if covs:
             mean = float(np.mean(list(covs.values())))
-            seed = max(covs, key=lambda k: covs[k])
+            seed = max(covs, key=lambda k: (within[k], covs[k]))
             if best is None or mean > best[0]:
                 best = (mean, t["name"], seed)
     if best is None:
