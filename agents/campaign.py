@@ -83,7 +83,7 @@ BASELINES = ("reference", "random")
 #: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
 METRICS = {
     "coverage": ("coverage [%]", 100.0, "{:.1f}"),
-    "time_above_force_limit": ("time above limit [s]", 1.0, "{:.2f}"),
+    "time_above_force_limit": ("time above limit [s]", 1.0, "{:.4f}"),  # one engine step: 0.001
     "peak_normal_force": ("peak force [N]", 1.0, "{:.2f}"),
     "mean_normal_force": ("mean force [N]", 1.0, "{:.2f}"),
     "peak_tip_force": ("peak tip force [N]", 1.0, "{:.3f}"),
@@ -744,7 +744,8 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
         f"## `{name}.zip`",
         "",
         f"{algo.upper()} seed {seed} of the campaign's entry `{entry}` (the evaluated entry with "
-        f"the best mean coverage at `{list(c['evaluate']['levels'])[-1]}`, then its best seed), "
+        f"the best mean coverage at `{list(c['evaluate']['levels'])[-1]}`, then its best "
+        "covering seed of those that kept the force limit there), "
         f"trained with the code of commit `{meta.get('commit', 'unknown')}`; {which}.",
         f"Trained {meta['timesteps']} env steps on {c['env_id']} with "
         f"{json.dumps(meta['env_kwargs'])} (the training envs' own "
