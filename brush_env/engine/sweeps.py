@@ -284,7 +284,8 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     # (it only steers the placement of partners; each bristle's own step uses its own c0)
     c0 = scheme_coefficients(prm, True)[0]
     c0_inv_h = 0.0 if prm.static else c0 / prm.h
-    budget = ITER_BUDGET * max(_iterations(out, nb), nb)  # after the first sweep
+    # after the first sweep; only a coupled step has a budget (one sweep never falls back)
+    budget = ITER_BUDGET * max(_iterations(out, nb), nb) if sweeps > 1 else 0
     for sweep in range(1, sweeps + 1):
         if sweeps > 1 and (_any_failed(out.status, nb) or _iterations(out, nb) > budget):
             # a bristle's Newton failed on its smallest sub-step against led or placed partners,
