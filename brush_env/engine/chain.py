@@ -316,7 +316,9 @@ class DFMChain(BristleModel):
         drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
         con = self._contact()
         if self.shaft_contact_on:  # which bristles' capsules can reach a surface this step
-            shf.broad_phase(self.model.bstart, chain, drive, con, prm.h, self._g23)
+            shf.broad_phase(
+                self.model.bstart, self.model.root_p, chain, drive, con, prm.h, self._g23
+            )
         itg.step_bristles(self._kmodel, chain, drive, prm, con, st.jac, self._ws, self._out)
 
     def _accept_or_rollback(self, snapshot, prm, t_new) -> None:

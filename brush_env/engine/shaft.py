@@ -20,8 +20,9 @@ at the material point of the deepest contact against the resultant of the body's
 Everything is in the residual of eq 11 (``residual.bristle_residual`` calls ``shaft_load``) and
 its Newton matrix (each body's 6x6 block, ``tipblock.add_point_block``), and the Newton step cap
 keeps a shaft contact from being thrown deep into a surface (``shaft_step_limit``).  The broad
-phase (``broad_phase``, once per solver step) marks the bristles whose capsules can reach a
-surface within the step; the others cost one flag test per body.
+phase (``broad_phase``, once per solver step) marks the bodies that can reach a surface within
+the step: those of a bristle one of whose capsules can, and within it only the bodies whose arc
+length from the root spans the root's clearance; the others cost one flag test each.
 """
 
 from __future__ import annotations
@@ -40,6 +41,9 @@ SAMPLES = 5  # points along a body's axis against a curved surface (a plane: its
 BAND = 0.1  # [mm] a sample within r + BAND of a surface places the contact sphere
 SHARP = 8.0  # exponent of the samples' weights (larger: closer to the exact deepest point)
 MARGIN = 0.5  # [mm] broad phase: clearance kept beyond the largest travel of the step
+#: broad phase: a capsule point lies at most this factor times its arc length from the root (the
+#: chain's axial and shear strains are ~1e-4 under the brushing loads; 5 % is far beyond them)
+REACH_STRETCH = 1.05
 NOT_EVALUATED = -1e30  # SHAFT.pen of a body not evaluated
 
 
@@ -320,63 +324,103 @@ def commit_shaft(br, con):
 
 
 @njit(**HOT)
-def broad_phase(bstart, chain, drive, con, h, g):
-    """SHAFT.near <- 1 for every body of a bristle one of whose capsules can come within the
-    contact band of a surface during the solver step of length h [s], else 0.
+def broad_phase(bstart, root_p, chain, drive, con, h, g):
+    """SHAFT.near <- 1 for every body that can come within the contact band of a surface during
+    the solver step of length h [s], else 0.  Both tests pass a body on:
 
-    A body's centre moves at most by the TCP's motion carried to it (rigid: translation plus
-    rotation about the TCP over the step, drive rows 1 -> 2) plus 2 h (|v| + |omega| span) of its
-    own, plus MARGIN; its capsule reaches no further than span + radius from the centre, and the
-    surfaces' gaps are 1-Lipschitz.  g: (3, 3) scratch."""
-    shaft = con.shaft
-    if shaft.shape[0] == 0:
+    * **its bristle can reach** (``_bristle_near``): one of the bristle's capsules can come
+      within the band by the step's motion;
+    * **the body can reach** (``_mark_by_root``): its arc length along the chain from the
+      bristle's root (root_p [mm], TCP frame) spans the root's clearance.  A pressed bristle's
+      tip body passes, its upper bodies do not (the first test alone passed all six, each then
+      checked in every residual evaluation; docs/benchmarks.md).
+
+    g: (3, 3) scratch."""
+    if con.shaft.shape[0] == 0:
         return
+    for b in range(bstart.shape[0] - 1):
+        if _bristle_near(bstart[b], bstart[b + 1], chain, drive, con, h, g):
+            _mark_by_root(b, bstart[b], bstart[b + 1], root_p, drive, con, g)
+        else:
+            for i in range(bstart[b], bstart[b + 1]):
+                con.shaft[i].near = 0
+
+
+@njit(**HOT, inline="always")
+def _bristle_near(i0, i1, chain, drive, con, h, g):
+    """Can one of the capsules of bodies i0 .. i1-1 come within the contact band of a surface
+    during the step?  A body's centre moves at most by the TCP's motion carried to it (rigid:
+    translation plus rotation about the TCP over the step, drive rows 1 -> 2) plus
+    2 h (|v| + |omega| span) of its own, plus MARGIN; its capsule reaches no further than span
+    + radius from the centre, and the surfaces' gaps are 1-Lipschitz."""
+    shaft = con.shaft
     surf = con.surf
     pos = chain.pos
     p1 = drive.tcp_p[1]
     p2 = drive.tcp_p[2]
     R1 = drive.tcp_R[1]
     R2 = drive.tcp_R[2]
-    for b in range(bstart.shape[0] - 1):
-        near = 0
-        for i in range(bstart[b], bstart[b + 1]):
-            rec = shaft[i]
-            if rec.hi <= rec.lo:
-                continue
-            span = max(abs(rec.lo), abs(rec.hi))
-            # the rigid carry of the centre: p2 + R2 R1^T (c - p1) - c
-            mv = 0.0
-            for a in range(3):
-                x = 0.0
-                for q in range(3):
-                    y = 0.0
-                    for w in range(3):
-                        y += R1[w, q] * (pos[i, w] - p1[w])
-                    x += R2[a, q] * y
-                d = p2[a] + x - pos[i, a]
-                mv += d * d
-            vv = 0.0
-            ww = 0.0
-            for a in range(3):
-                vv += chain.vel[i, a] ** 2
-                ww += chain.omg[i, a] ** 2
-            travel = np.sqrt(mv) + 2.0 * h * (np.sqrt(vv) + np.sqrt(ww) * span) + MARGIN
-            # SAMPLES points on the axis, each within half their spacing of every axis point
-            # (a baked grid is FAR outside its box: a point there tells nothing)
-            reach = 0.5 * (rec.hi - rec.lo) / (SAMPLES - 1) + rec.radius + BAND + travel
-            for j in range(SAMPLES):
-                u = rec.lo + (rec.hi - rec.lo) * j / (SAMPLES - 1)
-                _axis_point(pos[i], chain.rot[i], u, g[2])
-                for s in range(surf.shape[0]):
-                    if surface_gap(surf, s, g[2], g[0], g[1], con.mesh, con.sdf) < reach:
-                        near = 1
-                        break
-                if near:
-                    break
-            if near:
-                break
-        for i in range(bstart[b], bstart[b + 1]):
-            shaft[i].near = near
+    for i in range(i0, i1):
+        rec = shaft[i]
+        if rec.hi <= rec.lo:
+            continue
+        span = max(abs(rec.lo), abs(rec.hi))
+        # the rigid carry of the centre: p2 + R2 R1^T (c - p1) - c
+        mv = 0.0
+        for a in range(3):
+            x = 0.0
+            for q in range(3):
+                y = 0.0
+                for w in range(3):
+                    y += R1[w, q] * (pos[i, w] - p1[w])
+                x += R2[a, q] * y
+            d = p2[a] + x - pos[i, a]
+            mv += d * d
+        vv = 0.0
+        ww = 0.0
+        for a in range(3):
+            vv += chain.vel[i, a] ** 2
+            ww += chain.omg[i, a] ** 2
+        travel = np.sqrt(mv) + 2.0 * h * (np.sqrt(vv) + np.sqrt(ww) * span) + MARGIN
+        # SAMPLES points on the axis, each within half their spacing of every axis point
+        # (a baked grid is FAR outside its box: a point there tells nothing)
+        reach = 0.5 * (rec.hi - rec.lo) / (SAMPLES - 1) + rec.radius + BAND + travel
+        for j in range(SAMPLES):
+            u = rec.lo + (rec.hi - rec.lo) * j / (SAMPLES - 1)
+            _axis_point(pos[i], chain.rot[i], u, g[2])
+            for s in range(surf.shape[0]):
+                if surface_gap(surf, s, g[2], g[0], g[1], con.mesh, con.sdf) < reach:
+                    return True
+    return False
+
+
+@njit(**HOT, inline="always")
+def _mark_by_root(b, i0, i1, root_p, drive, con, g):
+    """SHAFT.near of bristle b's bodies i0 .. i1-1: 0 where the body cannot touch a surface at
+    the step's end whatever the bristle does.  A capsule point lies at most REACH_STRETCH times
+    its arc length along the chain from the root (at the TCP's end-of-step pose), and the
+    surfaces' gaps are 1-Lipschitz: a body whose farthest capsule point is closer to the root,
+    plus radius, band and MARGIN, than the root's clearance cannot reach a surface (unknown
+    outside a baked grid's box: passed on)."""
+    shaft = con.shaft
+    p2 = drive.tcp_p[2]
+    R2 = drive.tcp_R[2]
+    for a in range(3):
+        g[2, a] = (
+            p2[a] + R2[a, 0] * root_p[b, 0] + R2[a, 1] * root_p[b, 1] + R2[a, 2] * root_p[b, 2]
+        )
+    groot = np.inf
+    for s in range(con.surf.shape[0]):
+        gs = surface_gap(con.surf, s, g[2], g[0], g[1], con.mesh, con.sdf)
+        groot = min(groot, gs)
+    known = groot < 0.5 * FAR
+    arc = 0.0  # [mm] along the chain from the root to the body's proximal node
+    for i in range(i0, i1):
+        rec = shaft[i]
+        half = -rec.lo  # the capsule starts at the proximal node, half a body from the centre
+        far = REACH_STRETCH * (arc + half + max(rec.hi, 0.0)) + rec.radius + BAND + MARGIN
+        rec.near = 0 if (known and groot > far) or rec.hi <= rec.lo else 1
+        arc += 2.0 * half
 
 
 @njit(**HOT)

@@ -117,3 +117,49 @@ def test_in_step_peaks_and_rearmed_warning():
         assert r.extra["max_tip_penetration"] >= r.tip_penetration.max() - 1e-15
         beyond = r.tip_penetration / sim.model.tip_radius > PENETRATION_WARN_FRACTION
         assert r.extra["steps_beyond_penalty_range"] >= int(beyond.any())
+
+
+def test_broad_phase_per_body_changes_no_force(monkeypatch):
+    """The broad phase (``shaft.broad_phase``) passes on only the bodies whose own capsule can
+    reach the plate within the step.  Deep enough that shafts carry load (the 6 mm press above),
+    every force is the same as with every body checked in every residual: a body it leaves out
+    could not have touched.  And it is per body: bodies of one bristle differ."""
+    from brush_env.engine import chain as chain_mod
+
+    marked = []
+
+    def press(all_near: bool):
+        sim = _sim()
+        original = chain_mod.shf.broad_phase
+
+        def hooked(*args):
+            original(*args)
+            con = args[4]  # (bstart, root_p, chain, drive, con, h, g)
+            near = con.shaft["near"].copy()
+            if all_near:
+                con.shaft["near"] = 1
+            else:
+                marked.append(near)
+
+        monkeypatch.setattr(chain_mod.shf, "broad_phase", hooked)
+        try:
+            return _press(sim, 6.0)[1], sim.model.bstart
+        finally:
+            monkeypatch.setattr(chain_mod.shf, "broad_phase", original)
+
+    res, bstart = press(False)
+    ref, _ = press(True)
+    shaft = np.array([r.extra["shaft_normal_force"].sum() for r in res])
+    assert shaft[-1] > 0.5  # the shafts carry load at the end
+    for a, b in zip(res, ref):
+        np.testing.assert_allclose(a.tcp_force, b.tcp_force, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(a.tip_normal_force, b.tip_normal_force, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            a.extra["shaft_normal_force"], b.extra["shaft_normal_force"], rtol=1e-9, atol=1e-12
+        )
+    # per body: some solver step has a bristle with one body passed on and another left out
+    mixed = [
+        np.any(np.maximum.reduceat(n, bstart[:-1]) != np.minimum.reduceat(n, bstart[:-1]))
+        for n in marked
+    ]
+    assert any(mixed)
