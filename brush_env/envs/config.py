@@ -248,6 +248,15 @@ class EnvConfig:
         hi=1e4,
         lo_open=True,
     )
+    force_guard: float = _f(
+        0.0,
+        "episode",
+        "N",
+        "total normal force at which the TCP is held for the rest of the control step, as a "
+        "robot's force limit stops the tool (the next action moves it again); 0: off",
+        lo=0.0,
+        hi=1e4,
+    )
     max_penetration: float = _f(
         0.2,
         "episode",

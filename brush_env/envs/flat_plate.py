@@ -97,7 +97,10 @@ of the control step -- the in-step peak ``info["max_tip_penetration_mm"]`` /
 (TCP z - z_t) or tilted more than ``max_tilt_deg``; with ``workspace_edge = "stop"`` the TCP
 velocity is instead limited, component by component, so each control step ends inside that box
 (the robot's Cartesian limits) and only the tilt ends the episode; with ``"stop_xy"`` only x and
-y are limited, and leaving the height range still ends it.  Stepping a terminated episode raises
+y are limited, and leaving the height range still ends it.  With ``force_guard`` > 0 (N, below
+``hard_force_limit``) the TCP is held still for the rest of a control step after the engine step
+at which the total normal force exceeds it, as a robot's force limit stops the tool, and the
+episode goes on (``info["force_guard"]``: it held).  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
 env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
@@ -141,6 +144,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | termination_penalty | 10.0 | - | one-off penalty on termination |
 | max_episode_steps | 300 | steps | time limit (gym.make's value wins) |
 | hard_force_limit | 15.0 | N | total normal force that terminates |
+| force_guard | 0.0 | N | total normal force that holds the TCP for the rest of the control step (0: off) |
 | max_penetration | 0.2 | mm | tip or shaft penetration at any solver step that terminates |
 | workspace_xy | 45.0 | mm | workspace half-width |
 | workspace_height | (-5.0, 15.0) | mm | TCP height range above touching |
@@ -425,10 +429,8 @@ class BrushEnv(gym.Env):
         exceeds ``max_penetration``.  Workspace is checked on the final pose."""
         cfg = self.config
         dte = cfg.engine_dt
-        ro = self.sim.rollout(
-            self._v, self._w, cfg.frame_skip, cfg.hard_force_limit, cfg.max_penetration
-        )
-        n, rec = ro.done, ro.record
+        ro, rec, guarded = self._rollout()
+        n = ro.done
         if n:
             self._p, self._R, self._last = rec.p[n - 1].copy(), rec.R[n - 1].copy(), ro.last
         lim = Limits(cfg.total_force_limit, cfg.tip_force_limit, cfg.gum_force_limit, dte)
@@ -453,7 +455,36 @@ class BrushEnv(gym.Env):
             pen_shaft=sums.pen_shaft,
             beyond=int(sums.beyond),
             head=sums.head,
+            force_guard=guarded,
         )
+
+    def _rollout(self):
+        """The control step's engine steps at the commanded twist; with ``force_guard`` set, the
+        TCP is held (zero twist) for the rest of the control step after the engine step at which
+        the total normal force exceeds it, as a robot's force limit stops the tool.  Returns the
+        last rollout (its ``done`` the steps of both), the record of every step and whether the
+        guard held the TCP."""
+        cfg = self.config
+        guard = cfg.force_guard if 0.0 < cfg.force_guard < cfg.hard_force_limit else math.inf
+        stop_at = min(guard, cfg.hard_force_limit)
+        ro = self.sim.rollout(self._v, self._w, cfg.frame_skip, stop_at, cfg.max_penetration)
+        if ro.stop != "force_limit" or not math.isfinite(guard):
+            return ro, ro.record, False
+        k = ro.done - 1
+        if ro.record.fn[k].sum() + ro.record.shaft_fn[k] > cfg.hard_force_limit:
+            return ro, ro.record, False  # the hard limit itself: the episode ends
+        ro.stop = None
+        left = cfg.frame_skip - ro.done
+        if left == 0:
+            return ro, ro.record, True
+        zero = np.zeros(3)
+        held = self.sim.rollout(zero, zero, left, cfg.hard_force_limit, cfg.max_penetration)
+        n1, n2 = ro.done, held.done
+        rec = type(ro.record)(
+            *[np.concatenate([a[:n1], b[:n2]]) for a, b in zip(ro.record, held.record)]
+        )
+        held.done = n1 + n2
+        return held, rec, True
 
     @staticmethod
     def _normal_force(out) -> float:
@@ -551,6 +582,8 @@ class BrushEnv(gym.Env):
             "max_shaft_penetration_mm": sim["pen_shaft"],
             "steps_beyond_penalty_range": sim["beyond"],
             "head_clearance_mm": sim["head"],
+            # the TCP was held for the rest of the control step (force_guard)
+            "force_guard": sim["force_guard"],
         }
 
     # ------------------------------------------------------------------ rendering

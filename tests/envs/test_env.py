@@ -486,3 +486,55 @@ def test_hard_force_limit_stops_the_compiled_rollout_at_the_step_that_crosses_it
     total = ro.record.fn[: ro.done].sum(axis=1)
     assert ro.done == done and np.all(total[:-1] <= 0.3) and total[-1] > 0.3
     assert info["peak_normal_force"] == pytest.approx(total[-1], rel=1e-12)
+
+
+def test_force_guard_holds_the_tcp_after_the_step_that_crosses_it(make_env):
+    """``force_guard``: pressing down, the control step goes on after the first engine step whose
+    total normal force exceeds the guard with the TCP held where that step left it (a robot's
+    force limit stopping the tool), and the episode goes on.  The same engine steps replayed from
+    the saved state, moving until that step and standing still after it, give the same forces."""
+    env = make_env(force_guard=0.3)
+    u = env.unwrapped
+    env.reset(seed=0)
+    down = np.array([0, 0, -1, 0, 0, 0], np.float32)  # 20 mm/s down (max_linear_speed[2])
+    for _ in range(20):
+        state, p0 = u.sim.get_state(), u._p.copy()
+        _, _, term, _, info = env.step(down)
+        assert not term
+        if info["force_guard"]:
+            break
+    assert info["force_guard"]
+    n = u.config.frame_skip
+    assert u.sim.state.steps - state.steps == n  # the whole control step ran
+    dz = p0[2] - u._p[2]
+    moved = int(round(dz / (20.0 * u.config.engine_dt)))  # engine steps the TCP moved
+    assert 1 <= moved < n and dz == pytest.approx(moved * 20.0 * u.config.engine_dt, rel=1e-9)
+    u.sim.set_state(state)
+    ro = u.sim.rollout(np.array([0.0, 0.0, -20.0]), np.zeros(3), moved)
+    total = ro.record.fn[:moved].sum(axis=1)
+    assert np.all(total[:-1] <= 0.3) and total[-1] > 0.3  # it crossed at the last moving step
+    held = u.sim.rollout(np.zeros(3), np.zeros(3), n - moved)
+    replay = np.concatenate([total, held.record.fn[: n - moved].sum(axis=1)])
+    assert info["peak_normal_force"] == pytest.approx(replay.max(), rel=1e-12)
+    # the next action moves it again: up, by a full control step
+    p1 = u._p.copy()
+    _, _, _, _, info = env.step(-down)
+    assert u._p[2] - p1[2] == pytest.approx(20.0 * u.config.engine_dt * n, rel=1e-9)
+
+
+def test_force_guard_changes_nothing_below_it(make_env):
+    """An episode whose force never reaches the guard is the same bit for bit with it."""
+    out = []
+    for guard in (0.0, 50.0 - 1e-9, 14.0):
+        env = make_env(force_guard=guard, hard_force_limit=50.0)
+        env.reset(seed=3)
+        rows = []
+        for a in _actions(30, seed=3, z_bias=-0.3):
+            obs, r, term, _, info = env.step(a)
+            rows.append(np.concatenate([obs, [r, info["peak_normal_force"]]]))
+            assert not info["force_guard"]
+            if term:
+                break
+        out.append(np.array(rows))
+    assert out[0].shape == out[1].shape == out[2].shape
+    assert np.array_equal(out[0], out[1]) and np.array_equal(out[0], out[2])
