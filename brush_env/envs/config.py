@@ -252,8 +252,8 @@ class EnvConfig:
         0.0,
         "episode",
         "N",
-        "total normal force at which the TCP is held for the rest of the control step, as a "
-        "robot's force limit stops the tool (the next action moves it again); 0: off",
+        "total normal force after which the TCP backs off (up at max_linear_speed[2]) for the "
+        "rest of the control step, as a force-limited robot retracts the tool; 0: off",
         lo=0.0,
         hi=1e4,
     )

@@ -98,9 +98,9 @@ of the control step -- the in-step peak ``info["max_tip_penetration_mm"]`` /
 velocity is instead limited, component by component, so each control step ends inside that box
 (the robot's Cartesian limits) and only the tilt ends the episode; with ``"stop_xy"`` only x and
 y are limited, and leaving the height range still ends it.  With ``force_guard`` > 0 (N, below
-``hard_force_limit``) the TCP is held still for the rest of a control step after the engine step
-at which the total normal force exceeds it, as a robot's force limit stops the tool, and the
-episode goes on (``info["force_guard"]``: it held).  Stepping a terminated episode raises
+``hard_force_limit``) the TCP backs off (up at ``max_linear_speed[2]``) for the rest of a control
+step after the engine step at which the total normal force exceeds it, as a force-limited robot
+retracts the tool, and the episode goes on (``info["force_guard"]``: it acted).  Stepping a terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
 env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
@@ -144,7 +144,7 @@ a keyword override.  Ranges: ``brush_env.envs.config.arguments_table()`` / ``doc
 | termination_penalty | 10.0 | - | one-off penalty on termination |
 | max_episode_steps | 300 | steps | time limit (gym.make's value wins) |
 | hard_force_limit | 15.0 | N | total normal force that terminates |
-| force_guard | 0.0 | N | total normal force that holds the TCP for the rest of the control step (0: off) |
+| force_guard | 0.0 | N | total normal force after which the TCP backs off for the rest of the control step (0: off) |
 | max_penetration | 0.2 | mm | tip or shaft penetration at any solver step that terminates |
 | workspace_xy | 45.0 | mm | workspace half-width |
 | workspace_height | (-5.0, 15.0) | mm | TCP height range above touching |
@@ -460,10 +460,11 @@ class BrushEnv(gym.Env):
 
     def _rollout(self):
         """The control step's engine steps at the commanded twist; with ``force_guard`` set, the
-        TCP is held (zero twist) for the rest of the control step after the engine step at which
-        the total normal force exceeds it, as a robot's force limit stops the tool.  Returns the
-        last rollout (its ``done`` the steps of both), the record of every step and whether the
-        guard held the TCP."""
+        TCP backs off (base +z at ``max_linear_speed[2]``, no rotation) for the rest of the
+        control step after the engine step at which the total normal force exceeds it, as a
+        force-limited robot retracts the tool.  Held still instead, a pressed brush stayed on its
+        buckled plateau above the limit (docs/rl.md).  Returns the last rollout (its ``done`` the
+        steps of both), the record of every step and whether the guard acted."""
         cfg = self.config
         guard = cfg.force_guard if 0.0 < cfg.force_guard < cfg.hard_force_limit else math.inf
         stop_at = min(guard, cfg.hard_force_limit)
@@ -477,8 +478,8 @@ class BrushEnv(gym.Env):
         left = cfg.frame_skip - ro.done
         if left == 0:
             return ro, ro.record, True
-        zero = np.zeros(3)
-        held = self.sim.rollout(zero, zero, left, cfg.hard_force_limit, cfg.max_penetration)
+        up = np.array([0.0, 0.0, cfg.max_linear_speed[2]])  # away from the plate
+        held = self.sim.rollout(up, np.zeros(3), left, cfg.hard_force_limit, cfg.max_penetration)
         n1, n2 = ro.done, held.done
         rec = type(ro.record)(
             *[np.concatenate([a[:n1], b[:n2]]) for a, b in zip(ro.record, held.record)]
@@ -582,7 +583,7 @@ class BrushEnv(gym.Env):
             "max_shaft_penetration_mm": sim["pen_shaft"],
             "steps_beyond_penalty_range": sim["beyond"],
             "head_clearance_mm": sim["head"],
-            # the TCP was held for the rest of the control step (force_guard)
+            # the TCP backed off for the rest of the control step (force_guard)
             "force_guard": sim["force_guard"],
         }
 

@@ -488,11 +488,12 @@ def test_hard_force_limit_stops_the_compiled_rollout_at_the_step_that_crosses_it
     assert info["peak_normal_force"] == pytest.approx(total[-1], rel=1e-12)
 
 
-def test_force_guard_holds_the_tcp_after_the_step_that_crosses_it(make_env):
+def test_force_guard_backs_off_after_the_step_that_crosses_it(make_env):
     """``force_guard``: pressing down, the control step goes on after the first engine step whose
-    total normal force exceeds the guard with the TCP held where that step left it (a robot's
-    force limit stopping the tool), and the episode goes on.  The same engine steps replayed from
-    the saved state, moving until that step and standing still after it, give the same forces."""
+    total normal force exceeds the guard with the TCP backing off (up at max_linear_speed[2], a
+    force-limited robot retracting the tool), and the episode goes on.  The same engine steps
+    replayed from the saved state, moving down until that step and up after it, give the same
+    forces, and every step before it is at or below the guard."""
     env = make_env(force_guard=0.3)
     u = env.unwrapped
     env.reset(seed=0)
@@ -504,22 +505,24 @@ def test_force_guard_holds_the_tcp_after_the_step_that_crosses_it(make_env):
         if info["force_guard"]:
             break
     assert info["force_guard"]
-    n = u.config.frame_skip
+    n, step = u.config.frame_skip, 20.0 * u.config.engine_dt  # [mm] per engine step
     assert u.sim.state.steps - state.steps == n  # the whole control step ran
-    dz = p0[2] - u._p[2]
-    moved = int(round(dz / (20.0 * u.config.engine_dt)))  # engine steps the TCP moved
-    assert 1 <= moved < n and dz == pytest.approx(moved * 20.0 * u.config.engine_dt, rel=1e-9)
+    # down for `moved` engine steps, up for the rest: p0 - (moved - (n - moved)) step
+    moved = int(round(((p0[2] - u._p[2]) / step + n) / 2))
+    assert 1 <= moved < n
+    assert p0[2] - u._p[2] == pytest.approx((2 * moved - n) * step, abs=1e-9)
     u.sim.set_state(state)
     ro = u.sim.rollout(np.array([0.0, 0.0, -20.0]), np.zeros(3), moved)
     total = ro.record.fn[:moved].sum(axis=1)
-    assert np.all(total[:-1] <= 0.3) and total[-1] > 0.3  # it crossed at the last moving step
-    held = u.sim.rollout(np.zeros(3), np.zeros(3), n - moved)
-    replay = np.concatenate([total, held.record.fn[: n - moved].sum(axis=1)])
+    assert np.all(total[:-1] <= 0.3) and total[-1] > 0.3  # it crossed at the last step down
+    back = u.sim.rollout(np.array([0.0, 0.0, 20.0]), np.zeros(3), n - moved)
+    replay = np.concatenate([total, back.record.fn[: n - moved].sum(axis=1)])
     assert info["peak_normal_force"] == pytest.approx(replay.max(), rel=1e-12)
-    # the next action moves it again: up, by a full control step
+    # the next action moves it as commanded again: up, by a full control step
     p1 = u._p.copy()
     _, _, _, _, info = env.step(-down)
-    assert u._p[2] - p1[2] == pytest.approx(20.0 * u.config.engine_dt * n, rel=1e-9)
+    assert not info["force_guard"]
+    assert u._p[2] - p1[2] == pytest.approx(step * n, rel=1e-9)
 
 
 def test_force_guard_changes_nothing_below_it(make_env):
