@@ -26,6 +26,8 @@ Stages (each prints its wall time; the whole run prints its total):
    (``OUT/eval/<level>/<name>/parts/seed_<first>/``), ``jobs`` at a time, joined into the
    evaluation's ``summary.json`` (``agents.evaluate.join_summaries``: the episodes are the single
    run's, each resets with its own seed and the policies act deterministically).
+   ``[evaluate] env_kwargs``: gym.make keywords of the evaluations alone, on top of
+   ``[env_kwargs]`` (neither the training's nor the selection's), e.g. the robot's force guard.
 4. **report** -- ``OUT/results.md`` and ``OUT/results.json``: per level, each policy's coverage,
    time above the force limit, peak and mean total force, peak tip force and return; for trained
    policies the mean +- std over training seeds of each seed's episode mean, for the baselines the
@@ -78,7 +80,7 @@ TRAIN_KEYS = {
     "train_env_kwargs",
     "evaluate",
 }
-EVAL_KEYS = {"seed", "baselines", "levels", "chunk"}
+EVAL_KEYS = {"seed", "baselines", "levels", "chunk", "env_kwargs"}
 BASELINES = ("reference", "random")
 #: metrics of agents/evaluate.py's summary shown in the table: key -> (header, scale, format)
 METRICS = {
@@ -165,6 +167,14 @@ def _check_evaluate(path: Path, ev: dict) -> None:
     ev.setdefault("seed", 1000)
     ev.setdefault("baselines", list(BASELINES))
     _int(f"{path} [evaluate] seed", ev["seed"], 0)
+    ev.setdefault("env_kwargs", {})
+    if not isinstance(ev["env_kwargs"], dict):
+        raise ConfigError(f"{path} [evaluate] env_kwargs must be a table of gym.make keywords")
+    if "fidelity" in ev["env_kwargs"] or "config" in ev["env_kwargs"]:
+        raise ConfigError(
+            f"{path} [evaluate] env_kwargs: fidelity and config belong in [env_kwargs] (the "
+            "levels in [evaluate] levels)"
+        )
     if "chunk" in ev:
         _int(f"{path} [evaluate] chunk", ev["chunk"])
     for b in ev["baselines"]:
@@ -371,7 +381,9 @@ def select_stage(c: dict, jobs: int, dry: bool, entries: list[dict] | None = Non
             if (out / "summary.json").is_file():
                 continue
             spec = z if dry else _stage(d, z, vn, d / "select" / "models" / name)
-            cmd = _eval_cmd(c, sel["level"], str(spec), sel["episodes"], out, sel["seed"])
+            cmd = _eval_cmd(
+                c, sel["level"], str(spec), sel["episodes"], out, sel["seed"], own=False
+            )
             tasks.append((f"validate {algo} seed {seed} {name}", cmd, d / "select" / f"{name}.log"))
     failed = _launch(tasks, jobs, dry)
     if dry:
@@ -414,13 +426,16 @@ def _evals(c: dict) -> list[tuple[str, str, str, int]]:
 
 
 def _eval_cmd(
-    c: dict, level: str, spec: str, n: int, out: Path, seed: int | None = None
+    c: dict, level: str, spec: str, n: int, out: Path, seed: int | None = None, own: bool = True
 ) -> list[str]:
+    """agents/evaluate.py's command; ``own``: with ``[evaluate] env_kwargs`` (the evaluations',
+    not the selection's)."""
     seed = c["evaluate"]["seed"] if seed is None else seed
+    extra = c["evaluate"]["env_kwargs"] if own else {}
     cmd = [sys.executable, "-W", "ignore", "-m", "agents.evaluate", "--policy", spec]
     cmd += ["--episodes", str(n), "--seed", str(seed), "--out", str(out)]
     cmd += ["--env", c["env_id"]]
-    for k, v in {**c["env_kwargs"], "fidelity": level}.items():
+    for k, v in {**c["env_kwargs"], **extra, "fidelity": level}.items():
         cmd += ["--env-kw", f"{k}={json.dumps(v)}"]
     return cmd
 
@@ -556,8 +571,13 @@ def report(c: dict) -> dict:
         "",
         f"Config: env {c['env_id']}, env keywords {json.dumps(c['env_kwargs'])}"
         + (
-            f", the training envs' own {json.dumps(c['train_env_kwargs'])}."
+            f", the training envs' own {json.dumps(c['train_env_kwargs'])}"
             if c["train_env_kwargs"]
+            else ""
+        )
+        + (
+            f", the evaluations' own {json.dumps(c['evaluate']['env_kwargs'])}."
+            if c["evaluate"]["env_kwargs"]
             else "."
         ),
         "Baselines: mean ± std over episodes; trained: mean ± std over training seeds of each "

@@ -179,6 +179,9 @@ def test_shipped_campaign_config_loads():
     # trained and evaluated with the TCP stopped at the workspace edge, the patch inside it
     assert c["env_kwargs"]["workspace_edge"] == "stop"
     assert "workspace_edge" not in kw and task.workspace_xy > task.patch_size / 2
+    # the evaluations' force guard sits below the task's limit, and only they have it
+    guard = c["evaluate"]["env_kwargs"]["force_guard"]
+    assert 0.0 < guard < task.total_force_limit and "force_guard" not in kw
 
 
 def test_eval_parts_cover_the_episodes_once():
@@ -328,3 +331,22 @@ def test_best_run_ships_the_best_seed_that_kept_the_force_limit(tmp_path):
     assert best_run(c, {}) == ("ppo_limit", 0)
     write([(0.555, 0.001), (0.556, 0.005), (0.305, 0.003)])
     assert best_run(c, {}) == ("ppo_limit", 1)
+
+
+def test_evaluations_own_keywords_reach_the_evaluations_alone(tmp_path):
+    """``[evaluate] env_kwargs`` are added to the evaluations' gym.make keywords, not to the
+    training's nor the selection's; fidelity and config are refused there."""
+    from agents.campaign import _eval_cmd, _runs, _train_cmd
+
+    cfg = tmp_path / "campaign.toml"
+    cfg.write_text(_campaign_toml(tmp_path) + "env_kwargs = { force_guard = 3.5 }\n")
+    c = load_campaign(cfg)
+    ev = _eval_cmd(c, "reduced", "reference", 2, tmp_path / "e")
+    assert "force_guard=3.5" in ev and 'fidelity="reduced"' in ev
+    sel = _eval_cmd(c, "reduced", "x.zip", 1, tmp_path / "s", 500, own=False)  # the selection's
+    assert not any("force_guard" in a for a in sel)
+    _, seed, t = _runs(c)[0]
+    assert not any("force_guard" in a for a in _train_cmd(c, t, seed))
+    cfg.write_text(_campaign_toml(tmp_path) + 'env_kwargs = { fidelity = "fast" }\n')
+    with pytest.raises(ConfigError, match=r"\[evaluate\] env_kwargs: fidelity and config belong"):
+        load_campaign(cfg)
