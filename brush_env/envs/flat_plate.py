@@ -100,7 +100,8 @@ velocity is instead limited, component by component, so each control step ends i
 y are limited, and leaving the height range still ends it.  With ``force_guard`` > 0 (N, below
 ``hard_force_limit``) the TCP backs off (up at ``max_linear_speed[2]``) for the rest of a control
 step after the engine step at which the total normal force exceeds it, as a force-limited robot
-retracts the tool, and the episode goes on (``info["force_guard"]``: it acted).  Stepping a terminated episode raises
+retracts the tool, and the episode goes on (``info["force_guard"]``: it acted).  Stepping a
+terminated episode raises
 ``RuntimeError``.  ``truncated`` only through the ``TimeLimit`` wrapper (``max_episode_steps``,
 default 300 = 12 s at 25 Hz).  The horizon that ``time_remaining`` counts down is passed to the
 env explicitly: the config's ``max_episode_steps``, or ``set_horizon(N)``, which ``gym.make``
@@ -479,13 +480,13 @@ class BrushEnv(gym.Env):
         if left == 0:
             return ro, ro.record, True
         up = np.array([0.0, 0.0, cfg.max_linear_speed[2]])  # away from the plate
-        held = self.sim.rollout(up, np.zeros(3), left, cfg.hard_force_limit, cfg.max_penetration)
-        n1, n2 = ro.done, held.done
+        back = self.sim.rollout(up, np.zeros(3), left, cfg.hard_force_limit, cfg.max_penetration)
+        n1, n2 = ro.done, back.done
         rec = type(ro.record)(
-            *[np.concatenate([a[:n1], b[:n2]]) for a, b in zip(ro.record, held.record)]
+            *[np.concatenate([a[:n1], b[:n2]]) for a, b in zip(ro.record, back.record)]
         )
-        held.done = n1 + n2
-        return held, rec, True
+        back.done = n1 + n2
+        return back, rec, True
 
     @staticmethod
     def _normal_force(out) -> float:
