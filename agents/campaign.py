@@ -112,14 +112,9 @@ def load_campaign(path: str | Path) -> dict:
     c.setdefault("env_id", "brush_env/FlatPlate-v0")
     c.setdefault("env_kwargs", {})
     c.setdefault("train_env_kwargs", {})
-    for key in ("env_kwargs", "train_env_kwargs"):
-        if not isinstance(c[key], dict):
-            raise ConfigError(f"{path}: [{key}] must be a table of gym.make keywords")
-    if "fidelity" in c["train_env_kwargs"] or "config" in c["train_env_kwargs"]:
-        raise ConfigError(
-            f"{path} [train_env_kwargs]: fidelity and config belong in [env_kwargs] (the "
-            "selection and evaluation levels are set there and in [select] / [evaluate])"
-        )
+    if not isinstance(c["env_kwargs"], dict):
+        raise ConfigError(f"{path}: [env_kwargs] must be a table of gym.make keywords")
+    _own_keywords(f"{path} [train_env_kwargs]", c["train_env_kwargs"])
     c["jobs"] = _int(f"{path}: jobs", c.get("jobs", 1))
     _check_train(path, c["train"])
     _check_evaluate(path, c["evaluate"])
@@ -155,6 +150,19 @@ def _check_train(path: Path, train) -> None:
             raise ConfigError(f"{where}: config = {t['config']!r}: no such file")
 
 
+def _own_keywords(where: str, kw) -> None:
+    """A table of gym.make keywords of one stage alone (training, an entry's training, the
+    evaluations), on top of [env_kwargs]: fidelity and config are the campaign's, set once there
+    (the levels of selection and evaluation in [select] / [evaluate])."""
+    if not isinstance(kw, dict):
+        raise ConfigError(f"{where} must be a table of gym.make keywords")
+    if "fidelity" in kw or "config" in kw:
+        raise ConfigError(
+            f"{where}: fidelity and config belong in [env_kwargs] (the selection and evaluation "
+            "levels are set there and in [select] / [evaluate])"
+        )
+
+
 def _check_evaluate(path: Path, ev: dict) -> None:
     from brush_env.engine.fidelity import LEVELS
 
@@ -168,13 +176,7 @@ def _check_evaluate(path: Path, ev: dict) -> None:
     ev.setdefault("baselines", list(BASELINES))
     _int(f"{path} [evaluate] seed", ev["seed"], 0)
     ev.setdefault("env_kwargs", {})
-    if not isinstance(ev["env_kwargs"], dict):
-        raise ConfigError(f"{path} [evaluate] env_kwargs must be a table of gym.make keywords")
-    if "fidelity" in ev["env_kwargs"] or "config" in ev["env_kwargs"]:
-        raise ConfigError(
-            f"{path} [evaluate] env_kwargs: fidelity and config belong in [env_kwargs] (the "
-            "levels in [evaluate] levels)"
-        )
+    _own_keywords(f"{path} [evaluate] env_kwargs", ev["env_kwargs"])
     if "chunk" in ev:
         _int(f"{path} [evaluate] chunk", ev["chunk"])
     for b in ev["baselines"]:
@@ -202,10 +204,7 @@ def _check_stage(where: str, t: dict, earlier: dict) -> None:
     t.setdefault("evaluate", True)
     if not isinstance(t["evaluate"], bool):
         raise ConfigError(f"{where}: evaluate = {t['evaluate']!r} must be true or false")
-    if not isinstance(t["train_env_kwargs"], dict):
-        raise ConfigError(f"{where}: train_env_kwargs must be a table of gym.make keywords")
-    if "fidelity" in t["train_env_kwargs"] or "config" in t["train_env_kwargs"]:
-        raise ConfigError(f"{where} train_env_kwargs: fidelity and config belong in [env_kwargs]")
+    _own_keywords(f"{where} train_env_kwargs", t["train_env_kwargs"])
     if "init" not in t:
         return
     first = earlier.get(t["init"])
