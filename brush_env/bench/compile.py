@@ -40,11 +40,12 @@ _MARK = "BENCH_COMPILE "
 _WARMUP = """
 import json, resource, time
 t0 = time.perf_counter()
-from brush_env.engine import warmup
+from brush_env.engine import SimSettings, warmup
+from brush_env.engine.fidelity import level_settings, load_fidelity
 warmup.kernels_compiled = lambda *a: True  # no sweep of the package's own engine/__pycache__
 warmup.write_stamp = lambda *a: None  # ... and no stamp (nor profile): it compiles elsewhere
 t1 = time.perf_counter()
-seconds = warmup.warm_up()
+seconds = warmup.warm_up(GROUPS)
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": seconds, "maxrss_kb": peak}))
 """
@@ -67,6 +68,22 @@ norm2(np.ones(3))
 t2, peak = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": t2 - t1, "maxrss_kb": peak}))
 """
+
+
+#: ``--level``: which kernel groups the start compiles (``GROUPS`` in the script above)
+LEVEL_GROUPS = {
+    "all": "warmup.GROUPS",  # brush-env warmup
+    "default": "warmup.groups_for(SimSettings())",  # brush-env reference's default set-up
+}
+
+
+def warmup_script(level: str = "all") -> str:
+    """The start's script: the warm-up of every group ("all"), of the reference experiment's
+    default set-up ("default") or of a fidelity level's (``warmup.groups_for``)."""
+    groups = LEVEL_GROUPS.get(level)
+    if groups is None:
+        groups = f"warmup.groups_for(level_settings(load_fidelity({level!r})))"
+    return _WARMUP.replace("warmup.warm_up(GROUPS)", f"warmup.warm_up({groups})")
 
 
 def perf_available(perf: str = PERF, event: str = EVENT) -> tuple[bool, str]:
@@ -152,8 +169,11 @@ def run_start(script: Path, cache_dir: Path, perf: bool) -> dict:
     }
 
 
-def measure(repeats: int = 2, quick: bool = False, perf: bool | None = None, log=None) -> list:
-    """``repeats`` x (cold start with an empty cache, then the cached start): one row each."""
+def measure(
+    repeats: int = 2, quick: bool = False, perf: bool | None = None, log=None, level: str = "all"
+) -> list:
+    """``repeats`` x (cold start with an empty cache, then the cached start): one row each.
+    level: the kernel groups compiled (``warmup_script``)."""
     if perf is None:
         perf, why = perf_available()
         if not perf and log is not None:
@@ -162,7 +182,7 @@ def measure(repeats: int = 2, quick: bool = False, perf: bool | None = None, log
     settings = (
         "quick: one small kernel"
         if quick
-        else "warm_up(): tiny brush on flat_plate, bdf2 + euler steps, static solve"
+        else f"warm_up(): tiny brush on flat_plate, kernel groups of --level {level}"
     )
     settings += f"; NUMBA_OPT={os.environ.get('NUMBA_OPT', 'default')}"
     # the warm-up's starts must compile into their own cache, never the package's; the quick
@@ -173,7 +193,7 @@ def measure(repeats: int = 2, quick: bool = False, perf: bool | None = None, log
     for rep in range(1, max(int(repeats), 1) + 1):
         with tempfile.TemporaryDirectory(prefix="bench_compile_") as tmp:
             script = Path(tmp) / "start.py"
-            script.write_text(_QUICK if quick else _WARMUP)
+            script.write_text(_QUICK if quick else warmup_script(level))
             cache = Path(tmp) / "numba_cache"
             cache.mkdir()
             for start in ("cold (empty cache)", "cached (second start)"):
@@ -252,12 +272,28 @@ def add_arguments(p) -> None:
         help="cold + cached start pairs, each with a new empty cache (default 2)",
     )
     p.add_argument("--no-perf", action="store_true", help="do not wrap the starts in perf stat")
+    p.add_argument(
+        "--level",
+        default="all",
+        help="kernel groups: all (brush-env warmup, default), default (brush-env reference's "
+        "default set-up) or a fidelity level's (coarse, fast, reduced, balanced, paper, reference)",
+    )
 
 
 def bench_compile(args) -> int:
     """Measure the first-start compile and the cached start; print the table (or JSON rows)."""
     log = open_log(args)
-    rows = measure(args.repeats, quick=args.quick, perf=False if args.no_perf else None, log=log)
+    if args.level not in LEVEL_GROUPS:
+        from ..engine.fidelity import load_fidelity
+
+        load_fidelity(args.level)  # an unknown level: the loader's error, naming the levels
+    rows = measure(
+        args.repeats,
+        quick=args.quick,
+        perf=False if args.no_perf else None,
+        log=log,
+        level=args.level,
+    )
     if args.json:
         for r in rows:
             print(json.dumps(r), flush=True)

@@ -268,7 +268,8 @@ def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int
         return sc.get(f, 0) + sum(c for g, c in callees.get(f, {}).items() if g != f)
 
     total = sum(sc.values())
-    step = incl("step.step_bristles")
+    # one sweep runs step_bristles, more sweeps step_bristles_coupled (one of them is called)
+    step = incl("step.step_bristles") + incl("step.step_bristles_coupled")
     newton = incl("newton.newton_solve")
     out = dict.fromkeys(PARTS, 0)
     named = 0  # what newton_solve's named callees take

@@ -194,6 +194,10 @@ class DFMChain(BristleModel):
         self.state: State | None = None
         self._snap: State | None = None  # rollback buffers (see snapshot)
         self._prm = self._make_prm(static=False)
+        # one sweep and the coupled solve are two kernels: a run compiles only the one it uses
+        self._step_kernel = (
+            itg.step_bristles_coupled if self.settings.tip_tip_sweeps > 1 else itg.step_bristles
+        )
 
     def _make_prm(self, static: bool) -> rec.StepParams:
         """The kernels' step parameters (``records.StepParams``) from the settings: ``h`` the
@@ -319,7 +323,7 @@ class DFMChain(BristleModel):
             shf.broad_phase(
                 self.model.bstart, self.model.root_p, chain, drive, con, prm.h, self._g23
             )
-        itg.step_bristles(self._kmodel, chain, drive, prm, con, st.jac, self._ws, self._out)
+        self._step_kernel(self._kmodel, chain, drive, prm, con, st.jac, self._ws, self._out)
 
     def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
         """Stage 3: a bristle that failed on the smallest halving of its step, or a non-finite

@@ -28,35 +28,54 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
-from .sweeps import SWEEP_FIRST, settle_tip_tip, start_sweeps, sweep_bristles, tip_node_state
+from .sweeps import (
+    SWEEP_FIRST,
+    note_one_sweep,
+    settle_tip_tip,
+    start_sweeps,
+    sweep_bristles,
+    tip_node_state,
+)
 
 
 @njit(**HOT)
 def step_bristles(model, chain, drive, prm, con, jc, ws, out):
-    """Advance every bristle by one step h = prm.h (in place); prm: ``records.StepParams``.
+    """Advance every bristle by one step h = prm.h (in place) in one sweep (prm.sweeps == 1);
+    ``step_bristles_coupled`` is the step with more.  Two kernels, so that a run with one sweep
+    (the default, levels ``coarse``, ``fast``, ``reduced``) compiles none of the coupled solve.
 
-    drive: TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1, 2, 3) and hist_ok (whole steps
-    behind each bristle's history, 0, 1 or 2; after a sub-stepped step the history is not on the
-    step grid: 0).  con: surfaces, contact laws (Tables 2-3), every tip's node, velocity and radius,
-    the tip-tip partner lists (CSR), the scene's mesh, tip arguments and per-contact state.
+    prm: ``records.StepParams``; drive: TCP pose at t_{n-1}, t_n, t_{n+1}, t_{n-2} (rows 0, 1,
+    2, 3) and hist_ok (whole steps behind each bristle's history, 0, 1 or 2; after a sub-stepped
+    step the history is not on the step grid: 0).  con: surfaces, contact laws (Tables 2-3),
+    every tip's node, velocity and radius, the tip-tip partner lists (CSR), the scene's mesh, tip
+    arguments and per-contact state.
 
     Bristles are coupled only through tip-tip contact (Table 3).  Each is solved with its
     partners' tips held (``con.tips``), in order (a Gauss-Seidel sweep): a partner solved earlier
-    in the sweep at its new tip, one solved later at its start-of-step tip.
-    With prm.sweeps > 1, while some bristle's touching partners have moved by more than
-    prm.tttol since it was solved, the partners are placed where the linearised coupled
-    problem puts them (``coupling.place_partners``) and those bristles are solved again from the
-    step's start, warm-started at their last solution: at convergence both sides of every
-    tip-tip contact see the end-of-step tips (no lag).  Outputs per bristle in ``out``: rootw
-    (force, moment of the root element on the head, at the root node, world), iters (Newton
-    iterations, all sweeps), nsub (sub-steps used), status (OK / NEWTON_FAILED); ws.sw.count =
-    [sweeps run, re-solves, 0 settled / 1 out of sweeps with partners still moving by less than
-    FALLBACK_MOVE / 2 fell back to the plain sweep].
+    in the sweep at its new tip, one solved later at its start-of-step tip.  Outputs per bristle
+    in ``out``: rootw (force, moment of the root element on the head, at the root node, world),
+    iters (Newton iterations), nsub (sub-steps used), status (OK / NEWTON_FAILED); ws.sw.count =
+    [1, 0, 1 if a touching partner moved by more than prm.tttol after its bristle was solved].
     """
     start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
-    sweep_bristles(
-        model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST
-    )  # every bristle, in order
+    sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle
+    note_one_sweep(model, prm, con, ws)
+
+
+@njit(**HOT)
+def step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out):
+    """``step_bristles`` with up to prm.sweeps > 1 sweeps (arguments and outputs as there).
+
+    While some bristle's touching partners have moved by more than prm.tttol since it was
+    solved, the partners are placed where the linearised coupled problem puts them
+    (``coupling.place_partners``) and those bristles are solved again from the step's start,
+    warm-started at their last solution: at convergence both sides of every tip-tip contact see
+    the end-of-step tips (no lag).  ws.sw.count = [sweeps run, re-solves, 0 settled / 1 out of
+    sweeps with partners still moving by less than FALLBACK_MOVE / 2 fell back to the plain
+    sweep]; out.iters counts all sweeps.
+    """
+    start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
+    sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle
     settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
 
 

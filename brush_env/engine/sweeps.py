@@ -18,10 +18,12 @@ from .coupling import PLACE_OVERLAP, place_partners, store_tip_load
 from .predict import save_chain
 from .records import Bristle
 
-#: modes of ``sweep_bristles``
-SWEEP_FIRST = 0  # every bristle, from the step's start
-SWEEP_AGAIN = 1  # the bristles whose partners moved (or were placed), warm-started
-SWEEP_PLAIN = 2  # every bristle again from the step's start, partners back at their start
+#: modes of ``sweep_bristles``.  numpy integers, not Python ints: numba types a Python int
+#: constant as a literal and compiles the callee once per value (three ``sweep_bristles``, each
+#: with the whole bristle step inlined, ~25 % of the step kernels' compile); an int64 is one type
+SWEEP_FIRST = np.int64(0)  # every bristle, from the step's start
+SWEEP_AGAIN = np.int64(1)  # the bristles whose partners moved (or were placed), warm-started
+SWEEP_PLAIN = np.int64(2)  # every bristle again from the step's start, partners back at their start
 #: [mm] partners still moving by more than this when the sweeps run out: the coupled iteration
 #: went astray (contact onset, a stick-slip switch); the step falls back to the plain sweep
 FALLBACK_MOVE = 1e-4
@@ -83,6 +85,15 @@ def _max_partner_move(nb, con, used):
     for b in range(nb):
         m = max(m, _partner_move(b, con, used))
     return m
+
+
+@njit(**HOT, inline="always")
+def note_one_sweep(model, prm, con, ws):
+    """The one-sweep step's record (``step.step_bristles``; ``settle_tip_tip`` with one sweep):
+    sw.count[2] = 1 if a touching partner moved by more than prm.tttol after its bristle was
+    solved (that bristle saw the partner's start-of-step tip: the tip-tip force lags)."""
+    if _max_partner_move(model.bstart.shape[0] - 1, con, ws.sw.used) > prm.tttol:
+        ws.sw.count[2] = 1
 
 
 @njit(**HOT, inline="always")

@@ -26,7 +26,14 @@ from .compile_progress import CompileProgress, KernelListener
 
 _HERE = Path(__file__).resolve().parent
 
-__all__ = ["GROUPS", "KernelGroup", "ensure_compiled", "kernels_compiled", "warm_up"]
+__all__ = [
+    "GROUPS",
+    "KernelGroup",
+    "ensure_compiled",
+    "groups_for",
+    "kernels_compiled",
+    "warm_up",
+]
 
 #: seconds between two progress lines while a group compiles
 TICK_S = 10.0
@@ -62,11 +69,13 @@ def _setup(t: _Tiny) -> None:
     sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
 
 
-def _steps(integrator: str, t: _Tiny) -> None:
-    """Press 0.5 mm into the plate, then slide: contact, stick and slip, the Newton solve."""
+def _steps(integrator: str, t: _Tiny, sweeps: int = 1) -> None:
+    """Press 0.5 mm into the plate, then slide: contact, stick and slip, the Newton solve (with
+    ``sweeps`` > 1 the coupled tip-tip solve's kernel, ``step.step_bristles_coupled``)."""
     from .simulator import SimSettings, Simulator
 
-    sim = Simulator(t.scene, SimSettings(dt=2e-3, integrator=integrator))
+    settings = SimSettings(dt=2e-3, integrator=integrator, tip_tip_sweeps=sweeps)
+    sim = Simulator(t.scene, settings)
     sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
     for k in range(1, 26):
         z = t.top + 0.05 - min(k, 10) * 0.05
@@ -106,26 +115,56 @@ def _tip_table(t: _Tiny) -> None:
     build_table(build_geometry(t.scene.brush).prm[0], shape=(5, 5, 3))
 
 
-#: The full warm-up, in order.  Nearly all the time goes to the first dynamic step: numba
-#: compiles the step kernel with every kernel it calls; the later groups reuse them.
-GROUPS: tuple[KernelGroup, ...] = (
-    KernelGroup("set-up (surface gaps, pose checks, TCP wrench)", _setup),
-    KernelGroup(
+SETUP = KernelGroup("set-up (surface gaps, pose checks, TCP wrench)", _setup)
+STEP = {
+    "bdf2": KernelGroup(
         "bristle step, BDF2 (beam elements, contact and friction, Newton solve, tip-tip pairs)",
         partial(_steps, "bdf2"),
     ),
-    KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
-    KernelGroup("static solve", _static),
-    KernelGroup(
+    "euler": KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
+}
+COUPLED = KernelGroup(
+    "coupled tip-tip solve (levels 'balanced', 'paper', 'reference')",
+    partial(_steps, "bdf2", sweeps=8),
+)
+REDUCED = {
+    "prb": KernelGroup(
         "reduced model (fidelity level 'reduced': quasi-static joints, rollout)",
         partial(_reduced, "prb"),
     ),
-    KernelGroup(
+    "table": KernelGroup(
         "tabulated tip law's step (fidelity level 'fast', the envs' default)",
         partial(_reduced, "table"),
     ),
+}
+
+#: The full warm-up (``brush-env warmup``), in order.  Nearly all the time goes to the first
+#: dynamic steps: numba compiles a step kernel with every kernel it calls; the later groups
+#: reuse them (the Euler step and the static solve compile next to nothing after BDF2).
+GROUPS: tuple[KernelGroup, ...] = (
+    SETUP,
+    STEP["bdf2"],
+    STEP["euler"],
+    COUPLED,
+    KernelGroup("static solve", _static),
+    REDUCED["prb"],
+    REDUCED["table"],
     KernelGroup("tabulated tip law's builder (a new brush's tables at level 'fast')", _tip_table),
 )
+
+
+def groups_for(settings) -> tuple[KernelGroup, ...]:
+    """The kernel groups a run with these ``SimSettings`` uses, so that its first start compiles
+    only those (issue 32: the reference experiment's first start compiled the reduced model and
+    the tip table's builder too): the set-up, then the full chain's step in its integrator (and
+    the coupled tip-tip solve with more than one sweep), or the reduced model's step (``prb``,
+    ``table``).  A bristle model registered elsewhere: every group."""
+    if settings.model == "dfm":
+        step = [STEP[settings.integrator]]
+        return (SETUP, *step, *([COUPLED] if settings.tip_tip_sweeps > 1 else []))
+    if settings.model in REDUCED:
+        return (SETUP, REDUCED[settings.model])
+    return GROUPS
 
 
 def warm_up(

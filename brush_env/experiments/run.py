@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from ..engine.fidelity import level_settings, load_fidelity
-from ..engine.warmup import ensure_compiled
+from ..engine.warmup import ensure_compiled, groups_for
 from .analysis import PAPER_JAMMING_ANGLES, analyse_run, pitch_asymmetry
 from .outputs import (
     performance_info,
@@ -103,7 +103,8 @@ def run_reference(
         args["fidelity"] = fid.name
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)
     check_press_depth(press_depth, scene_obj.brush, labels)  # inputs valid past here
-    compile_s = ensure_compiled(notice=print if progress else None)
+    # only the kernels this level runs (warmup.groups_for); `brush-env warmup` compiles all
+    compile_s = ensure_compiled(notice=print if progress else None, groups=groups_for(settings))
     t_setup = time.perf_counter()
     plan = make_plan(scene_obj, settings, args)
     t_setup = time.perf_counter() - t_setup

@@ -27,7 +27,7 @@ from ..coverage import EffectiveSweep, crown_samples, gum_force
 from ..engine import SimulationDivergence, Simulator
 from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
-from ..engine.warmup import ensure_compiled
+from ..engine.warmup import ensure_compiled, groups_for
 from ..motion import R0, Approach, Hold, Press, Sequence
 from .plan import check_press_depth, resolve_scene, say
 
@@ -167,7 +167,8 @@ def run_tooth_row(
     if mesh is not None:
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)
     check_press_depth(a["press_depth"], scene_obj.brush, labels)
-    compile_s = ensure_compiled(notice=print if progress else None)
+    # only the kernels this level runs (warmup.groups_for); `brush-env warmup` compiles all
+    compile_s = ensure_compiled(notice=print if progress else None, groups=groups_for(settings))
     t_setup = time.perf_counter()
     ensure_calibrated(scene_obj.brush, settings)  # the reduced model of `fast`
     sim = Simulator(scene_obj, settings)

@@ -78,3 +78,26 @@ def test_cli_bench_compile_quick(capsys):
     assert cold["cache_files"] >= 2 and cold["cache_bytes"] > 0  # it compiled into the new cache
     assert cached["cache_bytes"] == cold["cache_bytes"]  # ... and the second start only loaded it
     assert all(r["instructions"] is None or r["instructions"] > 0 for r in rows)
+
+
+def test_level_chooses_the_kernel_groups_the_start_compiles(capsys):
+    """``--level``: the start's script warms the groups that level's runs compile."""
+    import re
+
+    from brush_env.bench.compile import warmup_script
+    from brush_env.engine import SimSettings, warmup
+    from brush_env.engine.fidelity import level_settings, load_fidelity
+
+    ns = dict(warmup=warmup, SimSettings=SimSettings)
+    ns.update(level_settings=level_settings, load_fidelity=load_fidelity)
+    for level, groups in (
+        ("all", warmup.GROUPS),
+        ("default", warmup.groups_for(SimSettings())),
+        ("balanced", warmup.groups_for(level_settings(load_fidelity("balanced")))),
+    ):
+        script = warmup_script(level)
+        expr = re.search(r"seconds = warmup\.warm_up\((.*)\)\n", script).group(1)
+        assert eval(expr, ns) == groups
+    assert warmup.COUPLED in warmup.groups_for(level_settings(load_fidelity("balanced")))
+    assert cli.main(["bench", "compile", "--level", "nonsense", "--repeats", "1"]) != 0
+    assert "'nonsense' is not a known fidelity level (known: balanced" in capsys.readouterr().err

@@ -225,3 +225,22 @@ def test_edited_engine_sources_purge_the_cached_kernels_once(tmp_path, monkeypat
     (engine / "kernels.py").write_text("x = 2\n")  # an edit
     assert kernel_cache.purge_stale_kernels() == 3
     assert not any(p.exists() for p in cached)
+
+
+def test_a_run_compiles_only_the_groups_its_level_uses():
+    """A command compiles the kernel groups of its settings (``warmup.groups_for``): the
+    reference experiment's default (one sweep, BDF2) neither the coupled solve nor the reduced
+    model; each level's groups are the warm-up's own (so ``brush-env warmup`` covers them)."""
+    from brush_env.engine import SimSettings
+    from brush_env.engine.fidelity import level_settings, load_fidelity
+
+    w = warmup
+    assert w.groups_for(SimSettings()) == (w.SETUP, w.STEP["bdf2"])
+    assert w.groups_for(SimSettings(integrator="euler")) == (w.SETUP, w.STEP["euler"])
+    balanced = w.groups_for(level_settings(load_fidelity("balanced")))
+    assert w.COUPLED in balanced and w.REDUCED["prb"] not in balanced
+    assert w.groups_for(level_settings(load_fidelity("fast"))) == (w.SETUP, w.REDUCED["table"])
+    assert w.groups_for(level_settings(load_fidelity("reduced"))) == (w.SETUP, w.REDUCED["prb"])
+    for level in ("coarse", "fast", "reduced", "balanced", "paper", "reference"):
+        assert set(w.groups_for(level_settings(load_fidelity(level)))) <= set(w.GROUPS)
+    assert w.groups_for(SimSettings(model="my_model")) == w.GROUPS

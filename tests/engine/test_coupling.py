@@ -23,11 +23,14 @@ DT = 1e-3
 P = 0.01  # [N] mean load pushing the two tips together (head-on contact stays stable)
 
 
-def _pair_run(sweeps: int, tol: float = 1e-6, steps: int = 1200, load=P, amp=2.0):
+def _pair_run(
+    sweeps: int, tol: float = 1e-6, steps: int = 1200, load=P, amp=2.0, kernel=None, full=False
+):
     """Two facing bristles (tips 0.12 mm apart when straight) pushed together by tip loads that
     swing +-50 % at 10 Hz, while the head oscillates 2 mm along the line of centres at 5 Hz (tip
     speeds up to ~90 mm/s).  Returns per step after the 0.5 s ramp: the two tip-tip forces [N],
-    the overlap delta [mm] and the sweeps used."""
+    the overlap delta [mm] and the sweeps used.  kernel: the step kernel to run instead of the
+    one the settings choose; full: every step's tip states, forces and settled flags (a list)."""
     a = one_bristle(root=(-0.6, 0.0, 0.0), tip=0.44).bristles[0]
     b = dataclasses.replace(a, root=(0.6, 0.0, 0.0))
     brush = BrushConfig(name="pair", head_offset=(0, 0, 0), head_rpy=(0, 0, 0), bristles=(a, b))
@@ -36,17 +39,22 @@ def _pair_run(sweeps: int, tol: float = 1e-6, steps: int = 1200, load=P, amp=2.0
         SimSettings(dt=DT, gravity=(0, 0, 0), tip_tip_sweeps=sweeps, tip_tip_tol=tol),
     )
     sim.reset(np.array([0.0, 0.0, 30.0]), R0)
+    if kernel is not None:
+        sim.bristles._step_kernel = kernel  # private: the kernel the settings would not choose
     rows = []
     for k in range(1, steps + 1):
         t = k * DT
         s = min(k / 500.0, 1.0) * (1.0 + 0.5 * np.sin(2 * np.pi * 10 * t))
         sim.set_tip_forces(s * np.array([[load, 0.0, 0.0], [-load, 0.0, 0.0]]))
         out = sim.step(np.array([amp * np.sin(2 * np.pi * 5 * t), 0.0, 30.0]), R0)
-        if k > 600:
+        if full:
+            e = out.extra
+            rows.append((out.tip_pos.copy(), e["tip_tip_force"].copy(), e["tip_tip_settled"]))
+        elif k > 600:
             ftt = out.extra["tip_tip_force"]
             delta = 0.88 - np.linalg.norm(out.tip_pos[0] - out.tip_pos[1])
             rows.append((ftt[0], ftt[1], delta, out.extra["sweeps"]))
-    return np.array(rows)
+    return rows if full else np.array(rows)
 
 
 @pytest.mark.parametrize("tol", [1e-5, 1e-6])
@@ -68,6 +76,24 @@ def test_one_sweep_lags_and_breaks_action_reaction():
     r = _pair_run(sweeps=1)
     fa, fb = r[:, 0], r[:, 1]
     assert np.max(np.abs(fa - fb)) > 0.2 * P
+
+
+def test_the_one_sweep_kernel_is_the_coupled_kernels_first_sweep():
+    """One sweep and the coupled solve are two kernels (``step.step_bristles`` and
+    ``step_bristles_coupled``, so that a run compiles only the one it uses): at one sweep they
+    must be the same step, to the bit, with the same record of unsettled partners."""
+    from brush_env.engine.step import step_bristles, step_bristles_coupled
+
+    plain = _pair_run(sweeps=1, steps=700, kernel=step_bristles, full=True)
+    coupled = _pair_run(sweeps=1, steps=700, kernel=step_bristles_coupled, full=True)
+    assert any(not settled for *_, settled in plain)  # the lag is recorded (the flag is used)
+    assert any(settled for *_, settled in plain)
+    for (p, f, ok), (q, g, ok2) in zip(plain, coupled, strict=True):
+        assert np.array_equal(p, q) and np.array_equal(f, g) and ok == ok2
+    # the settings choose: one sweep the plain kernel, more the coupled one
+    for sweeps, kernel in ((1, step_bristles), (8, step_bristles_coupled)):
+        sim = Simulator(Scene(one_bristle(), ()), SimSettings(tip_tip_sweeps=sweeps))
+        assert sim.bristles._step_kernel is kernel
 
 
 def _lead(tips, pairs, h=DT):
