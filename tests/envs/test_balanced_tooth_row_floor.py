@@ -1,0 +1,46 @@
+"""A reproducer from the ToothRow-v0 campaign of 2026-12-05 (session 24, docs/rl.md): a trained
+PPO policy (``ppo_limit`` seed 0, the plate campaign's settings: ``workspace_edge = "stop"``, the
+press floor 3.5 mm below touching, the evaluations' 3.5 N force guard) brushes the crowns on the
+floor at 0.4-1.4 N; at ``balanced`` (the accurate full model) bristle 36's Newton fails on the
+smallest halving of the solver step at t = 5.3 s (env step 133 of episode 1001).  The episode
+ends with the divergence in ``info`` (nothing is returned as NaN), but the accurate model should
+not fail there.  The policy's 133 actions are kept
+(``tests/data/tooth_row_balanced_actions_1001.npy``): the env is deterministic, so the replay
+is the same episode after the policy is gone.  Open in issue 32."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import brush_env  # noqa: F401  (registers the ids)
+
+ACTIONS = Path(__file__).parents[1] / "data" / "tooth_row_balanced_actions_1001.npy"
+
+
+@pytest.mark.slow  # 133 control steps of the default brush on the tooth row at `balanced`
+@pytest.mark.xfail(strict=True, reason="Newton fails at t = 5.3 s (issue 32, docs/rl.md)")
+def test_balanced_brushes_the_tooth_row_on_the_press_floor_without_diverging():
+    env = gym.make(
+        "brush_env/ToothRow-v0",
+        fidelity="balanced",
+        action_mode="3d",
+        workspace_edge="stop",
+        workspace_height=(-3.5, 15.0),
+        force_guard=3.5,
+    )
+    try:
+        env.reset(seed=1001)
+        u, deepest = env.unwrapped, 0.0
+        for a in np.load(ACTIONS):
+            *_, term, trunc, info = env.step(a)
+            deepest = min(deepest, info["tcp_position"][2] - u.touch_height)
+            assert info["termination"] is None, info["divergence"]
+        # the replay is the regime it names: the TCP on the floor, the brush on the crowns
+        assert deepest == pytest.approx(u.config.workspace_height[0])
+        assert info["tips_in_contact"] > 0
+    finally:
+        env.close()
