@@ -671,7 +671,9 @@ def learning_curves(c: dict, path: Path) -> None:
         (line,) = ax.plot(x, y.mean(0), label=label)
         ax.fill_between(x, y.min(0), y.max(0), color=line.get_color(), alpha=0.25)
     if refs:
-        ax.axhline(float(np.mean(refs)), color="k", ls="--", label="reference circle")
+        ax.axhline(
+            float(np.mean(refs)), color="k", ls="--", label="reference policy (circle or scrub)"
+        )
     ax.set_xlabel("env steps")
     ax.set_ylabel("evaluation return (mean of episodes)")
     ax.set_title(f"{c['env_id']}, {json.dumps(c['env_kwargs'])}", fontsize=9)
