@@ -6,7 +6,10 @@ smallest halving of the solver step at t = 5.3 s (env step 133 of episode 1001).
 ends with the divergence in ``info`` (nothing is returned as NaN), but the accurate model should
 not fail there.  The policy's 133 actions are kept
 (``tests/data/tooth_row_balanced_actions_1001.npy``): the env is deterministic, so the replay
-is the same episode after the policy is gone.  Open in issue 32."""
+is the same episode after the policy is gone.  The same actions run to the end with one plain
+sweep (``engine_settings={"tip_tip_sweeps": 1}``, 35 s of CPU) and with the solver step at
+0.25 ms (57 s): it is the coupled tip-tip solve at 1 ms that fails, as in
+``test_balanced_deep_slide.py`` before its fallbacks, this time past them.  Open in issue 32."""
 
 from __future__ import annotations
 
