@@ -20,6 +20,8 @@ import pytest
 
 import brush_env  # noqa: F401  (registers the ids)
 
+from .replay import replay_on_the_floor
+
 ACTIONS = Path(__file__).parents[1] / "data" / "balanced_deep_slide_actions_1018.npy"
 
 
@@ -28,15 +30,4 @@ def test_balanced_slides_on_the_workspace_floor_without_diverging():
     env = gym.make(
         "brush_env/FlatPlate-v0", fidelity="balanced", action_mode="3d", workspace_edge="stop"
     )
-    try:
-        env.reset(seed=1018)
-        u, deepest = env.unwrapped, 0.0
-        for a in np.load(ACTIONS):
-            *_, term, trunc, info = env.step(a)
-            deepest = min(deepest, info["tcp_position"][2] - u.touch_height)
-            assert info["termination"] is None, info["divergence"]
-        # the replay is the regime it names: the TCP on the floor, the brush on the plate
-        assert deepest == pytest.approx(u.config.workspace_height[0])
-        assert info["tips_in_contact"] > 0
-    finally:
-        env.close()
+    replay_on_the_floor(env, 1018, np.load(ACTIONS))

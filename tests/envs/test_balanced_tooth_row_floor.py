@@ -21,6 +21,8 @@ import pytest
 
 import brush_env  # noqa: F401  (registers the ids)
 
+from .replay import replay_on_the_floor
+
 ACTIONS = Path(__file__).parents[1] / "data" / "tooth_row_balanced_actions_1001.npy"
 
 
@@ -35,15 +37,4 @@ def test_balanced_brushes_the_tooth_row_on_the_press_floor_without_diverging():
         workspace_height=(-3.5, 15.0),
         force_guard=3.5,
     )
-    try:
-        env.reset(seed=1001)
-        u, deepest = env.unwrapped, 0.0
-        for a in np.load(ACTIONS):
-            *_, term, trunc, info = env.step(a)
-            deepest = min(deepest, info["tcp_position"][2] - u.touch_height)
-            assert info["termination"] is None, info["divergence"]
-        # the replay is the regime it names: the TCP on the floor, the brush on the crowns
-        assert deepest == pytest.approx(u.config.workspace_height[0])
-        assert info["tips_in_contact"] > 0
-    finally:
-        env.close()
+    replay_on_the_floor(env, 1001, np.load(ACTIONS))
