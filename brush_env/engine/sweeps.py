@@ -20,7 +20,7 @@ from .records import Bristle
 
 #: modes of ``sweep_bristles``.  numpy integers, not Python ints: numba types a Python int
 #: constant as a literal and compiles the callee once per value (three ``sweep_bristles``, each
-#: with the whole bristle step inlined, ~25 % of the step kernels' compile); an int64 is one type
+#: with the whole bristle step inlined; docs/benchmarks.md, "First start"); an int64 is one type
 SWEEP_FIRST = np.int64(0)  # every bristle, from the step's start
 SWEEP_AGAIN = np.int64(1)  # the bristles whose partners moved (or were placed), warm-started
 SWEEP_PLAIN = np.int64(2)  # every bristle again from the step's start, partners back at their start
