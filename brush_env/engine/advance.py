@@ -21,6 +21,16 @@ from .records import METHOD_BDF2, Attempt, Substep
 # status codes per bristle (step_bristles' ``out.status``)
 OK = 0
 NEWTON_FAILED = 1  # Newton failed on the smallest sub-step; the bristle is restored
+#: Newton iterations allowed an attempt on the smallest halving when ``newton_max_iter`` is
+#: lower.  The cap makes a long attempt give way to a halving (long attempts on stale factors
+#: wandered to other roots: docs/benchmarks.md, "Newton's iteration cap"); the smallest halving
+#: has nothing to give way to but the bristle's failure.  There a shaft body sliding on one
+#: surface while the tip sticks on another can flip its stick-slip state between iterations:
+#: the line search then cuts each step to ~0.1 and Newton needs 17-30 iterations even at
+#: h / 256 (the tooth-row reproducer, docs/model.md "Newton's iteration cap at the smallest
+#: halving").  100 was the cap of every level before 2026-11-28.  Runs that never fail on their
+#: smallest halving are unchanged to the bit.
+LAST_LEVEL_MAXIT = np.int64(100)
 
 
 @njit(**HOT)
@@ -78,10 +88,12 @@ def scheme_coefficients(prm, history):
 
 
 @njit(**HOT, inline="always")
-def _substep(prm, whole, hist_ok, h):
-    """The (sub)step's ``Substep`` (``scheme_coefficients``: BDF2 on a whole step with history)."""
+def _substep(prm, whole, hist_ok, h, last):
+    """The (sub)step's ``Substep`` (``scheme_coefficients``: BDF2 on a whole step with history);
+    ``last``: the smallest halving, allowed at least LAST_LEVEL_MAXIT Newton iterations."""
     c0, c1, c2 = scheme_coefficients(prm, whole and hist_ok != 0)
-    return Substep(c0, c1, c2, h, 1.0 / h, prm.static, prm.g, prm.rtol, prm.maxit, prm.jage)
+    maxit = max(prm.maxit, LAST_LEVEL_MAXIT) if last else prm.maxit
+    return Substep(c0, c1, c2, h, 1.0 / h, prm.static, prm.g, prm.rtol, maxit, prm.jage)
 
 
 @njit(**HOT, inline="always")
@@ -137,7 +149,7 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
         if s + ds > 1.0:
             ds = 1.0 - s
         whole = level == 0 and s == 0.0
-        sub = _substep(prm, whole, hist_ok, h * ds)
+        sub = _substep(prm, whole, hist_ok, h * ds, level == maxlev)
         _base_of_substep(br, model, drive, s, ds, ws)
         # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
         extrap = 0
