@@ -29,7 +29,8 @@ NEWTON_FAILED = 1  # Newton failed on the smallest sub-step; the bristle is rest
 #: the line search then cuts each step to ~0.1 and Newton needs 17-30 iterations even at
 #: h / 256 (the tooth-row reproducer, docs/model.md "Newton's iteration cap at the smallest
 #: halving").  100 was the cap of every level before 2026-11-28.  Runs that never fail on their
-#: smallest halving are unchanged to the bit.
+#: smallest halving are unchanged to the bit.  Without halvings (``max_halvings = 0``, and the
+#: static solve) nothing gives way: ``newton_max_iter`` stays the attempt's only bound, as set.
 LAST_LEVEL_MAXIT = np.int64(100)
 
 
@@ -90,7 +91,8 @@ def scheme_coefficients(prm, history):
 @njit(**HOT, inline="always")
 def _substep(prm, whole, hist_ok, h, last):
     """The (sub)step's ``Substep`` (``scheme_coefficients``: BDF2 on a whole step with history);
-    ``last``: the smallest halving, allowed at least LAST_LEVEL_MAXIT Newton iterations."""
+    ``last``: the smallest of at least one halving, allowed at least LAST_LEVEL_MAXIT Newton
+    iterations."""
     c0, c1, c2 = scheme_coefficients(prm, whole and hist_ok != 0)
     maxit = max(prm.maxit, LAST_LEVEL_MAXIT) if last else prm.maxit
     return Substep(c0, c1, c2, h, 1.0 / h, prm.static, prm.g, prm.rtol, maxit, prm.jage)
@@ -149,7 +151,7 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
         if s + ds > 1.0:
             ds = 1.0 - s
         whole = level == 0 and s == 0.0
-        sub = _substep(prm, whole, hist_ok, h * ds, level == maxlev)
+        sub = _substep(prm, whole, hist_ok, h * ds, level == maxlev > 0)
         _base_of_substep(br, model, drive, s, ds, ws)
         # predictor order: 3 with two whole steps of history, 2 with one, none otherwise
         extrap = 0
