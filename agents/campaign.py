@@ -47,6 +47,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -676,7 +677,9 @@ def learning_curves(c: dict, path: Path) -> None:
         )
     ax.set_xlabel("env steps")
     ax.set_ylabel("evaluation return (mean of episodes)")
-    ax.set_title(f"{c['env_id']}, {json.dumps(c['env_kwargs'])}", fontsize=9)
+    # the env keywords wrapped: on one line they ran past the figure's edge
+    title = textwrap.wrap(f"{c['env_id']}, {json.dumps(c['env_kwargs'])}", 95)
+    ax.set_title("\n".join(title), fontsize=9)
     ax.legend(loc="best")
     ax.grid(alpha=0.3)
     fig.tight_layout()
