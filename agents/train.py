@@ -429,6 +429,14 @@ def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out
     cls = {"ppo": PPO, "sac": SAC}[algo]
     model = cls.load(init["model"], env=venv, device="cpu", seed=seed, tensorboard_log=tb)
     model.verbose = verbose
+    if algo == "sac":
+        # SAC's replay buffer is not in model.zip, and a new learn() counts its steps from 0, so
+        # stable-baselines3 would first act uniformly at random for learning_starts steps (its
+        # warm-up for a policy that knows nothing) and fit the loaded critic to those: the
+        # trained policy's first episodes would be random presses.  Continued, it acts and
+        # learns from its first step, as SB3's own continuation (learn(...,
+        # reset_num_timesteps=False)) would with an empty buffer
+        model.learning_starts = 0
     if init["vecnormalize"] is not None and isinstance(venv, VecNormalize):
         stats = VecNormalize.load(str(init["vecnormalize"]), venv.venv)
         for w in (venv, eval_env):

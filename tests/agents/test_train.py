@@ -80,6 +80,37 @@ def test_short_sac_run(tmp_path):
     assert list((tmp_path / "run" / "checkpoints").glob("sac_*_steps.zip"))
 
 
+@pytest.mark.slow  # two short trainings
+def test_sac_init_model_acts_and_learns_from_its_first_step(tmp_path):
+    """``--init-model`` for SAC: the continued run takes no uniformly random warm-up steps
+    (``learning_starts``, the warm-up of a policy that knows nothing): it updates from its first
+    step, so its actor's optimiser has taken one step per env step of the second run on top of
+    the first run's (one per env step past learning_starts)."""
+    from stable_baselines3 import SAC
+
+    cfg = tmp_path / "sac.toml"
+    cfg.write_text(
+        PPO_TOML.replace('algo = "ppo"', 'algo = "sac"')
+        .replace(
+            "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32"
+        )
+        .replace("reward = true", "reward = false")
+        .replace("eval_freq = 64", "eval_freq = 5000")
+        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000")
+    )
+    first = train("sac", cfg, 96, 1, tmp_path / "a", progress=False)
+    second = train("sac", cfg, 64, 1, tmp_path / "b", progress=False, init_model=first)
+
+    def actor_steps(path):
+        state = SAC.load(path, device="cpu").actor.optimizer.state_dict()["state"]
+        return int(next(iter(state.values()))["step"])
+
+    # train_freq = 1, gradient_steps = 1 (SB3's defaults): an update after each env step whose
+    # count exceeds learning_starts
+    assert actor_steps(first) == 96 - 32
+    assert actor_steps(second) == actor_steps(first) + 64
+
+
 def test_agent_config_errors(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text(PPO_TOML + "\n[extra]\nx = 1\n")
