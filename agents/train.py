@@ -418,25 +418,45 @@ def check_init_model(path: str | Path, algo: str, env_id: str) -> dict:
     return {"model": path, "meta": meta, "vecnormalize": vn if vn.is_file() else None}
 
 
+_CONTINUED_SAC = None
+
+
+def continued_sac():
+    """stable-baselines3's SAC for a run that goes on from a trained policy (``--init-model``):
+    its warm-up -- the config's ``learning_starts`` env steps collected before the first update
+    -- acts with the loaded policy (sampled), where SAC's own warm-up acts uniformly at random.
+
+    Why: the replay buffer is not in model.zip, so the continued run starts with an empty one.
+    Updating from the first step (session 27, 2026-12-06) fitted the loaded critic to a handful of
+    transitions -- in one seed an episode ended at 3 N after 4 steps, critic loss 124 at the
+    first update -- and two seeds of three collapsed to hovering (validation return 12, from
+    49-53); acting at random for the warm-up (SB3's default, session 26's trial) fills the buffer
+    with random presses instead of the policy's own states."""
+    global _CONTINUED_SAC
+    if _CONTINUED_SAC is None:
+        from stable_baselines3 import SAC
+
+        class ContinuedSAC(SAC):
+            def _sample_action(self, learning_starts, action_noise=None, n_envs=1):
+                # learning_starts = 0: the policy acts from the first step; self.learning_starts
+                # still holds the updates back for the warm-up
+                return super()._sample_action(0, action_noise, n_envs)
+
+        _CONTINUED_SAC = ContinuedSAC
+    return _CONTINUED_SAC
+
+
 def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out: Path, verbose):
     """``_make_model`` from a saved model (``check_init_model``): its weights, hyperparameters
     and optimiser, on the new envs; its observation and return statistics copied into the new
     VecNormalize wrappers (which go on updating them while training)."""
-    from stable_baselines3 import PPO, SAC
+    from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
     tb = _tensorboard_dir(out, verbose)
-    cls = {"ppo": PPO, "sac": SAC}[algo]
+    cls = {"ppo": PPO, "sac": continued_sac()}[algo]
     model = cls.load(init["model"], env=venv, device="cpu", seed=seed, tensorboard_log=tb)
     model.verbose = verbose
-    if algo == "sac":
-        # SAC's replay buffer is not in model.zip, and a new learn() counts its steps from 0, so
-        # stable-baselines3 would first act uniformly at random for learning_starts steps (its
-        # warm-up for a policy that knows nothing) and fit the loaded critic to those: the
-        # trained policy's first episodes would be random presses.  Continued, it acts and
-        # learns from its first step, as SB3's own continuation (learn(...,
-        # reset_num_timesteps=False)) would with an empty buffer
-        model.learning_starts = 0
     if init["vecnormalize"] is not None and isinstance(venv, VecNormalize):
         stats = VecNormalize.load(str(init["vecnormalize"]), venv.venv)
         for w in (venv, eval_env):

@@ -81,11 +81,13 @@ def test_short_sac_run(tmp_path):
 
 
 @pytest.mark.slow  # two short trainings
-def test_sac_init_model_acts_and_learns_from_its_first_step(tmp_path):
-    """``--init-model`` for SAC: the continued run takes no uniformly random warm-up steps
-    (``learning_starts``, the warm-up of a policy that knows nothing): it updates from its first
-    step, so its actor's optimiser has taken one step per env step of the second run on top of
-    the first run's (one per env step past learning_starts)."""
+def test_sac_init_model_warms_up_with_its_own_policy(tmp_path):
+    """``--init-model`` for SAC: the continued run's warm-up (``learning_starts`` steps before
+    the first update, its replay buffer empty) acts with the loaded policy, not uniformly at
+    random as SAC's warm-up for a policy that knows nothing; the updates wait for it as in a
+    new run (the actor's optimiser: one step per env step past learning_starts, in each run)."""
+    import numpy as np
+    import torch
     from stable_baselines3 import SAC
 
     cfg = tmp_path / "sac.toml"
@@ -105,10 +107,28 @@ def test_sac_init_model_acts_and_learns_from_its_first_step(tmp_path):
         state = SAC.load(path, device="cpu").actor.optimizer.state_dict()["state"]
         return int(next(iter(state.values()))["step"])
 
-    # train_freq = 1, gradient_steps = 1 (SB3's defaults): an update after each env step whose
-    # count exceeds learning_starts
+    # train_freq = 1, gradient_steps = 1 (SB3's defaults)
     assert actor_steps(first) == 96 - 32
-    assert actor_steps(second) == actor_steps(first) + 64
+    assert actor_steps(second) == actor_steps(first) + 64 - 32
+    # in the warm-up (num_timesteps < learning_starts) the continued SAC samples its policy:
+    # the same action as the policy's own sample under the same torch seed; SAC's own takes a
+    # uniform sample of the action space, which the torch seed does not fix
+    from agents.train import continued_sac
+
+    model = continued_sac().load(second, device="cpu")
+    model._last_obs = np.zeros((1, *model.observation_space.shape), np.float32)
+    model.num_timesteps = 0
+    torch.manual_seed(0)
+    warm = model._sample_action(model.learning_starts, None, 1)[0]
+    torch.manual_seed(0)
+    own = model.predict(model._last_obs, deterministic=False)[0]
+    assert np.array_equal(warm, own)
+    plain = SAC.load(second, device="cpu")
+    plain._last_obs = model._last_obs
+    plain.num_timesteps = 0
+    plain.action_space.seed(1)
+    torch.manual_seed(0)
+    assert not np.array_equal(plain._sample_action(plain.learning_starts, None, 1)[0], own)
 
 
 def test_agent_config_errors(tmp_path):
