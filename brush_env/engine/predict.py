@@ -4,7 +4,9 @@
 the damping factors of eq 4-5); ``start_step``: those and the tip node's rate history for contact
 (eq 6-10).  ``predict_start``: the start configuration carried rigidly by the base
 (``_rigid_predict``), or the recent motion extrapolated in the base frame (``_extrapolate``,
-second or third order), whichever has the smaller residual of eq 11.
+second or third order), whichever has the smaller residual of eq 11 (a tip in contact keeps
+the extrapolation without trying the rigid start while its residual is below
+``EXTRAP_TRUST`` tolerances).
 """
 
 from __future__ import annotations
@@ -19,6 +21,14 @@ from .residual import bristle_residual, element_at
 
 #: ``extrap`` of ``predict_start`` for a re-solve in a later Gauss-Seidel sweep (warm start)
 WARM = -1
+
+#: a tip in contact keeps the extrapolated start unless its residual of eq 11 exceeds this many
+#: times Newton's tolerance.  On the paper turn the rigid carry won only where the extrapolation's
+#: residual was >= 1.04e5 tolerances (an overshoot into the plate); trusting the extrapolation
+#: whatever its residual (no such test) moved the 6-body turn by 1.97 %, and trusting it below
+#: ~1e7 tolerances for every tip made a 6-body 4 ms tip-tip run diverge (docs/benchmarks.md,
+#: "The contact predictor's rigid start")
+EXTRAP_TRUST = 1.0e5
 
 
 @njit(**HOT)
@@ -256,16 +266,23 @@ def predict_start(br, model, chain, sub, base, con, ws, rootw, extrap):
     whole steps of history, the recent motion extrapolated in the base frame (third order with
     two steps, second with one): a bristle that slides or bends steadily starts Newton O(h^3)
     close instead of O(h).  The one with the smaller residual starts Newton (the rigid one wins at
-    contact onset, where extrapolation can overshoot into the plate).  Evaluated in this order,
-    the usual winner (2) costs two residuals, not three.  Third order only for a tip in contact: a
-    free bristle gains too few iterations (1.04 -> 0.95 per step at 3 ms) to pay for the extra
-    rotation logs (~8 % slower in bench engine)."""
+    contact onset, where extrapolation can overshoot into the plate).  A free tip evaluates (1)
+    first and stops there if it is already converged; a tip in contact evaluates (2) first and
+    stops there unless its residual exceeds ``EXTRAP_TRUST`` times Newton's tolerance (an
+    overshoot into the plate shows as a residual of that size: the penalty force of eq 6 of a
+    tunnelled tip), so the usual winner costs one residual, not two or three.  Third order only
+    for a tip in contact: a free bristle gains too few iterations (1.04 -> 0.95 per step at
+    3 ms) to pay for the extra rotation logs (~8 % slower in bench engine)."""
     it = ws.it
-    if extrap == 3 and not in_contact(con.tip_state[br.b]):
+    touching = in_contact(con.tip_state[br.b])
+    if extrap == 3 and not touching:
         extrap = 2
+    # a tip in contact tries the extrapolation first (it wins ~99.7 % of those bristle-steps on
+    # the paper turn); the rigid carry is the fall-back when the extrapolation looks tunnelled
+    extrap_first = touching and extrap >= 2
     nrm = np.inf
     nx = np.inf
-    # one residual call site for the three evaluations (rigid, extrapolated, rigid again): the
+    # one residual call site for the three evaluations (first, second, first again): the
     # residual is inlined, and each copy costs compile time
     for stage in range(3):
         if stage == 0:
@@ -274,15 +291,20 @@ def predict_start(br, model, chain, sub, base, con, ws, rootw, extrap):
                 load_chain(
                     br, chain.pos, chain.rot, ws.sw.warm_pos[br.b0 :], ws.sw.warm_rot[br.b0 :]
                 )
+            elif extrap_first:
+                _extrapolate(br, chain, extrap, base, it, ws.mot)
             else:
                 _rigid_predict(br, chain, base, it, ws.mot)
         elif stage == 1:
             if extrap == WARM:
                 break
-            if extrap < 2 or nrm <= sub.rtol:
+            if extrap < 2 or nrm <= (EXTRAP_TRUST if extrap_first else 1.0) * sub.rtol:
                 break
             save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
-            _extrapolate(br, chain, extrap, base, it, ws.mot)
+            if extrap_first:
+                _rigid_predict(br, chain, base, it, ws.mot)
+            else:
+                _extrapolate(br, chain, extrap, base, it, ws.mot)
         else:
             if nx < nrm:
                 nrm = nx
