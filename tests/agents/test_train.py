@@ -32,6 +32,15 @@ checkpoint_freq = 128
 seed = 0
 """
 
+#: SAC on the same tiny env: 32 steps of warm-up, evaluations and checkpoints only at the end
+SAC_TOML = (
+    PPO_TOML.replace('algo = "ppo"', 'algo = "sac"')
+    .replace("n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32")
+    .replace("reward = true", "reward = false")
+    .replace("eval_freq = 64", "eval_freq = 5000")
+    .replace("checkpoint_freq = 128", "checkpoint_freq = 5000")
+)
+
 
 @pytest.mark.slow  # training (~7 s)
 def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
@@ -62,15 +71,7 @@ def test_short_ppo_run_trains_saves_reloads_and_evaluates(tmp_path):
 @pytest.mark.slow  # training
 def test_short_sac_run(tmp_path):
     cfg = tmp_path / "sac.toml"
-    cfg.write_text(
-        PPO_TOML.replace('algo = "ppo"', 'algo = "sac"')
-        .replace(
-            "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32"
-        )
-        .replace("reward = true", "reward = false")
-        .replace("eval_freq = 64", "eval_freq = 5000")
-        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000")
-    )
+    cfg.write_text(SAC_TOML)
     model = train("sac", cfg, 96, 1, tmp_path / "run", progress=False)
     s = evaluate(str(model), 1, tmp_path / "eval", quiet=True)
     assert s["episodes"] == 1
@@ -91,15 +92,7 @@ def test_sac_init_model_warms_up_with_its_own_policy(tmp_path):
     from stable_baselines3 import SAC
 
     cfg = tmp_path / "sac.toml"
-    cfg.write_text(
-        PPO_TOML.replace('algo = "ppo"', 'algo = "sac"')
-        .replace(
-            "n_steps = 64\nbatch_size = 32\nn_epochs = 2", "learning_starts = 32\nbatch_size = 32"
-        )
-        .replace("reward = true", "reward = false")
-        .replace("eval_freq = 64", "eval_freq = 5000")
-        .replace("checkpoint_freq = 128", "checkpoint_freq = 5000")
-    )
+    cfg.write_text(SAC_TOML)
     first = train("sac", cfg, 96, 1, tmp_path / "a", progress=False)
     second = train("sac", cfg, 64, 1, tmp_path / "b", progress=False, init_model=first)
 
