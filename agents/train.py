@@ -32,6 +32,7 @@ Writes ``OUT/model.zip``, ``OUT/vecnormalize.pkl`` (if normalising), ``OUT/meta.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import inspect
 import json
@@ -418,32 +419,27 @@ def check_init_model(path: str | Path, algo: str, env_id: str) -> dict:
     return {"model": path, "meta": meta, "vecnormalize": vn if vn.is_file() else None}
 
 
-_CONTINUED_SAC = None
-
-
+@functools.cache
 def continued_sac():
     """stable-baselines3's SAC for a run that goes on from a trained policy (``--init-model``):
     its warm-up -- the config's ``learning_starts`` env steps collected before the first update
     -- acts with the loaded policy (sampled), where SAC's own warm-up acts uniformly at random.
 
     Why: the replay buffer is not in model.zip, so the continued run starts with an empty one.
-    Updating from the first step (session 27, 2026-12-06) fitted the loaded critic to a handful of
-    transitions -- in one seed an episode ended at 3 N after 4 steps, critic loss 124 at the
-    first update -- and two seeds of three collapsed to hovering (validation return 12, from
-    49-53); acting at random for the warm-up (SB3's default, session 26's trial) fills the buffer
-    with random presses instead of the policy's own states."""
-    global _CONTINUED_SAC
-    if _CONTINUED_SAC is None:
-        from stable_baselines3 import SAC
+    SAC's own warm-up fills it with random presses instead of the policy's own states; updating
+    from the first step instead (session 27, 2026-12-06) fitted the loaded critic to a handful of
+    transitions (in one seed an episode ended at 3 N after 4 steps: critic loss 124 at the first
+    update).  This warm-up is the continuation that keeps the policy's own data; it did not by
+    itself stop SAC's 3 N second stage from collapsing in one seed of three (docs/rl.md)."""
+    from stable_baselines3 import SAC
 
-        class ContinuedSAC(SAC):
-            def _sample_action(self, learning_starts, action_noise=None, n_envs=1):
-                # learning_starts = 0: the policy acts from the first step; self.learning_starts
-                # still holds the updates back for the warm-up
-                return super()._sample_action(0, action_noise, n_envs)
+    class ContinuedSAC(SAC):
+        def _sample_action(self, learning_starts, action_noise=None, n_envs=1):
+            # learning_starts = 0: the policy acts from the first step; self.learning_starts
+            # still holds the updates back for the warm-up
+            return super()._sample_action(0, action_noise, n_envs)
 
-        _CONTINUED_SAC = ContinuedSAC
-    return _CONTINUED_SAC
+    return ContinuedSAC
 
 
 def _load_model(algo: str, init: dict, run: dict, venv, eval_env, seed: int, out: Path, verbose):
