@@ -732,11 +732,35 @@ def _started_from(meta: dict) -> str:
     )
 
 
+def compact_model(src: str | Path, dst: str | Path) -> None:
+    """Copy the stable-baselines3 model zip ``src`` to ``dst`` without its optimisers' state (the
+    Adam moment estimates; their learning rates and settings stay): the networks and everything
+    else byte for byte, so the policy acts the same and loads as before; a training continued
+    from the copy restarts the moments.  A SAC model's moments (actor and both critics) were 54 %
+    of its 7.6 MB zip, past the few MB a shipped model may take (issue 30, item 4)."""
+    import io
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = zin.read(info.filename)
+            if info.filename.endswith("optimizer.pth"):
+                state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+                state["state"] = {}
+                buf = io.BytesIO()
+                torch.save(state, buf)
+                data = buf.getvalue()
+            zout.writestr(info, data)  # the entry's own date and flags: the copy is reproducible
+
+
 def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
-    """Copy the best run's model (:func:`best_run`) to ``DEST/<scene>_<algo>.zip`` with its
-    ``.meta.json`` and ``.vecnormalize.pkl`` (agents/evaluate.py finds them beside it), and
-    write its card section into ``DEST/README.md``: command, commit, seeds, wall time and the
-    evaluation table at every level."""
+    """Copy the best run's model (:func:`best_run`; :func:`compact_model`) to
+    ``DEST/<scene>_<algo>.zip`` with its ``.meta.json`` and ``.vecnormalize.pkl``
+    (agents/evaluate.py finds them beside it), and write its card section into
+    ``DEST/README.md``: command, commit, seeds, wall time and the evaluation table at every
+    level."""
     entry, seed = best_run(c, results)
     t = _run(c, _entry(c, entry), seed)
     algo, run = t["algo"], t["dir"]
@@ -749,7 +773,7 @@ def ship(c: dict, results: dict, dest: str | Path = "agents/models") -> Path:
 
     model = policy_of(c, t)
     meta_path, vn_path = companions(model)
-    shutil.copyfile(model, dest / f"{name}.zip")
+    compact_model(model, dest / f"{name}.zip")
     meta = json.loads(meta_path.read_text())
     meta["shipped_from"] = {"run": str(run), "model": str(model), "commit": commit_id()}
     (dest / f"{name}.meta.json").write_text(json.dumps(meta, indent=2))
