@@ -4,6 +4,8 @@ asserted: the campaign's table in agents/models/README.md holds the scores)."""
 import json
 from pathlib import Path
 
+import pytest
+
 from agents.evaluate import companions, evaluate
 
 MODELS = Path(__file__).resolve().parents[2] / "agents" / "models"
@@ -22,8 +24,8 @@ def test_a_flat_plate_model_ships_with_its_statistics_and_card():
             assert vn.is_file()
 
 
-def test_the_shipped_model_runs_one_episode(tmp_path):
-    z = sorted(MODELS.glob("flat_plate_*.zip"))[0]
+@pytest.mark.parametrize("z", sorted(MODELS.glob("flat_plate_*.zip")), ids=lambda z: z.stem)
+def test_the_shipped_model_runs_one_episode(tmp_path, z):
     s = evaluate(str(z), 1, tmp_path, seed=0, quiet=True, env_kwargs={"max_episode_steps": 50})
     trained = json.loads(companions(z)[0].read_text())["env_kwargs"]
     assert s["env_kwargs"]["fidelity"] == trained["fidelity"]  # the settings it was trained on
