@@ -323,7 +323,7 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
     -> check -> commit (or restore).
     """
     b = br.b
-    start_step(br, model, chain, sub, base, con, ws)
+    start_step(br, model, chain, sub, base, con, ws, jc)
     nrm = predict_start(br, model, chain, sub, base, con, ws, rootw, attempt.extrap)
     rtol = sub.rtol
     it = 0

@@ -32,7 +32,9 @@ record              fields [unit]
                     sdf (hdr, vals) the scene's baked SDF grids (sdf.py)
 ``NewtonCache``     per-bristle factored Newton matrices kept across steps: D, G, L (N, 6, 6),
                     piv (N, 6), key (nb,) the c0/h they were built for, age (nb,) steps,
-                    S (nb, 6, 6) the tip body's Schur complement without the tip load
+                    S (nb, 6, 6) the tip body's Schur complement without the tip load; E (N, 6)
+                    each element's strain at its last (sub)step's start and EK (N, 24) the
+                    poses it came from (``predict._prepare``: e_{n-1} of the next step)
 ``StepOut``         per bristle: rootw (nb, 6) [N, N mm] root element's load on the head; iters,
                     nsub, status (nb,)
 ``Bristle``         b (index), b0 (first body), n (bodies), il (tip body)
@@ -246,7 +248,7 @@ ContactScene = namedtuple(
         "shaft",
     ],
 )
-NewtonCache = namedtuple("NewtonCache", ["D", "G", "L", "piv", "key", "age", "S"])
+NewtonCache = namedtuple("NewtonCache", ["D", "G", "L", "piv", "key", "age", "S", "E", "EK"])
 StepOut = namedtuple("StepOut", ["rootw", "iters", "nsub", "status"])
 Bristle = namedtuple("Bristle", ["b", "b0", "n", "il"])
 Substep = namedtuple(
@@ -454,4 +456,6 @@ def make_newton_cache(n_bodies: int, n_bristles: int) -> NewtonCache:
         np.zeros(n_bristles),
         np.zeros(n_bristles, np.int64),
         np.zeros((n_bristles, 6, 6)),
+        np.zeros((n_bodies, 6)),
+        np.full((n_bodies, 24), np.nan),  # no key matches NaN: nothing cached yet
     )
