@@ -7,7 +7,9 @@ with the empty cache (the full compile), then again with the cache that run wrot
 second start).  Per start it records the process's wall time, its CPU time (user + system, from
 ``getrusage(RUSAGE_CHILDREN)``), its peak memory, the files and bytes numba wrote to the cache,
 and the user-space instructions it retired (``perf stat -e instructions:u``) where the machine's
-PMU can count them.
+PMU can count them; and, of the warm-up's CPU, the seconds in LLVM (llvmlite's calls:
+optimisation, code generation, linking) and in numba's inlining of the ``inline="always"``
+kernels (the rest is numba's own passes in Python: typing, lowering).
 
 Wall time drifts by ~30 % on a shared VM and CPU time follows the machine's speed too; retired
 instructions are the comparable figure between two versions of the engine (n/a on a VM without
@@ -34,6 +36,29 @@ PERF = "/usr/bin/perf"
 EVENT = "instructions:u"
 _MARK = "BENCH_COMPILE "
 
+#: Where a start's compile CPU goes: LLVM (every llvmlite ffi call: optimisation, code generation,
+#: linking) and numba's inlining of the ``inline="always"`` kernels
+#: (``InlineWorker.inline_function``), each timed at its outermost call (both scripts below)
+_TIMERS = """import llvmlite.binding.ffi as ffi
+from numba.core import inline_closurecall as icc
+acc = {"llvm": 0.0, "inline": 0.0}
+def timed(key, fn):
+    depth = [0]
+    def wrapped(*a, **k):
+        if depth[0]:
+            return fn(*a, **k)
+        depth[0] += 1
+        c = time.process_time()
+        try:
+            return fn(*a, **k)
+        finally:
+            acc[key] += time.process_time() - c
+            depth[0] -= 1
+    return wrapped
+ffi._lib_fn_wrapper.__call__ = timed("llvm", ffi._lib_fn_wrapper.__call__)
+icc.InlineWorker.inline_function = timed("inline", icc.InlineWorker.inline_function)
+"""
+
 #: The full target: every kernel set, exactly as ``brush-env warmup`` compiles them.  The stamp
 #: belongs to the package's own cache (``engine/__pycache__``): with another cache directory the
 #: warm-up must neither sweep that cache's stale files nor stamp it as compiled.
@@ -44,18 +69,23 @@ from brush_env.engine import SimSettings, warmup
 from brush_env.engine.fidelity import level_settings, load_fidelity
 warmup.kernels_compiled = lambda *a: True  # no sweep of the package's own engine/__pycache__
 warmup.write_stamp = lambda *a: None  # ... and no stamp (nor profile): it compiles elsewhere
+#TIMERS
 t1 = time.perf_counter()
+c1 = time.process_time()
 seconds = warmup.warm_up(GROUPS)
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": seconds, "maxrss_kb": peak}))
-"""
+print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": seconds, "maxrss_kb": peak,
+      "warmup_cpu_s": time.process_time() - c1, "llvm_s": acc["llvm"], "inline_s": acc["inline"]}))
+""".replace("#TIMERS\n", _TIMERS)
 
 #: ``--quick``: one small cached kernel; the same pipeline in seconds (for the tests).
 _QUICK = """
 import json, resource, time
 t0 = time.perf_counter()
 import numba, numpy as np
+#TIMERS
 t1 = time.perf_counter()
+c1 = time.process_time()
 
 @numba.njit(cache=True)
 def norm2(x):
@@ -66,8 +96,9 @@ def norm2(x):
 
 norm2(np.ones(3))
 t2, peak = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": t2 - t1, "maxrss_kb": peak}))
-"""
+print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": t2 - t1, "maxrss_kb": peak,
+      "warmup_cpu_s": time.process_time() - c1, "llvm_s": acc["llvm"], "inline_s": acc["inline"]}))
+""".replace("#TIMERS\n", _TIMERS)
 
 
 #: ``--level``: which kernel groups the start compiles (``GROUPS`` in the script above)
@@ -164,6 +195,10 @@ def run_start(script: Path, cache_dir: Path, perf: bool) -> dict:
         "instructions": instructions,
         "instructions_note": why,
         "maxrss_mb": inner["maxrss_kb"] / 1024.0,  # the interpreter's own peak (kB on Linux)
+        # the warm-up's CPU and, of it, LLVM's and numba's inlining's (_TIMERS)
+        "warmup_cpu_s": inner["warmup_cpu_s"],
+        "llvm_s": inner["llvm_s"],
+        "inline_s": inner["inline_s"],
         "cache_files": files,
         "cache_bytes": size,
     }
@@ -223,6 +258,10 @@ def summary(rows: list) -> dict:
     return out
 
 
+def _fmt_s(v) -> str:
+    return "n/a" if v is None else f"{v:.1f}"
+
+
 def _fmt_instr(r: dict) -> str:
     return f"{r['instructions'] / 1e9:.2f}e9" if r["instructions"] is not None else "n/a"
 
@@ -233,6 +272,9 @@ TABLE = [
     ("wall [s]", lambda r: f"{r['wall_s']:.1f}"),
     ("warm_up() [s]", lambda r: f"{r['warmup_s']:.1f}"),
     ("CPU [s]", lambda r: f"{r['cpu_s']:.1f}"),
+    ("warm_up() CPU [s]", lambda r: _fmt_s(r.get("warmup_cpu_s"))),
+    ("of it LLVM [s]", lambda r: _fmt_s(r.get("llvm_s"))),
+    ("of it numba's inlining [s]", lambda r: _fmt_s(r.get("inline_s"))),
     ("instructions:u", _fmt_instr),
     ("cache files", lambda r: str(r["cache_files"])),
     ("cache [kB]", lambda r: f"{r['cache_bytes'] / 1024:.0f}"),

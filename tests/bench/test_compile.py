@@ -25,6 +25,9 @@ ROW_KEYS = {
     "maxrss_mb",
     "cache_files",
     "cache_bytes",
+    "warmup_cpu_s",
+    "llvm_s",
+    "inline_s",
 }
 
 
@@ -78,6 +81,11 @@ def test_cli_bench_compile_quick(capsys):
     assert cold["cache_files"] >= 2 and cold["cache_bytes"] > 0  # it compiled into the new cache
     assert cached["cache_bytes"] == cold["cache_bytes"]  # ... and the second start only loaded it
     assert all(r["instructions"] is None or r["instructions"] > 0 for r in rows)
+    # the split of the compile's CPU: LLVM compiled the kernel on the cold start, and the timed
+    # parts lie within the warm-up's CPU (one small kernel, not inlined anywhere: no inlining)
+    assert cold["llvm_s"] > 0.0 and cold["inline_s"] == 0.0
+    for r in rows:
+        assert r["llvm_s"] + r["inline_s"] <= r["warmup_cpu_s"] + 1e-3
 
 
 def test_level_chooses_the_kernel_groups_the_start_compiles(capsys):
