@@ -57,11 +57,14 @@ def _strain_key(k, br, P, Q, pAb, RAb, key, store):
 
 
 @njit(**HOT, inline="always")
-def _strain_history(k, br, model, chain, base, hist, el, jc, c1, c2, still):
+def _strain_history(k, br, model, chain, sub, base, hist, el, jc):
     """hist.ehist[k] <- c1 e_n + c2 e_{n-1} of element k; e_n into the strain cache (jc.E, EK),
-    e_{n-1} from it when its key matches (``_prepare``)."""
+    e_{n-1} from it when its key matches (``_prepare``; el.zero6 zeroed there)."""
     i = br.b0 + k
     e = el.e
+    c1 = sub.c1
+    c2 = sub.c2
+    still = Damp(el.zero6, 1.0, 0.0)  # strains only: no damping history
     for a in range(6):
         hist.ehist[k, a] = 0.0
     # c2 e_{n-1} first, then c1 e_n: the sum is the same to the bit (0 + x = x, x + y = y + x),
@@ -99,7 +102,6 @@ def _prepare(br, model, chain, sub, base, hist, el, jc):
     zero6 = el.zero6
     for a in range(6):
         zero6[a] = 0.0
-    still = Damp(zero6, 1.0, 0.0)
     for k in range(br.n):
         i = br.b0 + k
         beta = 0.0 if sub.static else bp[i].beta
@@ -127,7 +129,7 @@ def _prepare(br, model, chain, sub, base, hist, el, jc):
             local_rot_into(chain.prot[i], chain.rot[i], tmp)
             for a in range(3):
                 hist.thp[k, a] = c2 * tmp[a]
-        _strain_history(k, br, model, chain, base, hist, el, jc, c1, c2, still)
+        _strain_history(k, br, model, chain, sub, base, hist, el, jc)
 
 
 @njit(**HOT, inline="always")

@@ -220,7 +220,8 @@ def kernel_residual(
     base_rec = rec.Base(
         *(np.ascontiguousarray(a, float) for a in (*base_n, *base, *base_p)), np.zeros(3), z33[0]
     )
-    _prepare(br, model, at_n, sub, base_rec, ws.hist, ws.el)
+    # an empty strain cache (n bodies: the key NaN), so e_{n-1} is evaluated as the twin does
+    _prepare(br, model, at_n, sub, base_rec, ws.hist, ws.el, rec.make_newton_cache(n, 1))
     tip_args = ctx.tip_args.copy()
     tip_state = ctx.tip_state.copy()
     tip_args[b] = np.zeros((), rec.TIP_ARGS)
