@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from . import chain_rollout as cro  # many steps along prescribed poses in one call
 from . import records as rec
 from . import shaft as shf  # shaft contact of the bodies' capsules and the head's clearance
 from . import step as itg  # the integrator's stages, in order (step.step_bristles)
@@ -198,6 +199,10 @@ class DFMChain(BristleModel):
         self._step_kernel = (
             itg.step_bristles_coupled if self.settings.tip_tip_sweeps > 1 else itg.step_bristles
         )
+        self._follow_kernel = (
+            cro.follow_coupled if self.settings.tip_tip_sweeps > 1 else cro.follow_one_sweep
+        )
+        self._follow_snap: tuple | None = None  # follow's rollback buffers (_follow_views)
 
     def _make_prm(self, static: bool) -> rec.StepParams:
         """The kernels' step parameters (``records.StepParams``) from the settings: ``h`` the
@@ -301,6 +306,66 @@ class DFMChain(BristleModel):
         out = self._out
         return int(out.iters.sum()), int(out.nsub.sum())
 
+    def follow(self, P, R, limits, record) -> tuple[int, int, SimulationDivergence | None]:
+        """Engine steps to the TCP poses (P[k] [mm], R[k]) in one compiled call
+        (``chain_rollout``: the stages of ``_advance`` per step, with no Python between steps);
+        row k of ``record`` (``chain_rollout.FollowRecord``) holds step k's outputs.  limits:
+        ``FollowRun.limits``.  Needs one solver step per engine step (``settings.substeps ==
+        1``).  Returns (steps done, ``chain_rollout.STOP_*``); after a divergence the state is
+        that of the failed step's start, as ``_accept_or_rollback`` leaves it, and the
+        third value its ``SimulationDivergence`` (else None)."""
+        st, s = self.state, self.settings
+        live, snap = self._follow_views()
+        head = self._head if self._head is not None else np.zeros((0, 3))
+        run = cro.FollowRun(
+            P,
+            R,
+            np.array([st.time, s.dt]),
+            live,
+            snap,
+            self.shaft_contact_on,
+            self._g23,
+            head,
+            np.zeros_like(head),
+            limits,
+        )
+        chain = rec.Chain(
+            st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
+        )
+        drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
+        done, stop = self._follow_kernel(
+            self._kmodel, chain, drive, self._prm, self._contact(), st.jac, self._ws, self._out,
+            run, record,
+        )  # fmt: skip
+        st.time = float(run.clock[0])
+        st.steps += int(done)
+        err = self._divergence(st.time + s.dt, self._prm) if stop == cro.STOP_DIVERGENCE else None
+        return int(done), int(stop), err
+
+    def _follow_views(self) -> tuple[tuple, tuple]:
+        """The state's arrays (``snapshot``'s: _STATE_ARRAYS, tip_state, shaft; and the root
+        wrenches) as flat float64 views, and buffers of their shapes for the rollback copy (kept
+        across calls).  Every field of TIP_STATE and SHAFT is 8 bytes wide, so the bytes copy as
+        float64."""
+        st = self.state
+        # and the root wrenches: after a divergence they are the last accepted step's (a failed
+        # step has written those of the bristles it solved)
+        arrays = [getattr(st, name) for name in _STATE_ARRAYS] + [
+            st.tip_state,
+            st.shaft,
+            self.root_wrench,
+        ]
+        live = []
+        for a in arrays:
+            if not a.flags.c_contiguous or a.dtype.itemsize % 8:
+                raise RuntimeError("state arrays must be C-contiguous with 8-byte fields")
+            live.append(a.view(np.float64).reshape(-1))
+        live = tuple(live)
+        snap = self._follow_snap
+        if snap is None or any(x.shape != y.shape for x, y in zip(snap, live, strict=True)):
+            snap = self._follow_snap = tuple(np.empty_like(v) for v in live)
+        return live, snap
+
     def _base_motion(self, tcp_p, tcp_R) -> None:
         """Stage 1: the prescribed TCP pose at t + dt (row 2 of the drive); the kernels
         interpolate it over sub-steps (linear position, geodesic rotation)."""
@@ -328,21 +393,26 @@ class DFMChain(BristleModel):
     def _accept_or_rollback(self, snapshot, prm, t_new) -> None:
         """Stage 3: a bristle that failed on the smallest halving of its step, or a non-finite
         state, restores the whole state and raises ``SimulationDivergence`` (never NaN)."""
-        st, m = self.state, self.model
-        bad = np.flatnonzero(self._out.status)
-        if bad.size == 0 and not (itg.all_finite(st.pos) and itg.all_finite(self.root_wrench)):
-            bad = np.arange(m.n_bristles)
-        if bad.size:
+        st = self.state
+        if self._out.status.any() or not (
+            itg.all_finite(st.pos) and itg.all_finite(self.root_wrench)
+        ):
             self.set_state(snapshot)
             # the failed attempt refactored Newton matrices at its own (rejected) iterates: mark
             # them all stale, so that what follows depends on the restored state alone
             self.state.jac.key[:] = 0.0
-            raise SimulationDivergence(
-                t_new,
-                bad,
-                "Newton did not converge on the smallest "
-                f"halving of the solver step (h / 2**{prm.maxlev}, max_halvings)",
-            )
+            raise self._divergence(t_new, prm)
+
+    def _divergence(self, t_new, prm) -> SimulationDivergence:
+        """The error of a failed step ending at t_new [s]: the bristles that failed on the
+        smallest halving (all of them when the state is not finite)."""
+        bad = np.flatnonzero(self._out.status)
+        return SimulationDivergence(
+            t_new,
+            bad if bad.size else np.arange(self.model.n_bristles),
+            "Newton did not converge on the smallest "
+            f"halving of the solver step (h / 2**{prm.maxlev}, max_halvings)",
+        )
 
     def _shift_drive(self, tcp_p, tcp_R, t_new) -> None:
         """Stage 4: the TCP history moves on (t_{n-2} <- t_{n-1} <- t_n <- t_{n+1}), time too."""

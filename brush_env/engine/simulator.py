@@ -30,6 +30,7 @@ import numpy as np
 from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from .bristles import make_bristle_model
 from .chain import State
+from .chain_rollout import STOP_REASONS, make_follow_record
 from .config import BrushConfig
 from .rotation import expmap, logmap, pose_ok
 from .scene import Scene
@@ -40,6 +41,7 @@ __all__ = [
     "INTEGRATORS",
     "PENETRATION_WARN_FRACTION",
     "PenetrationWarning",
+    "Follow",
     "Rollout",
     "SimSettings",
     "SimulationDivergence",
@@ -287,6 +289,138 @@ class Simulator:
             return Rollout(done, stop, msg, rec, self._result(0, done * s.substeps))
         return self._rollout_steps(v, w, int(n), force_stop, penetration_stop)
 
+    def follow(
+        self,
+        P,
+        R,
+        force_stop: float = math.inf,
+        penetration_stop: float = math.inf,
+        stop_at_head_contact: bool = False,
+    ) -> Follow:
+        """``len(P)`` steps of ``settings.dt``, the TCP at pose (P[k] [mm], R[k]) at the end of
+        step k -- ``step`` for each pose, with every step's outputs in the arrays of
+        ``Follow.record`` (``chain_rollout.FollowRecord``) instead of a ``StepResult`` each.
+
+        A bristle model with a compiled follow (the full chain, one solver step per engine
+        step) runs all of it in one call (``chain_rollout.py``); otherwise the steps go through
+        ``step`` and fill the same record.  The results are those of ``step`` to the bit.  Every
+        pose is checked before anything moves (as ``step`` checks one).  Stops after the step at
+        which the total normal force (tips and shafts) exceeds ``force_stop`` [N], a penetration
+        exceeds ``penetration_stop`` [mm], or (``stop_at_head_contact``) the head touches; a
+        divergence restores the state of the failed step's start and stops
+        (``Follow.error`` holds the ``SimulationDivergence``)."""
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before follow()")
+        P = np.ascontiguousarray(P, dtype=float)
+        R = np.ascontiguousarray(R, dtype=float)
+        self._check_poses(P, R)
+        n, nb = P.shape[0], self.model.n_bristles
+        rec = make_follow_record(n, nb)
+        limits = np.array(
+            [
+                force_stop,
+                penetration_stop,
+                0.0 if stop_at_head_contact else -math.inf,
+                PENETRATION_WARN_FRACTION,
+            ],
+            dtype=float,
+        )
+        fast = getattr(self.bristles, "follow", None)
+        if fast is None or self.settings.substeps != 1:
+            return self._follow_steps(P, R, limits, rec)
+        done, stop, error = fast(P, R, limits, rec)
+        if done:
+            k = done - 1
+            self._peaks = _Peaks(
+                float(rec.pen_max[k]),
+                float(rec.shaft_pen[k]),
+                int(rec.beyond[k]),
+                float(rec.head[k]),
+            )
+            first = np.flatnonzero(rec.beyond[:done])
+            if first.size and not self._pen_warned:
+                j = int(first[0])
+                pen = rec.pen[j]
+                self._warn_penetration(pen, pen / self.model.tip_radius, float(rec.t[j]))
+        return Follow(done, STOP_REASONS[stop], error, rec)
+
+    def _check_poses(self, P, R) -> None:
+        """``step``'s checks of every pose of a ``follow`` (the first refused is named)."""
+        if P.ndim != 2 or P.shape[1:] != (3,) or R.shape != (P.shape[0], 3, 3) or not len(P):
+            raise ValueError(
+                f"P {P.shape}, R {R.shape}: must be (n, 3) positions [mm] and (n, 3, 3) "
+                "rotations, n >= 1"
+            )
+        s = self.settings
+        for k in range(P.shape[0]):
+            if not pose_ok(P[k], R[k], 1e-6):
+                try:
+                    self._check_pose(P[k], R[k])
+                except ValueError as e:
+                    raise ValueError(f"pose {k}: {e}") from None
+        prev_p = np.vstack([self.state.tcp_p[1][None], P[:-1]])
+        prev_R = np.concatenate([self.state.tcp_R[1][None], R[:-1]])
+        v = np.linalg.norm(P - prev_p, axis=1) / s.dt
+        cos = (np.einsum("kab,kab->k", R, prev_R) - 1.0) / 2.0  # trace(R_k R_{k-1}^T) = 2 cos + 1
+        w = np.arccos(np.clip(cos, -1.0, 1.0)) / s.dt
+        for name, speed, limit, unit in (
+            ("max_tcp_speed", v, s.max_tcp_speed, "mm/s"),
+            ("max_tcp_angular_speed", w, s.max_tcp_angular_speed, "rad/s"),
+        ):
+            over = np.flatnonzero(speed > limit)
+            if over.size:
+                k = int(over[0])
+                raise ValueError(
+                    f"pose {k}: {speed[k]:.4g} {unit} from the pose before it in one step of dt = "
+                    f"{s.dt:g} s, allowed up to settings.{name} = {limit:g} {unit}"
+                )
+
+    def _follow_steps(self, P, R, limits, rec) -> Follow:
+        """``follow`` through ``step`` (models without a compiled one, or sub-stepped)."""
+        done, stop, error = 0, None, None
+        for k in range(P.shape[0]):
+            try:
+                out = self.step(P[k], R[k])
+            except SimulationDivergence as e:
+                stop, error = "divergence", e
+                break
+            ex = out.extra
+            rec.t[k] = out.time
+            rec.FM[k, 0:3] = out.tcp_force
+            rec.FM[k, 3:6] = out.tcp_moment
+            rec.iters[k] = out.iterations
+            rec.nsub[k] = out.substeps
+            rec.sweeps[k] = [ex.get("sweeps", 0), ex.get("resolves", 0), 0]
+            if "tip_tip_settled" in ex:
+                rec.sweeps[k, 2] = 2 if ex["tip_tip_fallback"] else int(not ex["tip_tip_settled"])
+            rec.tips[k, :, 0:3] = out.tip_pos
+            rec.tips[k, :, 3:6] = out.tip_vel
+            rec.fn[k] = out.tip_normal_force
+            rec.ft[k] = out.tip_tangential_force
+            rec.slide[k] = out.tip_sliding
+            rec.pen[k] = out.tip_penetration
+            rec.cpt[k] = out.tip_contact_point
+            rec.ftt[k] = ex["tip_tip_force"]
+            rec.surf[k] = ex["tip_surface"]
+            rec.pen_max[k] = ex["max_tip_penetration"]
+            rec.beyond[k] = ex["steps_beyond_penalty_range"]
+            rec.shaft_pen[k] = ex["max_shaft_penetration"]
+            if "shaft_normal_force" in ex:
+                rec.shaft_fn[k] = ex["shaft_normal_force"]
+            rec.head[k] = ex.get("head_clearance", math.inf)
+            done = k + 1
+            total = float(out.tip_normal_force.sum()) + float(rec.shaft_fn[k].sum())
+            if total > limits[0]:
+                stop = "force_limit"
+            elif rec.head[k] <= limits[2]:
+                stop = "head_contact"
+            elif max(rec.pen_max[k], rec.shaft_pen[k]) > limits[1]:
+                stop = "penetration"
+            if stop is not None:
+                break
+        return Follow(done, stop, error, rec)
+
     def _deepest(self, rec, done) -> tuple[np.ndarray, np.ndarray]:
         """(penetration, excess) of the step's deepest tip, as ``_track`` gives them."""
         pen = self.bristles.tip_penetration()
@@ -298,46 +432,27 @@ class Simulator:
         return pen, pen / self.model.tip_radius
 
     def _rollout_steps(self, v, w, n, force_stop, penetration_stop) -> Rollout:
-        """``rollout`` through ``step`` (models without a compiled one)."""
-        from .prb_rollout import make_record  # the record's layout (numpy only)
+        """``rollout`` through ``follow`` (models without a compiled rollout): the poses of the
+        constant twist, then ``follow``'s record in ``prb_rollout``'s layout."""
+        from .prb_rollout import Record  # the record's layout (numpy only)
 
-        nb = self.model.n_bristles
-        rec = make_record(n, nb)
         dt = self.settings.dt
         dR = expmap(w * dt)
-        p, R = self.state.tcp_p[1].copy(), self.state.tcp_R[1].copy()
-        out = self._result(0, 0)
-        done, stop, msg = 0, None, None
+        P = np.empty((n, 3))
+        R = np.empty((n, 3, 3))
+        p, Rk = self.state.tcp_p[1].copy(), self.state.tcp_R[1].copy()
         for k in range(n):
-            p_new, R_new = p + v * dt, dR @ R
-            try:
-                out = self.step(p_new, R_new)
-            except SimulationDivergence as e:
-                stop, msg = "divergence", str(e)
-                break
-            p, R = p_new, R_new
-            ex = out.extra
-            rec.fn[k] = out.tip_normal_force
-            rec.cpt[k] = out.tip_contact_point
-            rec.surf[k] = ex["tip_surface"]
-            rec.pen_max[k] = ex["max_tip_penetration"]
-            rec.shaft_pen[k] = ex["max_shaft_penetration"]
-            rec.beyond[k] = ex["steps_beyond_penalty_range"]
-            rec.head[k] = ex.get("head_clearance", math.inf)
-            rec.p[k], rec.R[k] = p, R
-            done = k + 1
-            if "shaft_normal_force" in ex:
-                rec.shaft_fn[k] = float(ex["shaft_normal_force"].sum())
-            total = float(out.tip_normal_force.sum()) + rec.shaft_fn[k]
-            if total > force_stop:
-                stop = "force_limit"
-            elif rec.head[k] <= 0.0:
-                stop = "head_contact"
-            elif max(rec.pen_max[k], rec.shaft_pen[k]) > penetration_stop:
-                stop = "penetration"
-            if stop is not None:
-                break
-        return Rollout(done, stop, msg, rec, out)
+            p, Rk = p + v * dt, dR @ Rk
+            P[k], R[k] = p, Rk
+        run = self.follow(P, R, force_stop, penetration_stop, stop_at_head_contact=True)
+        f = run.record
+        rec = Record(
+            f.fn, f.cpt, f.surf, f.pen_max, f.beyond, f.head, P, R, f.shaft_fn.sum(axis=1),
+            f.shaft_pen,
+        )  # fmt: skip
+        k = run.done - 1
+        out = self._result(int(f.iters[k]), int(f.nsub[k])) if run.done else self._result(0, 0)
+        return Rollout(run.done, run.stop, None if run.error is None else str(run.error), rec, out)
 
     def solve_static(self, tcp_p=None, tcp_R=None, increments: int = 1) -> StepResult:
         """Static equilibrium at the given (or current) TCP pose under the current tip loads.
@@ -415,14 +530,17 @@ class Simulator:
         """Tip node velocity of every bristle [mm/s, world], (nb, 3)."""
         return self.bristles.tip_states()[:, 3:6]
 
-    def _warn_penetration(self, pen: np.ndarray, excess: np.ndarray) -> None:
+    def _warn_penetration(
+        self, pen: np.ndarray, excess: np.ndarray, time: float | None = None
+    ) -> None:
         """Once per reset: the deepest tip beyond PENETRATION_WARN_FRACTION of its radius
-        (``excess``: penetration / radius)."""
+        (``excess``: penetration / radius) at ``time`` [s] (default: now)."""
         b = int(np.argmax(excess))
         if excess[b] > PENETRATION_WARN_FRACTION:
             self._pen_warned = True
             warnings.warn(
-                f"t = {self.state.time:.6g} s: tip of bristle {b} penetrates "
+                f"t = {self.state.time if time is None else time:.6g} s: tip of bristle {b} "
+                "penetrates "
                 f"{1e3 * pen[b]:.1f} um = {100 * excess[b]:.0f} % of its radius "
                 f"({self.model.tip_radius[b]:g} mm), beyond the "
                 f"{100 * PENETRATION_WARN_FRACTION:.0f} % the penalty law (eq 6) is meant for: "
@@ -486,6 +604,19 @@ class Rollout:
     message: str | None
     record: Any  # prb_rollout.Record (a namedtuple of arrays)
     last: StepResult
+
+
+@dataclass
+class Follow:
+    """What ``Simulator.follow`` did: ``done`` steps (<= len(P)), ``stop`` why it stopped early
+    (None, "divergence", "force_limit", "head_contact", "penetration"), ``error`` the
+    ``SimulationDivergence`` of a divergence (else None), ``record`` the per-step arrays
+    (``chain_rollout.FollowRecord``; rows < done)."""
+
+    done: int
+    stop: str | None
+    error: SimulationDivergence | None
+    record: Any
 
 
 @dataclass

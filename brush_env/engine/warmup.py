@@ -71,7 +71,8 @@ def _setup(t: _Tiny) -> None:
 
 def _steps(integrator: str, t: _Tiny, sweeps: int = 1) -> None:
     """Press 0.5 mm into the plate, then slide: contact, stick and slip, the Newton solve (with
-    ``sweeps`` > 1 the coupled tip-tip solve's kernel, ``step.step_bristles_coupled``)."""
+    ``sweeps`` > 1 the coupled tip-tip solve's kernel, ``step.step_bristles_coupled``), by
+    ``step`` and by ``follow`` (``chain_rollout``)."""
     from .simulator import SimSettings, Simulator
 
     settings = SimSettings(dt=2e-3, integrator=integrator, tip_tip_sweeps=sweeps)
@@ -80,6 +81,10 @@ def _steps(integrator: str, t: _Tiny, sweeps: int = 1) -> None:
     for k in range(1, 26):
         z = t.top + 0.05 - min(k, 10) * 0.05
         sim.step(np.array([0.02 * max(k - 10, 0), 0.0, z]), t.R)
+    # and the same solve through the compiled pose rollout (``Simulator.follow``: the reference
+    # experiment, the envs' rollout)
+    P = sim.state.tcp_p[1] + np.outer(np.arange(1, 6), [0.02, 0.0, 0.0])
+    sim.follow(P, np.broadcast_to(t.R, (5, 3, 3)))
 
 
 def _static(t: _Tiny) -> None:

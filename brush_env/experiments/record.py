@@ -106,19 +106,79 @@ class _Recorder:
             self.ns += 1
         self.n += 1
 
+    def add_rows(self, fr, n, sim):
+        """The next n rows from a ``Simulator.follow`` record fr (``add``'s columns, every row at
+        once); only the last of them may be a kept centre-line row (the state is its)."""
+        i = self.n
+        rows = slice(i, i + n)
+        s = self.step
+        fn, ft = fr.fn[:n], fr.ft[:n]
+        s["time"][rows] = fr.t[:n]
+        s["F"][rows] = fr.FM[:n, 0:3]
+        s["M"][rows] = fr.FM[:n, 3:6]
+        s["Fn"][rows] = fn.sum(axis=1)
+        s["Ft"][rows] = np.linalg.norm(ft.sum(axis=1), axis=1)
+        s["Ft_abs"][rows] = np.linalg.norm(ft, axis=2).sum(axis=1)
+        s["n_contact"][rows] = np.count_nonzero(fn > 0.0, axis=1)
+        s["max_pen"][rows] = fr.pen[:n].max(axis=1) if fn.shape[1] else 0.0
+        s["iters"][rows] = fr.iters[:n]
+        s["subs"][rows] = fr.nsub[:n]
+        ks = np.flatnonzero((np.arange(i, i + n) % self.tips_stride) == 0)
+        if ks.size:
+            t = self.tips
+            dst = slice(self.nt, self.nt + ks.size)
+            pos = fr.tips[ks, :, 0:3]
+            fnk, ftk = fr.fn[ks], fr.ft[ks]
+            contact = fnk > 0.0
+            d = pos - fr.cpt[ks]
+            nd = np.linalg.norm(d, axis=2, keepdims=True)
+            nrm = np.where(nd > 1e-12, d / np.maximum(nd, 1e-300), 0.0)
+            t["row"][dst] = i + ks
+            t["pos"][dst] = pos
+            t["vel"][dst] = fr.tips[ks, :, 3:6]
+            t["fn"][dst] = fnk
+            t["ft"][dst] = ftk
+            t["fc"][dst] = np.where(contact[..., None], fnk[..., None] * nrm + ftk, 0.0)
+            t["contact"][dst] = contact
+            t["sliding"][dst] = fr.slide[ks] != 0
+            t["pen"][dst] = fr.pen[ks]
+            t["tiptip"][dst] = fr.ftt[ks]
+            self.nt += ks.size
+        kept = np.flatnonzero((np.arange(i, i + n) % self.shapes_stride) == 0)
+        if kept.size:
+            if kept.tolist() != [n - 1]:
+                raise ValueError(f"rows {i + kept}: only the last row of a follow is kept")
+            k = self.ns
+            sh = self.shapes
+            sh["row"][k] = i + n - 1
+            sh["body"][k] = sim.state.pos
+            sh["tip"][k] = fr.tips[n - 1, :, 0:3]
+            sh["contact"][k] = fr.fn[n - 1] > 0.0
+            self.ns += 1
+        self.n += n
+
 
 def _simulate(sim, P, R, rec, theta, i0, i1, bar, label):
-    """Step rows i0..i1-1 (row i is the pose at time i·dt; row 0 is the reset)."""
-    last = i0
-    for i in range(i0, i1):
-        out = sim.step(P[i], R[i])
-        rec.add(out, sim)
-        if bar is not None and (i % 50 == 0 or i == i1 - 1):
-            bar.update(i + 1 - last)
-            last = i + 1
-            bar.set_postfix_str(
-                f"{label} θ={theta[i] / math.pi:5.2f}π Fz={out.tcp_force[2]:+.2f} N", refresh=False
-            )
+    """Step rows i0..i1-1 (row i is the pose at time i·dt; row 0 is the reset), in
+    ``Simulator.follow`` calls (the steps compiled, no Python between them) that end at the rows
+    whose bristle centre lines are kept, where the state is that row's."""
+    stride = rec.shapes_stride
+    i = i0
+    while i < i1:
+        j = min(i1, -(-i // stride) * stride + 1)  # through the next kept row (or i1 - 1)
+        run = sim.follow(P[i:j], R[i:j])
+        rec.add_rows(run.record, run.done, sim)
+        if bar is not None:
+            bar.update(run.done)
+            k = i + run.done - 1
+            if run.done:
+                bar.set_postfix_str(
+                    f"{label} θ={theta[k] / math.pi:5.2f}π Fz={rec.step['F'][k, 2]:+.2f} N",
+                    refresh=False,
+                )
+        if run.error is not None:
+            raise run.error
+        i = j
 
 
 def _shared_prefix(poses, n_steps) -> int:
