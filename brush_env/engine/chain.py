@@ -307,19 +307,24 @@ class DFMChain(BristleModel):
         return int(out.iters.sum()), int(out.nsub.sum())
 
     def follow(self, P, R, limits, record) -> tuple[int, int, SimulationDivergence | None]:
-        """Engine steps to the TCP poses (P[k] [mm], R[k]) in one compiled call
-        (``chain_rollout``: the stages of ``_advance`` per step, with no Python between steps);
-        row k of ``record`` (``chain_rollout.FollowRecord``) holds step k's outputs.  limits:
-        ``FollowRun.limits``.  Needs one solver step per engine step (``settings.substeps ==
-        1``).  Returns (steps done, ``chain_rollout.STOP_*``); after a divergence the state is
-        that of the failed step's start, as ``_accept_or_rollback`` leaves it, and the
-        third value its ``SimulationDivergence`` (else None)."""
+        """Engine steps in one compiled call (``chain_rollout``: the stages of ``_advance`` per
+        solver step, with no Python between steps), the TCP at pose (P[i] [mm], R[i]) at the end
+        of solver step i (``settings.substeps`` per engine step, ``Simulator._split_poses``); row
+        k of ``record`` (``chain_rollout.FollowRecord``) holds engine step k's outputs.  limits:
+        ``FollowRun.limits``.  Returns (steps done, ``chain_rollout.STOP_*``); after a divergence
+        the state is that of the failed engine step's start, as ``_accept_or_rollback`` leaves
+        it, and the third value its ``SimulationDivergence`` (else None)."""
         st, s = self.state, self.settings
         live, snap = self._follow_views()
         head = self._head if self._head is not None else np.zeros((0, 3))
+        if P.shape[0] != s.substeps * record.t.shape[0]:
+            raise ValueError(
+                f"{P.shape[0]} poses for {record.t.shape[0]} steps of {s.substeps} solver steps"
+            )
         run = cro.FollowRun(
             P,
             R,
+            s.substeps,
             np.array([st.time, s.dt]),
             live,
             snap,
@@ -333,13 +338,15 @@ class DFMChain(BristleModel):
             st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot
         )
         drive = rec.Drive(st.hist_ok, st.tcp_p, st.tcp_R)
-        done, stop = self._follow_kernel(
+        done, stop, i = self._follow_kernel(
             self._kmodel, chain, drive, self._prm, self._contact(), st.jac, self._ws, self._out,
             run, record,
         )  # fmt: skip
         st.time = float(run.clock[0])
         st.steps += int(done)
-        err = self._divergence(st.time + s.dt, self._prm) if stop == cro.STOP_DIVERGENCE else None
+        err = None
+        if stop == cro.STOP_DIVERGENCE:  # at the end of solver step i % substeps + 1 of the step
+            err = self._divergence(st.time + (i % s.substeps + 1) * (s.dt / s.substeps), self._prm)
         return int(done), int(stop), err
 
     def _follow_views(self) -> tuple[tuple, tuple]:

@@ -76,8 +76,9 @@ FollowRecord = namedtuple(
     ],
 )
 
-#: the run's inputs and scratch: P (n, 3) [mm] / R (n, 3, 3) the TCP poses at the steps' ends;
-#: clock (2,) [time s (moved on in place), dt s]; live / snap: the state's arrays as flat float64
+#: the run's inputs and scratch: P (n sub, 3) [mm] / R (n sub, 3, 3) the TCP poses at the ends
+#: of the solver steps, sub per engine step (``Simulator._split_poses``); clock (2,) [time s (moved
+#: on in place), dt s (the engine step)]; live / snap: the state's arrays as flat float64
 #: views and their rollback copies (``DFMChain._follow_views``); shaft_on: the shaft broad phase
 #: runs; g23 (3, 3) scratch; head (nh, 3) [mm] the head's outline in the TCP frame (empty: no
 #: head contact), headw (nh, 3) scratch; limits (4,): stop after a step whose total normal force
@@ -85,7 +86,8 @@ FollowRecord = namedtuple(
 #: is <= limits[2] [mm] (-inf: never); limits[3] the penetration fraction of the tip radius beyond
 #: which a step counts in ``beyond``
 FollowRun = namedtuple(
-    "FollowRun", ["P", "R", "clock", "live", "snap", "shaft_on", "g23", "head", "headw", "limits"]
+    "FollowRun",
+    ["P", "R", "sub", "clock", "live", "snap", "shaft_on", "g23", "head", "headw", "limits"],
 )
 
 
@@ -115,29 +117,37 @@ def make_follow_record(n: int, nb: int) -> FollowRecord:
 
 @njit(**HOT)
 def follow_one_sweep(model, chain, drive, prm, con, jc, ws, out, run, rec):
-    """Up to run.P.shape[0] engine steps with one sweep (``step.step_bristles``); returns
-    (steps done, STOP_*).  Arguments as ``step_bristles``' plus ``run`` (``FollowRun``) and
-    ``rec`` (``FollowRecord``).  A divergence restores the state of the failed step's start
-    (its Newton factors marked stale) and counts that step as not done."""
-    for k in range(run.P.shape[0]):
-        _begin(k, model, chain, drive, prm, con, run)
-        step_bristles(model, chain, drive, prm, con, jc, ws, out)
-        stop = _end(k, model, chain, drive, con, jc, ws, out, run, rec)
-        if stop != STOP_NONE:
-            return (k if stop == STOP_DIVERGENCE else k + 1), stop
-    return run.P.shape[0], STOP_NONE
+    """Up to rec.t.shape[0] engine steps of run.sub solver steps each, with one sweep
+    (``step.step_bristles``); returns (steps done, STOP_*, the solver step it stopped at or
+    -1).  Arguments as ``step_bristles``' plus ``run`` (``FollowRun``) and ``rec``
+    (``FollowRecord``).  A divergence restores the
+    state of the failed engine step's start (as ``Simulator._advance_split``; its Newton factors
+    marked stale) and counts that step as not done."""
+    n = rec.t.shape[0]
+    for k in range(n):
+        _copy_state(run.live, run.snap)  # the rollback target of the step's solver steps
+        for i in range(k * run.sub, (k + 1) * run.sub):
+            _begin(i, model, chain, drive, prm, con, run)
+            step_bristles(model, chain, drive, prm, con, jc, ws, out)
+            stop = _end(i, model, chain, drive, con, jc, ws, out, run, rec)
+            if stop != STOP_NONE:
+                return (k if stop == STOP_DIVERGENCE else k + 1), stop, i
+    return n, STOP_NONE, -1
 
 
 @njit(**HOT)
 def follow_coupled(model, chain, drive, prm, con, jc, ws, out, run, rec):
     """``follow_one_sweep`` with the coupled tip-tip solve (``step.step_bristles_coupled``)."""
-    for k in range(run.P.shape[0]):
-        _begin(k, model, chain, drive, prm, con, run)
-        step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out)
-        stop = _end(k, model, chain, drive, con, jc, ws, out, run, rec)
-        if stop != STOP_NONE:
-            return (k if stop == STOP_DIVERGENCE else k + 1), stop
-    return run.P.shape[0], STOP_NONE
+    n = rec.t.shape[0]
+    for k in range(n):
+        _copy_state(run.live, run.snap)  # the rollback target of the step's solver steps
+        for i in range(k * run.sub, (k + 1) * run.sub):
+            _begin(i, model, chain, drive, prm, con, run)
+            step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out)
+            stop = _end(i, model, chain, drive, con, jc, ws, out, run, rec)
+            if stop != STOP_NONE:
+                return (k if stop == STOP_DIVERGENCE else k + 1), stop, i
+    return n, STOP_NONE, -1
 
 
 @njit(**HOT, inline="always")
@@ -151,14 +161,13 @@ def _copy_state(src, dst):
 
 
 @njit(**HOT, inline="always")
-def _begin(k, model, chain, drive, prm, con, run):
-    """Before step k: the rollback copy (``DFMChain.snapshot``), the drive's pose at the step's
-    end (row 2, ``DFMChain._base_motion``) and the shaft broad phase (``_solve_bristles``)."""
-    _copy_state(run.live, run.snap)
+def _begin(i, model, chain, drive, prm, con, run):
+    """Before solver step i: the drive's pose at its end (row 2, ``DFMChain._base_motion``) and
+    the shaft broad phase (``_solve_bristles``)."""
     for a in range(3):
-        drive.tcp_p[2, a] = run.P[k, a]
+        drive.tcp_p[2, a] = run.P[i, a]
         for c in range(3):
-            drive.tcp_R[2, a, c] = run.R[k, a, c]
+            drive.tcp_R[2, a, c] = run.R[i, a, c]
     if run.shaft_on:
         broad_phase(model.bstart, model.root_p, chain, drive, con, prm.h, run.g23)
 
@@ -174,9 +183,10 @@ def _failed(chain, out):
 
 
 @njit(**HOT, inline="always")
-def _end(k, model, chain, drive, con, jc, ws, out, run, rec):
-    """After step k: accept or restore, move the drive on (``DFMChain._shift_drive``), record
-    row k; returns STOP_*."""
+def _end(i, model, chain, drive, con, jc, ws, out, run, rec):
+    """After solver step i: accept or restore, move the drive on (``DFMChain._shift_drive``),
+    the step's peaks (``Simulator._track``) and, after the engine step's last solver step, its
+    row of ``rec``; returns STOP_*."""
     if _failed(chain, out):
         _copy_state(run.snap, run.live)
         tip_states(model.bstart, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
@@ -187,32 +197,53 @@ def _end(k, model, chain, drive, con, jc, ws, out, run, rec):
     for a in range(3):
         tp[3, a] = tp[0, a]
         tp[0, a] = tp[1, a]
-        tp[1, a] = run.P[k, a]
+        tp[1, a] = run.P[i, a]
         for c in range(3):
             tR[3, a, c] = tR[0, a, c]
             tR[0, a, c] = tR[1, a, c]
-            tR[1, a, c] = run.R[k, a, c]
-    run.clock[0] = run.clock[0] + run.clock[1]
-    return _record(k, model, con, ws, out, run, rec)
+            tR[1, a, c] = run.R[i, a, c]
+    k = i // run.sub
+    _peaks(i, k, model, con, out, run, rec)
+    if i % run.sub != run.sub - 1:
+        return STOP_NONE
+    run.clock[0] = run.clock[0] + run.clock[1]  # t0 + dt: no drift of the step grid
+    return _record(i, k, model, con, ws, out, run, rec)
 
 
 @njit(**HOT, inline="always")
-def _record(k, model, con, ws, out, run, rec):
-    """Row k of ``rec`` from the accepted step; returns STOP_* by ``run.limits``."""
-    rec.t[k] = run.clock[0]
-    tcp_wrench(run.R[k], model.root_p, out.rootw, rec.FM[k])  # R[k]: the drive's row 1 now
-    it = 0
-    ns = 0
+def _peaks(i, k, model, con, out, run, rec):
+    """Row k's in-step peaks after its solver step i (``Simulator._track``): the deepest tip and
+    shaft penetrations [mm], the solver steps with a tip beyond the penalty range, the head's
+    smallest clearance [mm]; and its Newton iterations and sub-steps."""
     for b in range(out.iters.shape[0]):
-        it += out.iters[b]
-        ns += out.nsub[b]
-    rec.iters[k] = it
-    rec.nsub[k] = ns
+        rec.iters[k] += out.iters[b]
+        rec.nsub[k] += out.nsub[b]
+    beyond = 0
+    for b in range(rec.fn.shape[1]):
+        st = con.tip_state[b]
+        pen = max(st.pen, 0.0) if st.fn > 0.0 else 0.0
+        rec.pen_max[k] = max(rec.pen_max[k], pen)
+        if pen / con.tip_args[b].radius > run.limits[3]:
+            beyond = 1
+    rec.beyond[k] += beyond
+    if run.shaft_on:
+        for j in range(con.shaft.shape[0]):
+            sh = con.shaft[j]
+            if sh.fn > 0.0:
+                rec.shaft_pen[k] = max(rec.shaft_pen[k], max(sh.pen, 0.0))
+    if run.head.shape[0] > 0:
+        rec.head[k] = min(rec.head[k], _head_clearance(i, con, run))
+
+
+@njit(**HOT, inline="always")
+def _record(i, k, model, con, ws, out, run, rec):
+    """Row k of ``rec`` after the engine step's last solver step i; returns STOP_* by
+    ``run.limits``."""
+    rec.t[k] = run.clock[0]
+    tcp_wrench(run.R[i], model.root_p, out.rootw, rec.FM[k])  # R[i]: the drive's row 1 now
     for a in range(3):
         rec.sweeps[k, a] = ws.sw.count[a]
     total = 0.0
-    pen_max = 0.0
-    beyond = 0
     for b in range(rec.fn.shape[1]):
         st = con.tip_state[b]
         touching = st.fn > 0.0
@@ -223,47 +254,34 @@ def _record(k, model, con, ws, out, run, rec):
             rec.cpt[k, b, a] = st.cpt[a]
         rec.fn[k, b] = st.fn
         rec.slide[k, b] = 1 if (st.slide > 0 and touching) else 0
-        pen = max(st.pen, 0.0) if touching else 0.0
-        rec.pen[k, b] = pen
+        rec.pen[k, b] = max(st.pen, 0.0) if touching else 0.0
         rec.ftt[k, b] = st.ftt
         rec.surf[k, b] = st.surf if touching else -1
         total += st.fn
-        pen_max = max(pen_max, pen)
-        if pen / con.tip_args[b].radius > run.limits[3]:
-            beyond = 1
-    rec.pen_max[k] = pen_max
-    rec.beyond[k] = beyond
-    shaft_pen = 0.0
     if run.shaft_on:
         bstart = model.bstart
         for b in range(bstart.shape[0] - 1):
             f = 0.0
-            for i in range(bstart[b], bstart[b + 1]):
-                sh = con.shaft[i]
-                f += sh.fn
-                if sh.fn > 0.0:
-                    shaft_pen = max(shaft_pen, max(sh.pen, 0.0))
+            for j in range(bstart[b], bstart[b + 1]):
+                f += con.shaft[j].fn
             rec.shaft_fn[k, b] = f
             total += f
-    rec.shaft_pen[k] = shaft_pen
-    if run.head.shape[0] > 0:
-        rec.head[k] = _head_clearance(k, con, run)
     if total > run.limits[0]:
         return STOP_FORCE
     if rec.head[k] <= run.limits[2]:
         return STOP_HEAD
-    if max(pen_max, shaft_pen) > run.limits[1]:
+    if max(rec.pen_max[k], rec.shaft_pen[k]) > run.limits[1]:
         return STOP_PENETRATION
     return STOP_NONE
 
 
 @njit(**HOT, inline="always")
-def _head_clearance(k, con, run):
-    """Smallest distance [mm] of the head's outline to the surfaces at the pose of step k
+def _head_clearance(i, con, run):
+    """Smallest distance [mm] of the head's outline to the surfaces at the pose of solver step i
     (``DFMChain.head_clearance``)."""
     P, R, pts = run.P, run.R, run.headw
     for j in range(run.head.shape[0]):
         h = run.head[j]
         for a in range(3):
-            pts[j, a] = P[k, a] + (R[k, a, 0] * h[0] + R[k, a, 1] * h[1] + R[k, a, 2] * h[2])
+            pts[j, a] = P[i, a] + (R[i, a, 0] * h[0] + R[i, a, 1] * h[1] + R[i, a, 2] * h[2])
     return clearance(con.surf, con.mesh, con.sdf, pts, run.g23[0], run.g23[1])

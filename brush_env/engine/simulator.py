@@ -216,20 +216,16 @@ class Simulator:
         return self._advance_split(tcp_p, tcp_R, n)
 
     def _advance_split(self, tcp_p, tcp_R, n: int) -> StepResult:
-        """``step`` as n equal internal steps (settings.max_substep), the TCP pose interpolated
-        as the kernels interpolate within a step (linear position, geodesic rotation).  A
-        divergence in any of them restores the state of the start of the whole step."""
+        """``step`` as n equal internal steps (settings.max_substep) to the poses of
+        ``_split_poses``.  A divergence in any of them restores the state of the start of the
+        whole step."""
         st = self.state
         t0, h = st.time, self.settings.dt / n
-        p0, R0 = st.tcp_p[1].copy(), st.tcp_R[1].copy()
-        w = logmap(tcp_R @ R0.T)  # world-frame rotation vector from R0 to tcp_R
+        P, R = _split_poses(st.tcp_p[1], st.tcp_R[1], tcp_p, tcp_R, n)
         start = self.bristles.snapshot()  # the rollback target of every internal step
         iters = nsub = 0
         for k in range(1, n + 1):
-            s = k / n
-            p = tcp_p if k == n else (1.0 - s) * p0 + s * tcp_p
-            R = tcp_R if k == n else expmap(s * w) @ R0
-            it, ns = self._advance(p, R, t0 + k * h, start)
+            it, ns = self._advance(P[k - 1], R[k - 1], t0 + k * h, start)
             iters += it
             nsub += ns
         st.time = t0 + self.settings.dt  # no round-off drift of the step grid
@@ -327,8 +323,17 @@ class Simulator:
             dtype=float,
         )
         fast = getattr(self.bristles, "follow", None)
-        if fast is None or self.settings.substeps != 1:
+        if fast is None:
             return self._follow_steps(P, R, limits, rec)
+        sub = self.settings.substeps
+        if sub > 1:  # every solver step's pose, as _advance_split interpolates them
+            Pi, Ri = np.empty((n * sub, 3)), np.empty((n * sub, 3, 3))
+            p0, R0 = st.tcp_p[1], st.tcp_R[1]
+            for k in range(n):
+                rows = slice(k * sub, (k + 1) * sub)
+                Pi[rows], Ri[rows] = _split_poses(p0, R0, P[k], R[k], sub)
+                p0, R0 = P[k], R[k]
+            P, R = Pi, Ri
         done, stop, error = fast(P, R, limits, rec)
         if done:
             k = done - 1
@@ -604,6 +609,19 @@ class Rollout:
     message: str | None
     record: Any  # prb_rollout.Record (a namedtuple of arrays)
     last: StepResult
+
+
+def _split_poses(p0, R0, p1, R1, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The TCP poses at the ends of n equal internal steps from (p0 [mm], R0) to (p1, R1), as
+    the kernels interpolate within a step (linear position, geodesic rotation); the last is
+    (p1, R1) exactly."""
+    w = logmap(R1 @ R0.T)  # world-frame rotation vector from R0 to R1
+    P, R = np.empty((n, 3)), np.empty((n, 3, 3))
+    for k in range(1, n + 1):
+        s = k / n
+        P[k - 1] = p1 if k == n else (1.0 - s) * p0 + s * p1
+        R[k - 1] = R1 if k == n else expmap(s * w) @ R0
+    return P, R
 
 
 @dataclass

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from brush_env.engine import SimSettings, Simulator, SimulationDivergence
+from brush_env.engine import SimSettings, SimulationDivergence, Simulator
 from brush_env.engine.config import load_brush
 from brush_env.engine.scene import load_scene
 
@@ -23,11 +23,13 @@ R_DOWN = np.diag([1.0, -1.0, -1.0])  # bristles pointing down
 N_STEPS = 90
 
 
-def _sim(sweeps: int = 1, **kw):
+def _sim(sweeps: int = 1, dt: float = 1e-3, **kw):
+    """The tiny brush over the plate; dt [s] in solver steps of 1 ms (dt 4 ms: four, as the
+    envs step)."""
     brush = load_brush("tiny")
     scene = load_scene("flat_plate", brush=brush)
     top = max(b.length for b in brush.bristles) + brush.bristles[0].tip_radius
-    sim = Simulator(scene, SimSettings(dt=1e-3, tip_tip_sweeps=sweeps, max_substep=1e-3, **kw))
+    sim = Simulator(scene, SimSettings(dt=dt, tip_tip_sweeps=sweeps, max_substep=1e-3, **kw))
     sim.reset(np.array([0.0, 0.0, top + 0.02]), R_DOWN)
     return sim, top
 
@@ -77,10 +79,10 @@ def _by_steps(sim, P, R):
     return rows
 
 
-@pytest.mark.parametrize("sweeps", [1, 8])
-def test_follow_is_step_to_the_bit(sweeps):
-    sim_a, top = _sim(sweeps)
-    sim_b, _ = _sim(sweeps)
+@pytest.mark.parametrize("sweeps,dt", [(1, 1e-3), (8, 1e-3), (1, 4e-3), (8, 4e-3)])
+def test_follow_is_step_to_the_bit(sweeps, dt):
+    sim_a, top = _sim(sweeps, dt)
+    sim_b, _ = _sim(sweeps, dt)
     P, R = _poses(top)
     rows = _by_steps(sim_a, P, R)
     run = sim_b.follow(P, R)
@@ -100,6 +102,9 @@ def test_follow_is_step_to_the_bit(sweeps):
         assert rec.head[k] == pytest.approx(row["head"], abs=1e-12)
         touched += int(np.count_nonzero(row["fn"]))
     assert touched > N_STEPS  # the run pressed tips onto the plate
+    if dt > 1e-3:  # four solver steps per engine step: their peaks and iterations summed
+        assert sim_b.settings.substeps == 4
+        assert (rec.nsub >= 4 * sim_b.model.n_bristles).all()
     # and the next step after a follow continues as after the steps
     nxt = P[-1] + np.array([0.04, 0.0, 0.0])
     a, b = sim_a.step(nxt, R[-1]), sim_b.step(nxt, R[-1])
@@ -140,12 +145,13 @@ def _empty(sim):
     return make_follow_record(N_STEPS, sim.model.n_bristles)
 
 
-def test_follow_divergence_restores_the_failed_steps_start():
+@pytest.mark.parametrize("dt", [1e-3, 4e-3])
+def test_follow_divergence_restores_the_failed_steps_start(dt):
     """One Newton iteration and no halving cannot press the tips: the step that fails leaves the
-    state at its start, in follow as in step."""
+    state at its start (with solver steps: the engine step's start), in follow as in step."""
     kw = dict(newton_max_iter=1, max_halvings=0)
-    sim_a, top = _sim(**kw)
-    sim_b, _ = _sim(**kw)
+    sim_a, top = _sim(dt=dt, **kw)
+    sim_b, _ = _sim(dt=dt, **kw)
     P, R = _poses(top)
     done = 0
     with pytest.raises(SimulationDivergence) as err:
@@ -185,19 +191,21 @@ def test_follow_refuses_a_bad_pose_before_moving():
     assert np.array_equal(before, _state(sim))
 
 
-def test_the_chains_rollout_is_its_steps():
+@pytest.mark.parametrize("dt", [1e-3, 4e-3])
+def test_the_chains_rollout_is_its_steps(dt):
     """``Simulator.rollout`` of the full chain (the envs' path) goes through ``follow``: the same
     as stepping the constant twist's poses one by one."""
     from brush_env.engine.rotation import expmap
 
-    sim_a, top = _sim()
-    sim_b, _ = _sim()
-    v, w, n = np.array([20.0, 0.0, -40.0]), np.array([0.0, 0.0, 0.5]), 30
+    sim_a, top = _sim(dt=dt)
+    sim_b, _ = _sim(dt=dt)
+    v, w = np.array([20.0, 0.0, -40.0]) * (1e-3 / dt), np.array([0.0, 0.0, 0.5])
+    n = 30
     ro = sim_a.rollout(v, w, n)
     p, R = sim_b.state.tcp_p[1].copy(), sim_b.state.tcp_R[1].copy()
-    dR = expmap(w * 1e-3)
+    dR = expmap(w * dt)
     for k in range(n):
-        p, R = p + v * 1e-3, dR @ R
+        p, R = p + v * dt, dR @ R
         out = sim_b.step(p, R)
         assert np.array_equal(ro.record.fn[k], out.tip_normal_force)
     assert ro.done == n and ro.stop is None
