@@ -46,16 +46,17 @@ def test_bench_env_rates_are_what_ran_over_its_wall_time(monkeypatch):
     """The single-env row's rates, against the engine steps counted here and a clock outside:
     real-time factor = simulated seconds / wall seconds, engine steps/s = engine steps / wall."""
     calls = []
-    step = Simulator.step
+    follow = Simulator.follow
 
     def counting(self, *args, **kwargs):
-        calls.append(self.settings.dt)
-        return step(self, *args, **kwargs)
+        run = follow(self, *args, **kwargs)
+        calls.extend([self.settings.dt] * run.done)
+        return run
 
-    monkeypatch.setattr(Simulator, "step", counting)
+    monkeypatch.setattr(Simulator, "follow", counting)
     t0 = time.perf_counter()
-    # at "coarse" (the full chain) every engine step is one Simulator.step; "fast" rolls an env
-    # step out in one compiled call
+    # at "coarse" (the full chain) an env step's engine steps are one Simulator.follow; "fast"
+    # rolls an env step out in prb_rollout's compiled call
     args = {"steps": 15, "n_envs": [1], "brush": "tiny_env", "frame_skip": 4, "fidelity": "coarse"}
     (row,) = bench_env(args)
     outside = time.perf_counter() - t0

@@ -19,6 +19,13 @@ ZERO = np.zeros(6, np.float32)
 STEPWISE = {"fidelity": "coarse"}
 
 
+def _stepwise(sim):
+    """The full chain's rollout step by step through ``Simulator.step`` (instead of one
+    ``follow`` call; tests/engine/test_follow.py: the same bits), so that a wrapped ``step``
+    sees, or fakes, every engine step."""
+    sim.bristles.follow = None
+
+
 def _actions(n, dim=6, seed=0, z_bias=0.0):
     rng = np.random.default_rng(seed)
     a = rng.uniform(-1, 1, (n, dim)).astype(np.float32)
@@ -90,6 +97,7 @@ class _Recorder:
     """Wraps the engine's step and keeps a copy of the outputs the reward is defined on."""
 
     def __init__(self, sim):
+        _stepwise(sim)
         self.step, self.rows = sim.step, []
         sim.step = self
 
@@ -359,6 +367,7 @@ class _Faulty:
 
 def _inject(env, **kw):
     sim = env.unwrapped.sim
+    _stepwise(sim)
     fault = _Faulty(sim, **kw)
     fault._step = sim.step
     sim.step = fault
