@@ -311,7 +311,7 @@ class DFMChain(BristleModel):
         solver step, with no Python between steps), the TCP at pose (P[i] [mm], R[i]) at the end
         of solver step i (``settings.substeps`` per engine step, ``Simulator._split_poses``); row
         k of ``record`` (``chain_rollout.FollowRecord``) holds engine step k's outputs.  limits:
-        ``FollowRun.limits``.  Returns (steps done, ``chain_rollout.STOP_*``); after a divergence
+        ``FollowRun.limits``.  Returns (steps done, ``records.STOP_*``); after a divergence
         the state is that of the failed engine step's start, as ``_accept_or_rollback`` leaves
         it, and the third value its ``SimulationDivergence`` (else None)."""
         st, s = self.state, self.settings
@@ -345,7 +345,7 @@ class DFMChain(BristleModel):
         st.time = float(run.clock[0])
         st.steps += int(done)
         err = None
-        if stop == cro.STOP_DIVERGENCE:  # at the end of solver step i % substeps + 1 of the step
+        if stop == rec.STOP_DIVERGENCE:  # at the end of solver step i % substeps + 1 of the step
             err = self._divergence(st.time + (i % s.substeps + 1) * (s.dt / s.substeps), self._prm)
         return int(done), int(stop), err
 

@@ -23,22 +23,15 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
+from .records import (
+    STOP_DIVERGENCE,
+    STOP_FORCE,
+    STOP_HEAD,
+    STOP_NONE,
+    STOP_PENETRATION,
+)
 from .shaft import broad_phase, clearance
 from .step import all_finite, step_bristles, step_bristles_coupled, tcp_wrench, tip_states
-
-#: why a follow stopped before its last pose (the names ``Simulator.rollout`` reports)
-STOP_NONE = 0
-STOP_DIVERGENCE = 1
-STOP_FORCE = 2
-STOP_HEAD = 3
-STOP_PENETRATION = 4
-STOP_REASONS = {
-    STOP_NONE: None,
-    STOP_DIVERGENCE: "divergence",
-    STOP_FORCE: "force_limit",
-    STOP_HEAD: "head_contact",
-    STOP_PENETRATION: "penetration",
-}
 
 #: the per-engine-step outputs of a follow (n poses asked for, nb bristles; rows past ``done``
 #: untouched): t (n,) [s] time at the step's end; FM (n, 6) the TCP wrench on the brush

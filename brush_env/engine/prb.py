@@ -389,7 +389,7 @@ class PRBBristles(BristleModel):
             st.time = st.time + done * s.dt
             st.steps += done
         msg = None  # the kernel left the roots and links where the last step done put them
-        if stop == R_.STOP_DIVERGENCE:
+        if stop == rec_.STOP_DIVERGENCE:
             msg = str(
                 SimulationDivergence(
                     st.time + s.dt,
@@ -397,7 +397,7 @@ class PRBBristles(BristleModel):
                     "the reduced model's equilibrium did not converge (Newton)",
                 )
             )
-        return done, R_.STOP_REASONS[stop], msg, rec
+        return done, rec_.STOP_REASONS[stop], msg, rec
 
     def _tables(self) -> K.Tab:
         """The tabulated tip law's tables: none for the chain's own Newton (``TableBristles``

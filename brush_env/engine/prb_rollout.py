@@ -16,21 +16,14 @@ import numpy as np
 from numba import njit
 
 from .prb_kernels import PRB, link_poses, root_frames, step_all
+from .records import (
+    STOP_DIVERGENCE,
+    STOP_FORCE,
+    STOP_HEAD,
+    STOP_NONE,
+    STOP_PENETRATION,
+)
 from .shaft import clearance
-
-#: why a rollout stopped before its last step
-STOP_NONE = 0
-STOP_DIVERGENCE = 1
-STOP_FORCE = 2
-STOP_HEAD = 3
-STOP_PENETRATION = 4
-STOP_REASONS = {
-    STOP_NONE: None,
-    STOP_DIVERGENCE: "divergence",
-    STOP_FORCE: "force_limit",
-    STOP_HEAD: "head_contact",
-    STOP_PENETRATION: "penetration",
-}
 
 #: the per-engine-step record of a rollout (n = steps asked for; rows past ``done`` untouched):
 #: fn (n, nb) [N] tip normal forces, cpt (n, nb, 3) [mm] contact points, surf (n, nb) deepest

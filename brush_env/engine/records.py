@@ -68,6 +68,21 @@ import numpy as np
 #: largest group of touching bristles the tip-tip coupling solves as one dense system
 MAX_GROUP = 256
 
+#: why a compiled rollout (``prb_rollout``, ``chain_rollout``) stopped before its last step, and
+#: the names ``Simulator.rollout`` / ``follow`` report
+STOP_NONE = 0
+STOP_DIVERGENCE = 1
+STOP_FORCE = 2
+STOP_HEAD = 3
+STOP_PENETRATION = 4
+STOP_REASONS = {
+    STOP_NONE: None,
+    STOP_DIVERGENCE: "divergence",
+    STOP_FORCE: "force_limit",
+    STOP_HEAD: "head_contact",
+    STOP_PENETRATION: "penetration",
+}
+
 # --- structured records: numpy dtypes read by field name in the kernels (``bp[i].half``,
 # ``st.delta[a]``).  Each keeps the byte layout of the float64 columns it replaced, so a kernel's
 # loads and stores are the ones it had; integers are int64 (8 bytes, as the float they replace).

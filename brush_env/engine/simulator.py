@@ -30,8 +30,9 @@ import numpy as np
 from . import step as itg  # the integrator's stages, in order (step.step_bristles)
 from .bristles import make_bristle_model
 from .chain import State
-from .chain_rollout import STOP_REASONS, make_follow_record
+from .chain_rollout import make_follow_record
 from .config import BrushConfig
+from .records import STOP_REASONS
 from .rotation import expmap, logmap, pose_ok
 from .scene import Scene
 from .settings import G_EARTH, INTEGRATORS, SimSettings, SimulationDivergence
