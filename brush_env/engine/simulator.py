@@ -298,9 +298,10 @@ class Simulator:
         step k -- ``step`` for each pose, with every step's outputs in the arrays of
         ``Follow.record`` (``chain_rollout.FollowRecord``) instead of a ``StepResult`` each.
 
-        A bristle model with a compiled follow (the full chain, one solver step per engine
-        step) runs all of it in one call (``chain_rollout.py``); otherwise the steps go through
-        ``step`` and fill the same record.  The results are those of ``step`` to the bit.  Every
+        A bristle model with a compiled follow (the full chain) runs all of it in one call
+        (``chain_rollout.py``; with ``settings.substeps`` > 1 at the solver steps' poses of
+        ``_split_poses``, as ``step``); otherwise the steps go through ``step`` and fill the
+        same record.  The results are those of ``step`` to the bit.  Every
         pose is checked before anything moves (as ``step`` checks one).  Stops after the step at
         which the total normal force (tips and shafts) exceeds ``force_stop`` [N], a penetration
         exceeds ``penetration_stop`` [mm], or (``stop_at_head_contact``) the head touches; a
@@ -383,7 +384,7 @@ class Simulator:
                 )
 
     def _follow_steps(self, P, R, limits, rec) -> Follow:
-        """``follow`` through ``step`` (models without a compiled one, or sub-stepped)."""
+        """``follow`` through ``step`` (models without a compiled one)."""
         done, stop, error = 0, None, None
         for k in range(P.shape[0]):
             try:
@@ -391,30 +392,7 @@ class Simulator:
             except SimulationDivergence as e:
                 stop, error = "divergence", e
                 break
-            ex = out.extra
-            rec.t[k] = out.time
-            rec.FM[k, 0:3] = out.tcp_force
-            rec.FM[k, 3:6] = out.tcp_moment
-            rec.iters[k] = out.iterations
-            rec.nsub[k] = out.substeps
-            rec.sweeps[k] = [ex.get("sweeps", 0), ex.get("resolves", 0), 0]
-            if "tip_tip_settled" in ex:
-                rec.sweeps[k, 2] = 2 if ex["tip_tip_fallback"] else int(not ex["tip_tip_settled"])
-            rec.tips[k, :, 0:3] = out.tip_pos
-            rec.tips[k, :, 3:6] = out.tip_vel
-            rec.fn[k] = out.tip_normal_force
-            rec.ft[k] = out.tip_tangential_force
-            rec.slide[k] = out.tip_sliding
-            rec.pen[k] = out.tip_penetration
-            rec.cpt[k] = out.tip_contact_point
-            rec.ftt[k] = ex["tip_tip_force"]
-            rec.surf[k] = ex["tip_surface"]
-            rec.pen_max[k] = ex["max_tip_penetration"]
-            rec.beyond[k] = ex["steps_beyond_penalty_range"]
-            rec.shaft_pen[k] = ex["max_shaft_penetration"]
-            if "shaft_normal_force" in ex:
-                rec.shaft_fn[k] = ex["shaft_normal_force"]
-            rec.head[k] = ex.get("head_clearance", math.inf)
+            record_row(rec, k, out)
             done = k + 1
             total = float(out.tip_normal_force.sum()) + float(rec.shaft_fn[k].sum())
             if total > limits[0]:
@@ -610,6 +588,35 @@ class Rollout:
     message: str | None
     record: Any  # prb_rollout.Record (a namedtuple of arrays)
     last: StepResult
+
+
+def record_row(rec, k: int, out: StepResult) -> None:
+    """Row k of a ``chain_rollout.FollowRecord`` from the ``StepResult`` of a step (what the
+    compiled follow writes there)."""
+    ex = out.extra
+    rec.t[k] = out.time
+    rec.FM[k, 0:3] = out.tcp_force
+    rec.FM[k, 3:6] = out.tcp_moment
+    rec.iters[k] = out.iterations
+    rec.nsub[k] = out.substeps
+    rec.sweeps[k] = [ex.get("sweeps", 0), ex.get("resolves", 0), 0]
+    if "tip_tip_settled" in ex:
+        rec.sweeps[k, 2] = 2 if ex["tip_tip_fallback"] else int(not ex["tip_tip_settled"])
+    rec.tips[k, :, 0:3] = out.tip_pos
+    rec.tips[k, :, 3:6] = out.tip_vel
+    rec.fn[k] = out.tip_normal_force
+    rec.ft[k] = out.tip_tangential_force
+    rec.slide[k] = out.tip_sliding
+    rec.pen[k] = out.tip_penetration
+    rec.cpt[k] = out.tip_contact_point
+    rec.ftt[k] = ex["tip_tip_force"]
+    rec.surf[k] = ex["tip_surface"]
+    rec.pen_max[k] = ex["max_tip_penetration"]
+    rec.beyond[k] = ex["steps_beyond_penalty_range"]
+    rec.shaft_pen[k] = ex["max_shaft_penetration"]
+    if "shaft_normal_force" in ex:
+        rec.shaft_fn[k] = ex["shaft_normal_force"]
+    rec.head[k] = ex.get("head_clearance", math.inf)
 
 
 def _split_poses(p0, R0, p1, R1, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,8 @@ import time
 import numpy as np
 
 from ..engine import SimulationDivergence
+from ..engine.chain_rollout import make_follow_record
+from ..engine.simulator import record_row
 
 
 class _Recorder:
@@ -62,53 +64,12 @@ class _Recorder:
         new.shapes = {k: v.copy() for k, v in self.shapes.items()}
         return new
 
-    def add(self, out, sim):
-        i = self.n
-        s = self.step
-        s["time"][i] = out.time
-        s["F"][i] = out.tcp_force
-        s["M"][i] = out.tcp_moment
-        fn = out.tip_normal_force
-        ft = out.tip_tangential_force
-        s["Fn"][i] = float(fn.sum())
-        s["Ft"][i] = float(np.linalg.norm(ft.sum(axis=0)))
-        s["Ft_abs"][i] = float(np.linalg.norm(ft, axis=1).sum())
-        s["n_contact"][i] = int(np.count_nonzero(out.tip_in_contact))
-        s["max_pen"][i] = float(out.tip_penetration.max()) if out.tip_penetration.size else 0.0
-        s["iters"][i] = out.iterations
-        s["subs"][i] = out.substeps
-        if i % self.tips_stride == 0:
-            k = self.nt
-            t = self.tips
-            t["row"][k] = i
-            t["pos"][k] = out.tip_pos
-            t["vel"][k] = out.tip_vel
-            t["fn"][k] = fn
-            t["ft"][k] = ft
-            d = out.tip_pos - out.tip_contact_point
-            nd = np.linalg.norm(d, axis=1, keepdims=True)
-            nrm = np.where(nd > 1e-12, d / np.maximum(nd, 1e-300), 0.0)
-            t["fc"][k] = np.where(out.tip_in_contact[:, None], fn[:, None] * nrm + ft, 0.0)
-            t["contact"][k] = out.tip_in_contact
-            t["sliding"][k] = out.tip_sliding
-            t["pen"][k] = out.tip_penetration
-            tt = out.extra.get("tip_tip_force") if out.extra else None
-            if tt is not None:
-                t["tiptip"][k] = tt
-            self.nt += 1
-        if i % self.shapes_stride == 0:
-            k = self.ns
-            sh = self.shapes
-            sh["row"][k] = i
-            sh["body"][k] = sim.state.pos
-            sh["tip"][k] = out.tip_pos
-            sh["contact"][k] = out.tip_in_contact
-            self.ns += 1
-        self.n += 1
-
     def add_rows(self, fr, n, sim):
-        """The next n rows from a ``Simulator.follow`` record fr (``add``'s columns, every row at
-        once); only the last of them may be a kept centre-line row (the state is its)."""
+        """The next n rows from a ``Simulator.follow`` record fr (``chain_rollout.FollowRecord``),
+        every row at once: the TCP wrench, the tips' force sums, contacts, deepest penetration and
+        solver counts per row, the tips every tips_stride rows and the bristles' centre lines
+        every shapes_stride rows; only the last of the n may be a kept centre-line row (the
+        state is its)."""
         i = self.n
         rows = slice(i, i + n)
         s = self.step
@@ -203,7 +164,9 @@ def simulate_runs(plan, progress: bool):
     rec = _Recorder(
         n_steps + 1, sim.model.n_bristles, sim.model.n_bodies, plan.tips_stride, plan.shapes_stride
     )
-    rec.add(sim.reset(P[0], R[0]), sim)
+    row0 = make_follow_record(1, sim.model.n_bristles)  # the reset, as a follow's row
+    record_row(row0, 0, sim.reset(P[0], R[0]))
+    rec.add_rows(row0, 1, sim)
     branch = _shared_prefix(plan.poses, n_steps)
     total = n_steps + (n_steps + 1 - branch if "pitch" in plan.poses else 0)
     bar = (
