@@ -1,14 +1,15 @@
 """Many steps of the full chain along prescribed TCP poses in one compiled call
 (``Simulator.follow``; the reduced model's ``prb_rollout`` pattern).
 
-Per engine step the kernel does what ``DFMChain.advance`` and ``Simulator._track`` /
-``_result`` do through Python: keep the rollback state, set the drive's pose, run the shaft
-broad phase, solve every bristle (``step.step_bristles`` or ``step_bristles_coupled``), accept
-or restore, move the drive on, and write the step's outputs into the arrays of a
-:data:`FollowRecord`.  The physics is the step kernels' unchanged: a run through ``follow`` and
-the same poses through ``Simulator.step`` give the same state, wrench and tip states to the bit
-(``tests/engine/test_follow.py``).  What it saves is the Python around each step: the snapshot,
-the records built per call, the checks, the per-step peaks and the ``StepResult``
+Per solver step the kernel does what ``DFMChain.advance`` and ``Simulator._track`` do through
+Python: set the drive's pose, run the shaft broad phase, solve every bristle
+(``step.step_bristles`` or ``step_bristles_coupled``), accept or restore, move the drive on, keep
+the peaks; per engine step (``substeps`` solver steps, one rollback copy) it writes what
+``Simulator._result`` reports into a row of a :data:`FollowRecord`.  The physics is the step
+kernels' unchanged: a run through ``follow`` and the same poses through ``Simulator.step`` give
+the same state, wrench and tip states to the bit (``tests/engine/test_follow.py``).  What it
+saves is the Python around each step: the snapshot, the records built per call, the checks, the
+per-step peaks and the ``StepResult``
 (docs/benchmarks.md, "A compiled pose rollout").
 
 Two kernels, ``follow_one_sweep`` and ``follow_coupled``, each calling one step kernel, so that
