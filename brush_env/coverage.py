@@ -34,6 +34,7 @@ __all__ = [
     "SurfaceCoverage",
     "crown_samples",
     "gum_force",
+    "gum_forces",
 ]
 
 
@@ -91,10 +92,18 @@ class EffectiveSweep:
 def gum_force(out, gum: np.ndarray) -> float:
     """Normal force [N] of the tips whose deepest contact is a gum surface (``gum``: one bool a
     surface of the scene, ``engine.scene.surface_labels(scene) == "gum"``); 0 without a gum."""
-    if not gum.any():
-        return 0.0
-    surf = out.extra["tip_surface"]
-    return float(out.tip_normal_force[(surf >= 0) & gum[np.maximum(surf, 0)]].sum())
+    return float(gum_forces(out.tip_normal_force[None], out.extra["tip_surface"][None], gum)[0])
+
+
+def gum_forces(fn: np.ndarray, surf: np.ndarray, gum: np.ndarray) -> np.ndarray:
+    """``gum_force`` of n steps: tip normal forces fn (n, nb) [N], the surface each tip touches
+    deepest surf (n, nb) (-1: none); returns (n,) [N]."""
+    out = np.zeros(len(fn))
+    if gum.any():
+        on = (surf >= 0) & gum[np.maximum(surf, 0)]
+        for k in range(len(fn)):
+            out[k] = fn[k][on[k]].sum()
+    return out
 
 
 # ------------------------------------------------------------------ the plate's patch

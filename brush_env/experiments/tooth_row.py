@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration import ensure_calibrated
-from ..coverage import EffectiveSweep, crown_samples, gum_force
-from ..engine import SimulationDivergence, Simulator
+from ..coverage import EffectiveSweep, crown_samples, gum_forces
+from ..engine import Simulator
 from ..engine.fidelity import level_settings
 from ..engine.scene import surface_labels, tooth_surfaces, with_mesh
 from ..engine.warmup import ensure_compiled, groups_for
@@ -128,6 +128,10 @@ def _analysis(rows: np.ndarray, cov) -> dict:
     return analysis
 
 
+#: engine steps per ``Simulator.follow`` call
+CHUNK = 500
+
+
 def run_tooth_row(
     brush=None,
     scene="tooth_row",
@@ -194,36 +198,42 @@ def run_tooth_row(
     t_sim = time.perf_counter()
     done = 0
     iterations = 0
-    for k in range(1, n + 1):
-        try:
-            out = sim.step(P[k], Rs[k])
-        except SimulationDivergence as e:
-            status, message = "diverged", str(e)
+    last = None  # the last step's tips, forces and time (coverage.png)
+    k = 1
+    while k <= n:  # the steps in Simulator.follow calls (compiled, no Python between steps)
+        run = sim.follow(P[k : k + CHUNK], Rs[k : k + CHUNK])
+        fr, m = run.record, run.done
+        fn = fr.fn[:m]
+        fg = gum_forces(fn, fr.surf[:m], gum)
+        for q in range(m):
+            i = k + q
+            ph = int(np.searchsorted(phases, times[i], side="right") - 1)
+            R_tcp = Rs[i]  # the TCP's frame at the step's end (StepResult.tcp_force_tcp)
+            rows[i] = (
+                times[i],
+                ph,
+                *(R_tcp.T @ fr.FM[q, 0:3]),
+                *(R_tcp.T @ fr.FM[q, 3:6]),
+                fn[q].sum(),
+                fg[q],
+                np.count_nonzero(fn[q] > 0.0),
+                fr.pen[q].max(),
+            )
+            if i % stride == 0:
+                tips_t.append(times[i])
+                tips_p.append(fr.tips[q, :, 0:3].copy())
+                tips_f.append(fn[q].copy())
+        iterations += int(fr.iters[:m].sum())
+        if cov is not None and m:
+            cov.sweep(sweep, fn, fr.cpt[:m])
+        done = k + m - 1
+        if m:
+            last = (fr.tips[m - 1, :, 0:3], fn[m - 1], float(fr.t[m - 1]))
+        bar.update(m)
+        if run.error is not None:
+            status, message = "diverged", str(run.error)
             break
-        iterations += out.iterations
-        f = out.tip_normal_force
-        fg = gum_force(out, gum)
-        ph = int(np.searchsorted(phases, times[k], side="right") - 1)
-        rows[k] = (
-            times[k],
-            ph,
-            *out.tcp_force_tcp,
-            *out.tcp_moment_tcp,
-            f.sum(),
-            fg,
-            out.tip_in_contact.sum(),
-            out.tip_penetration.max(),
-        )
-        if cov is not None:
-            seg = sweep.segments(out)
-            if seg is not None:
-                cov.stamp(*seg)
-        if k % stride == 0:
-            tips_t.append(times[k])
-            tips_p.append(out.tip_pos.copy())
-            tips_f.append(f.copy())
-        done = k
-        bar.update(1)
+        k += m
     bar.close()
     t_sim = time.perf_counter() - t_sim
     rows = rows[1 : done + 1]
@@ -248,8 +258,8 @@ def run_tooth_row(
     if plots and len(rows):
         _plot_forces(out_dir / "forces_vs_time.png", rows, phases)
         files.append("forces_vs_time.png")
-        if cov is not None:
-            _plot_coverage(out_dir / "coverage.png", sim, out, teeth, cov)
+        if cov is not None and last is not None:
+            _plot_coverage(out_dir / "coverage.png", sim, last, teeth, cov)
             files.append("coverage.png")
     sim_time = float(rows[-1, 0]) if len(rows) else 0.0
     summary = {
@@ -286,8 +296,9 @@ def run_tooth_row(
     return summary
 
 
-def _plot_coverage(path, sim, out, teeth, cov) -> None:
-    """coverage.png: the crowns coloured by what the tips scrubbed, with the bristles."""
+def _plot_coverage(path, sim, last, teeth, cov) -> None:
+    """coverage.png: the crowns coloured by what the tips scrubbed, with the bristles; ``last``:
+    the last step's (tip positions [mm], tip normal forces [N], time [s])."""
     import matplotlib.pyplot as plt
 
     from ..viz.tooth_row import tooth_row_figure
@@ -295,14 +306,15 @@ def _plot_coverage(path, sim, out, teeth, cov) -> None:
     m = sim.model
     pos = sim.state.pos
     chains = np.stack([pos[m.bstart[b] : m.bstart[b + 1]][[0, -1]] for b in range(m.n_bristles)])
-    chains = np.concatenate([chains, out.tip_pos[:, None]], axis=1)
+    tip_pos, fn, t = last
+    chains = np.concatenate([chains, tip_pos[:, None]], axis=1)
     fig = tooth_row_figure(
         teeth,
         cov,
         chains,
-        out.tip_normal_force,
+        fn,
         480,
-        title=f"coverage {cov.fraction:.1%} at the end of the run (t = {out.time:.2f} s)",
+        title=f"coverage {cov.fraction:.1%} at the end of the run (t = {t:.2f} s)",
         legend=True,
     )
     fig.savefig(path, dpi=100)
