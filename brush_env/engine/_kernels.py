@@ -323,6 +323,112 @@ ELEMENTS = {"paper": ELEM_PAPER, "mid": ELEM_MID}
 
 
 @njit(**HOT, inline="always")
+def _mid_strain(aIsBase, A, pAbase, B, length, e):
+    """The mid-frame element's strain (``_element_mid``) into ``e``; returns what its loads
+    need of the way there: (r_B, theta^2, theta/2, sin and cos of theta/2, the arc's q,
+    exp(psi/2) by rows, the chord in the A frame).  Shared by the loads and ``element_strain``,
+    so both give the strain to the same bits."""
+    RA = A.R
+    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
+    # relative rotation psi = log(R_A^T R_B) (the same components in the A, mid and B frames)
+    _relative_rotation(RA, B.R, e[3:6])
+    s0 = e[3]
+    s1 = e[4]
+    s2 = e[5]
+    th2 = s0 * s0 + s1 * s1 + s2 * s2
+    # E = exp(psi / 2) (Rodrigues), the mid-frame relative to A: R_m = R_A E
+    h0 = 0.5 * s0
+    h1 = 0.5 * s1
+    h2 = 0.5 * s2
+    hh2 = 0.25 * th2
+    # one sine/cosine of theta/2 serves exp(psi/2) and, below, J_l^-T and (I + exp(psi/2))^-1
+    hn = 0.0
+    sh = 0.0
+    ch = 1.0
+    if hh2 < 1e-12:
+        sa = 1.0 - hh2 / 6.0
+        sb = 0.5 - hh2 / 24.0
+    else:
+        hn = np.sqrt(hh2)
+        sh = np.sin(hn)
+        ch = np.cos(hn)
+        sa = sh / hn
+        sb = (1.0 - ch) / hh2
+    E00 = 1.0 - sb * (h1 * h1 + h2 * h2)
+    E11 = 1.0 - sb * (h0 * h0 + h2 * h2)
+    E22 = 1.0 - sb * (h0 * h0 + h1 * h1)
+    E01 = -sa * h2 + sb * h0 * h1
+    E10 = sa * h2 + sb * h0 * h1
+    E02 = sa * h1 + sb * h0 * h2
+    E20 = -sa * h1 + sb * h0 * h2
+    E12 = -sa * h0 + sb * h1 * h2
+    E21 = sa * h0 + sb * h1 * h2
+    # chord in the A frame, then in the mid-frame
+    a0 = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz
+    a1 = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
+    a2 = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
+    # the chord of a circular arc of length l bent by psi_b (the bending part of psi) is
+    # l sinc(|psi_b| / 2), along the mid-frame's axis: measure the axial strain against it
+    xb2 = 0.25 * (s1 * s1 + s2 * s2)
+    if xb2 < 1e-6:
+        sinc = 1.0 - xb2 / 6.0 + xb2 * xb2 / 120.0
+        qarc = 1.0 / 12.0 - xb2 / 120.0
+    else:
+        xb = np.sqrt(xb2)
+        sinc = np.sin(xb) / xb
+        qarc = (np.sin(xb) - xb * np.cos(xb)) / (4.0 * xb2 * xb)
+    e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
+    e[1] = E01 * a0 + E11 * a1 + E21 * a2
+    e[2] = E02 * a0 + E12 * a1 + E22 * a2
+    return (
+        rB0,
+        rB1,
+        rB2,
+        th2,
+        hn,
+        sh,
+        ch,
+        qarc,
+        E00,
+        E01,
+        E02,
+        E10,
+        E11,
+        E12,
+        E20,
+        E21,
+        E22,
+        a0,
+        a1,
+        a2,
+    )
+
+
+@njit(**HOT, inline="always")
+def _paper_strain(aIsBase, A, pAbase, B, length, e):
+    """The paper element's strain (``_element_paper``, eq 5) into ``e``: [R_A^T (p_B - p_A) -
+    l e_x ; log(R_A^T R_B)]; returns (r_B, d) (``_element_chord``)."""
+    RA = A.R
+    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
+    e[0] = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz - length
+    e[1] = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
+    e[2] = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
+    _relative_rotation(RA, B.R, e[3:6])
+    return rB0, rB1, rB2, dx, dy, dz
+
+
+@njit(**HOT)
+def element_strain(kind, aIsBase, A, pAbase, B, length, e):
+    """The strain of one element (``element_gen``'s ``e`` without its loads) by formulation
+    ``kind``: what the two-step formula's strain history needs (``predict._prepare``), at about
+    half an element's cost."""
+    if kind == ELEM_MID:
+        _mid_strain(aIsBase, A, pAbase, B, length, e)
+    else:
+        _paper_strain(aIsBase, A, pAbase, B, length, e)
+
+
+@njit(**HOT, inline="always")
 def element_gen(kind, aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """Generalised forces of one beam element on the centres of its bodies A and B, by
     formulation ``kind``: ``ELEM_PAPER`` (``_element_paper``, eq 5) or ``ELEM_MID``
@@ -353,15 +459,8 @@ def _element_paper(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """
     RA = A.R
     halfA = A.half
-    ehist = damp.ehist
-    gs = damp.gs
-    hs = damp.hs
-    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
-    e[0] = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz - length
-    e[1] = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
-    e[2] = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
-    _relative_rotation(RA, B.R, e[3:6])
-    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, ehist, gs, hs)
+    rB0, rB1, rB2, dx, dy, dz = _paper_strain(aIsBase, A, pAbase, B, length, e)
+    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, damp.ehist, damp.gs, damp.hs)
     FB0 = -(RA[0, 0] * f0 + RA[0, 1] * f1 + RA[0, 2] * f2)
     FB1 = -(RA[1, 0] * f0 + RA[1, 1] * f1 + RA[1, 2] * f2)
     FB2 = -(RA[2, 0] * f0 + RA[2, 1] * f1 + RA[2, 2] * f2)
@@ -420,61 +519,32 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """
     RA = A.R
     halfA = A.half
-    ehist = damp.ehist
-    gs = damp.gs
-    hs = damp.hs
-    rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
-    # relative rotation psi = log(R_A^T R_B) (the same components in the A, mid and B frames)
-    _relative_rotation(RA, B.R, e[3:6])
+    (
+        rB0,
+        rB1,
+        rB2,
+        th2,
+        hn,
+        sh,
+        ch,
+        qarc,
+        E00,
+        E01,
+        E02,
+        E10,
+        E11,
+        E12,
+        E20,
+        E21,
+        E22,
+        a0,
+        a1,
+        a2,
+    ) = _mid_strain(aIsBase, A, pAbase, B, length, e)
     s0 = e[3]
     s1 = e[4]
     s2 = e[5]
-    th2 = s0 * s0 + s1 * s1 + s2 * s2
-    # E = exp(psi / 2) (Rodrigues), the mid-frame relative to A: R_m = R_A E
-    h0 = 0.5 * s0
-    h1 = 0.5 * s1
-    h2 = 0.5 * s2
-    hh2 = 0.25 * th2
-    # one sine/cosine of theta/2 serves exp(psi/2) and, below, J_l^-T and (I + exp(psi/2))^-1
-    hn = 0.0
-    sh = 0.0
-    ch = 1.0
-    if hh2 < 1e-12:
-        sa = 1.0 - hh2 / 6.0
-        sb = 0.5 - hh2 / 24.0
-    else:
-        hn = np.sqrt(hh2)
-        sh = np.sin(hn)
-        ch = np.cos(hn)
-        sa = sh / hn
-        sb = (1.0 - ch) / hh2
-    E00 = 1.0 - sb * (h1 * h1 + h2 * h2)
-    E11 = 1.0 - sb * (h0 * h0 + h2 * h2)
-    E22 = 1.0 - sb * (h0 * h0 + h1 * h1)
-    E01 = -sa * h2 + sb * h0 * h1
-    E10 = sa * h2 + sb * h0 * h1
-    E02 = sa * h1 + sb * h0 * h2
-    E20 = -sa * h1 + sb * h0 * h2
-    E12 = -sa * h0 + sb * h1 * h2
-    E21 = sa * h0 + sb * h1 * h2
-    # chord in the A frame, then in the mid-frame
-    a0 = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz
-    a1 = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
-    a2 = RA[0, 2] * dx + RA[1, 2] * dy + RA[2, 2] * dz
-    # the chord of a circular arc of length l bent by psi_b (the bending part of psi) is
-    # l sinc(|psi_b| / 2), along the mid-frame's axis: measure the axial strain against it
-    xb2 = 0.25 * (s1 * s1 + s2 * s2)
-    if xb2 < 1e-6:
-        sinc = 1.0 - xb2 / 6.0 + xb2 * xb2 / 120.0
-        qarc = 1.0 / 12.0 - xb2 / 120.0
-    else:
-        xb = np.sqrt(xb2)
-        sinc = np.sin(xb) / xb
-        qarc = (np.sin(xb) - xb * np.cos(xb)) / (4.0 * xb2 * xb)
-    e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
-    e[1] = E01 * a0 + E11 * a1 + E21 * a2
-    e[2] = E02 * a0 + E12 * a1 + E22 * a2
-    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, ehist, gs, hs)
+    f0, f1, f2, m0, m1, m2 = _element_stress(K, e, damp.ehist, damp.gs, damp.hs)
     # the arc's chord: the axial force is conjugate to psi_b through e_x = ... - l sinc(|psi_b|/2),
     # d e_x / d psi_b = l q psi_b (the element's own P-delta, see the docstring)
     m1 += f0 * length * qarc * s1

@@ -369,12 +369,12 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
             break
         need = _stale(fresh, alpha, new, nrm, rtol)
         nrm = new
+        ok = nrm <= rtol
         # round-off floor: the update no longer moves the state and the residual is within 100x
-        # of the tolerance: accept
-        if nrm <= 100.0 * rtol and _update_negligible(br, model, chain, ws.it, alpha):
+        # of the tolerance: accept (tested only when not converged: it is ~70 divisions)
+        if not ok and nrm <= 100.0 * rtol and _update_negligible(br, model, chain, ws.it, alpha):
             ok = True
             break
-        ok = nrm <= rtol
     if not ok or (attempt.split and _met_within(br, con, ws)):
         start_state(br, chain, ws.it, False)  # restore (a contact met within: halved)
         return False, it

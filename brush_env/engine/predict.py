@@ -16,8 +16,7 @@ from numba import njit
 
 from ._kernels import HOT, local_rot_into, reorthonormalize, rotate_left
 from .contact import in_contact
-from .records import Damp
-from .residual import bristle_residual, element_at
+from .residual import bristle_residual, strain_at
 
 #: ``extrap`` of ``predict_start`` for a re-solve in a later Gauss-Seidel sweep (warm start)
 WARM = -1
@@ -59,12 +58,11 @@ def _strain_key(k, br, P, Q, pAb, RAb, key, store):
 @njit(**HOT, inline="always")
 def _strain_history(k, br, model, chain, sub, base, hist, el, jc):
     """hist.ehist[k] <- c1 e_n + c2 e_{n-1} of element k; e_n into the strain cache (jc.E, EK),
-    e_{n-1} from it when its key matches (``_prepare``; el.zero6 zeroed there)."""
+    e_{n-1} from it when its key matches (``_prepare``); the strains alone (``strain_at``)."""
     i = br.b0 + k
     e = el.e
     c1 = sub.c1
     c2 = sub.c2
-    still = Damp(el.zero6, 1.0, 0.0)  # strains only: no damping history
     for a in range(6):
         hist.ehist[k, a] = 0.0
     # c2 e_{n-1} first, then c1 e_n: the sum is the same to the bit (0 + x = x, x + y = y + x),
@@ -74,18 +72,18 @@ def _strain_history(k, br, model, chain, sub, base, hist, el, jc):
             for a in range(6):
                 hist.ehist[k, a] += c2 * jc.E[i, a]
         else:
-            element_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, still, el)
+            strain_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, e)
             for a in range(6):
                 hist.ehist[k, a] += c2 * e[a]
     if c1 != 0.0:
-        element_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, still, el)
+        strain_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, e)
         _strain_key(k, br, chain.pos, chain.rot, base.pAs, base.RAs, jc.EK[i], True)
         for a in range(6):
             jc.E[i, a] = e[a]
             hist.ehist[k, a] += c1 * e[a]
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def _prepare(br, model, chain, sub, base, hist, el, jc):
     """Constants of one (sub)step: cm = c1 c_n + c2 c_{n-1}, vm, Lm (angular momenta),
     thp = c2 theta_{n-1} (relative to R_n), ehist = c1 e_n + c2 e_{n-1} (element strains),
@@ -99,9 +97,6 @@ def _prepare(br, model, chain, sub, base, hist, el, jc):
     c1 = sub.c1
     c2 = sub.c2
     tmp = el.th
-    zero6 = el.zero6
-    for a in range(6):
-        zero6[a] = 0.0
     for k in range(br.n):
         i = br.b0 + k
         beta = 0.0 if sub.static else bp[i].beta

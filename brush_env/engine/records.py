@@ -278,7 +278,7 @@ History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "
 
 #: scratch of the element kernels (strain, generalised forces, finite-difference perturbations)
 ElementScratch = namedtuple(
-    "ElementScratch", ["e", "out12", "base12", "pert12", "cP", "RP", "zero6", "th", "pt"]
+    "ElementScratch", ["e", "out12", "base12", "pert12", "cP", "RP", "th", "pt"]
 )
 #: scratch of the tip load (eq 6-10, Table 3) and the penetration limit
 #: vt: tip velocity; nrm, cpt: the contact normal and point; vs, dn: slip velocity and stiction
@@ -295,6 +295,9 @@ TipScratch = namedtuple(
 #: matrix from its shaft contacts, on (nmax,) 1 where a body's block is set; F (3,), K (3, 3) one
 #: contact's force and tangent; J, gd a surface's normal rate; pt, pp, v (3,) points, velocity
 ShaftScratch = namedtuple("ShaftScratch", ["D6", "on", "F", "K", "J", "gd", "pt", "pp", "v"])
+#: what the shaft's contact kernels take of the workspace (``shaft.shaft_load``): the scratch
+#: they use and the start-of-step poses (s_pos, s_rot of ``Iterate``)
+ShaftWork = namedtuple("ShaftWork", ["sh", "tipw", "blk", "s_pos", "s_rot"])
 #: scratch of the tip block of the Newton matrix (3x3 products)
 BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFSr"])
 #: scratch of the predictors and the chain update
@@ -417,7 +420,7 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3, 3), v(nmax, 6), v(nmax), v(nmax)
     )
     base = Base(v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3))
-    el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(6), v(3), v(3))
+    el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(3), v(3))
     tipw = TipScratch(*(v(3, 3) if f in ("J", "A") else v(3) for f in TipScratch._fields))
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
     mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))

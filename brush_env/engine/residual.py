@@ -19,12 +19,13 @@ from ._kernels import (
     block_factor_head,
     body_node,
     element_gen,
+    element_strain,
     local_rot_into,
     lu6,
     rotate_left,
 )
 from .contact import tip_load
-from .records import Damp, Node
+from .records import Damp, Node, ShaftWork
 from .shaft import add_shaft_blocks, shaft_load
 from .tipblock import add_tip_block as _add_tip_block
 
@@ -42,6 +43,19 @@ def element_at(k, br, model, P, Q, pAb, RAb, damp, el):
     j = i - 1 if k > 0 else i
     A = Node(pAb, RAb, 0.0) if isroot else Node(P[j], Q[j], bp[j].half)
     element_gen(kind, isroot, A, pAb, B, model.K[i], bp[i].length, damp, el.out12, el.e)
+
+
+@njit(**HOT, inline="always")
+def strain_at(k, br, model, P, Q, pAb, RAb, e):
+    """The strain of element k of bristle ``br`` (``element_at``'s ``el.e``, to the same bits)
+    into ``e``, without its loads (``_kernels.element_strain``)."""
+    bp = model.bp
+    i = br.b0 + k
+    B = Node(P[i], Q[i], bp[i].half)
+    isroot = k == 0
+    j = i - 1 if k > 0 else i
+    A = Node(pAb, RAb, 0.0) if isroot else Node(P[j], Q[j], bp[j].half)
+    element_strain(model.elem[i], isroot, A, pAb, B, bp[i].length, e)
 
 
 @njit(**HOT, inline="always")
@@ -140,7 +154,9 @@ def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     res[n - 1, 3] -= ry * tipF[2] - rz * tipF[1]
     res[n - 1, 4] -= rz * tipF[0] - rx * tipF[2]
     res[n - 1, 5] -= rx * tipF[1] - ry * tipF[0]
-    shaft_load(br, chain, sub, con, ws, res)  # the bodies' capsules (shaft.py; no-op if off)
+    # the bodies' capsules (shaft.py; no-op if off), given only the scratch they use
+    sx = ShaftWork(ws.sh, ws.tipw, ws.blk, it.s_pos, it.s_rot)
+    shaft_load(br, chain, sub, con, sx, res)
     return _residual_norm(br, model.bp, res)
 
 

@@ -101,7 +101,8 @@ def _candidate(rec, s, pen, u, nrm, cpt):
 @njit(**HOT, inline="always")
 def _point_velocity(br, k, u, chain, sub, it, v):
     """v <- velocity of the body's material point at u [mm] on its axis by the two-step formula
-    (zero for statics); returns nothing.  Start-of-step pose: it.s_pos/s_rot; t_{n-1}: ppos/prot."""
+    (zero for statics); returns nothing.  Start-of-step pose: it.s_pos/s_rot (``Iterate`` or
+    ``ShaftWork``); t_{n-1}: ppos/prot."""
     i = br.b0 + k
     if sub.static:
         for a in range(3):
@@ -148,12 +149,14 @@ def _apply(k, i, chain, res, u, F, sh, blk):
 
 
 @njit(**HOT)
-def shaft_load(br, chain, sub, con, ws, res):
+def shaft_load(br, chain, sub, con, sx, res):
     """Subtract every body's shaft contact load (eq 6, eq 7-10) and its moment about the body's
-    centre from the residual ``res`` of bristle ``br``; each body's Newton block into ws.sh.D6
-    (ws.sh.on[k] = 1 where set).  No-op without shaft contact (``con.shaft`` empty)."""
+    centre from the residual ``res`` of bristle ``br``; each body's Newton block into sx.sh.D6
+    (sx.sh.on[k] = 1 where set).  No-op without shaft contact (``con.shaft`` empty).  sx:
+    ``records.ShaftWork``, the scratch it uses (not the whole ``Work``: numba passes every array
+    of an argument, and the whole workspace cost ~1,000 words of arguments per call)."""
     shaft = con.shaft
-    sh = ws.sh
+    sh = sx.sh
     for k in range(br.n):
         sh.on[k] = 0
     if shaft.shape[0] == 0:
@@ -166,18 +169,18 @@ def shaft_load(br, chain, sub, con, ws, res):
         for a in range(6):
             for b in range(6):
                 sh.D6[k, a, b] = 0.0
-        _body_load(br, k, chain, sub, con, ws, res)
+        _body_load(br, k, chain, sub, con, sx, res)
 
 
-@njit(**HOT)
-def _body_load(br, k, chain, sub, con, ws, res):
+@njit(**HOT, inline="always")
+def _body_load(br, k, chain, sub, con, sx, res):
     """Body k's normal contacts with every surface (eq 6), then friction (eq 7-10) at the
     deepest one against their resultant."""
     i = br.b0 + k
     rec = con.shaft[i]
     cp = con.cp[0]
-    tw = ws.tipw
-    sh = ws.sh
+    tw = sx.tipw
+    sh = sx.sh
     c = chain.pos[i]
     R = chain.rot[i]
     r = rec.radius
@@ -200,7 +203,7 @@ def _body_load(br, k, chain, sub, con, ws, res):
         if not band:
             _candidate(rec, s, r - gmin, umin, sh.gd, sh.pp)
             continue
-        Fn, delta, kk = _normal_contact(br, k, s, u, chain, sub, con, ws)
+        Fn, delta, kk = _normal_contact(br, k, s, u, chain, sub, con, sx)
         if Fn <= 0.0:
             continue
         r0 += sh.F[0]
@@ -210,7 +213,7 @@ def _body_load(br, k, chain, sub, con, ws, res):
         touched += 1
         uf += Fn * u
         kk1 = kk
-        _apply(k, i, chain, res, u, sh.F, sh, ws.blk)
+        _apply(k, i, chain, res, u, sh.F, sh, sx.blk)
     rec.fn = total
     fres = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     if fres <= 0.0 or (cp.mu_s <= 0.0 and cp.mu_d <= 0.0):
@@ -222,34 +225,34 @@ def _body_load(br, k, chain, sub, con, ws, res):
     tw.nrm[1] = r1 / fres
     tw.nrm[2] = r2 / fres
     _axis_point(c, R, ubest, sh.pt)
-    _point_velocity(br, k, ubest, chain, sub, ws.it, tw.vt)
+    _point_velocity(br, k, ubest, chain, sub, sx, tw.vt)
     for a in range(3):
-        rec.pn[a] = ws.it.s_pos[k, a] + ubest * ws.it.s_rot[k, a, 0]
+        rec.pn[a] = sx.s_pos[k, a] + ubest * sx.s_rot[k, a, 0]
         sh.F[a] = 0.0
         for b in range(3):
             sh.K[a, b] = 0.0
     # the friction's coupling to the normal force: exact for one surface, left out for several
     friction_load(sh.pt, fres, kk1 if touched == 1 else 0.0, sub, cp, rec, sh.F, sh.K, tw)
-    _apply(k, i, chain, res, ubest, sh.F, sh, ws.blk)
+    _apply(k, i, chain, res, ubest, sh.F, sh, sx.blk)
 
 
 @njit(**HOT)
-def _normal_contact(br, k, s, u, chain, sub, con, ws):
+def _normal_contact(br, k, s, u, chain, sub, con, sx):
     """Eq 6 for body k's contact sphere at u [mm] on its axis against surface s: sh.F <- the
     force [N], sh.K <- its tangent d F / d p [N/mm]; returns (Fn, penetration, normal tangent)
     (Fn = 0: no force).  Keeps the deepest contact in the body's record (``_candidate``)."""
     i = br.b0 + k
     rec = con.shaft[i]
     cp = con.cp[0]
-    tw = ws.tipw
-    sh = ws.sh
+    tw = sx.tipw
+    sh = sx.sh
     _axis_point(chain.pos[i], chain.rot[i], u, sh.pt)
     gap = surface_gap(con.surf, s, sh.pt, tw.pnrm, tw.pcpt, con.mesh, con.sdf)
     delta = rec.radius - gap
     _candidate(rec, s, delta, u, tw.pnrm, tw.pcpt)
     if delta <= 0.0:
         return 0.0, delta, 0.0
-    _point_velocity(br, k, u, chain, sub, ws.it, sh.v)
+    _point_velocity(br, k, u, chain, sub, sx, sh.v)
     n = tw.pnrm
     vn = sh.v[0] * n[0] + sh.v[1] * n[1] + sh.v[2] * n[2]
     Fn, kn, cn = normal_law(delta, -vn, cp.k, cp.m1, cp.c, cp.m2, cp.m3)  # eq 6
@@ -360,7 +363,9 @@ def _bristle_near(i0, i1, chain, drive, con, h, g):
     p2 = drive.tcp_p[2]
     R1 = drive.tcp_R[1]
     R2 = drive.tcp_R[2]
-    for i in range(i0, i1):
+    # from the tip body up: a pressed bristle's tip body is the one that reaches, and the answer
+    # (any body) does not depend on the order
+    for i in range(i1 - 1, i0 - 1, -1):
         rec = shaft[i]
         if rec.hi <= rec.lo:
             continue
