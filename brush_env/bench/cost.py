@@ -21,7 +21,10 @@ then split into parts by the kernels that are compiled as functions of their own
   surfaces, issue 28);
 * **residual**: the element evaluations ``newton_solve`` makes itself (``_element_mid``,
   ``_element_paper`` and the libm calls under them);
-* **predictor**: ``predict.*`` (the first guess);
+* **predictor**: ``predict.*`` (the first guess) and ``_kernels.element_strain`` (the strain
+  history's element strains).  Since 2026-12-06 ``predict._prepare`` is inlined into
+  ``newton_solve``: its own arithmetic (momenta, rate history) and the extrapolation count in
+  "Newton's own", only the strains here;
 * **Newton's own**: the rest of ``newton_solve`` (inertia residual, the rotation update and its
   libm calls, line search, caps, convergence tests: inlined, so not separable);
 * **coupling**: ``coupling.*`` (the coupled tip-tip solve, partner placement) and
@@ -243,7 +246,7 @@ def _part_of(callee: str) -> str | None:
             return part
     if callee.startswith("shaft."):
         return "shaft contact"
-    if callee.startswith("predict."):
+    if callee.startswith("predict.") or callee.endswith("element_strain"):
         return "predictor"
     return None
 
