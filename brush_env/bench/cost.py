@@ -39,7 +39,12 @@ estimate, as instructions do not cost equal time).  ``OPS`` holds the arithmetic
 (floating-point operations, counted from the kernels' formulas, below), the limit the issue
 compares against.
 
+``--functions N`` adds, per setting, the N functions with the most instructions of their own
+per bristle-step (compiled kernels by name, libm's and Python's as callgrind names them) and the
+step kernel's and the broad phase's totals: where inside the parts the instructions go.
+
     brush-env bench cost [--bodies 3 6] [--sweeps 1 8] [--cache-dir DIR] [--keep DIR] [--json]
+        [--functions N] [--from DIR]
 
 Needs valgrind (callgrind_control); ~5-15 min per setting on this machine.
 """
@@ -230,6 +235,9 @@ def _jit_name(raw: str, symbols: dict[str, str]) -> str:
     return symbols.get("0x" + m.group(1), raw) if m else raw
 
 
+#: the step kernels (one sweep runs the first, more sweeps the second; one of them is called)
+STEP_KERNELS = ("step.step_bristles", "step.step_bristles_coupled")
+
 #: the part of a kernel called by newton_solve, by its name's ending or start (module docstring)
 _CALLEE_PARTS = (
     (("_jacobian_chain", "residual.jacobian"), "Jacobian"),
@@ -272,7 +280,7 @@ def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int
 
     total = sum(sc.values())
     # one sweep runs step_bristles, more sweeps step_bristles_coupled (one of them is called)
-    step = incl("step.step_bristles") + incl("step.step_bristles_coupled")
+    step = sum(incl(k) for k in STEP_KERNELS)
     newton = incl("newton.newton_solve")
     out = dict.fromkeys(PARTS, 0)
     named = 0  # what newton_solve's named callees take
@@ -289,6 +297,45 @@ def split(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, int
     out["sweep and step"] = step - newton - coupling
     out["outside the bristle kernel"] = total - step
     return out
+
+
+def functions(self_cost: dict, arcs: dict, symbols: dict[str, str]) -> dict[str, dict[str, int]]:
+    """Per function (compiled kernels by ``module.function``, libm and Python by callgrind's
+    name): its own instructions ("self") and with its callees ("inclusive")."""
+    sc: dict[str, int] = defaultdict(int)
+    inc: dict[str, int] = defaultdict(int)
+    for f, c in self_cost.items():
+        sc[_jit_name(f, symbols)] += c
+    for f, c in sc.items():
+        inc[f] += c
+    for (f, g), c in arcs.items():
+        f, g = _jit_name(f, symbols), _jit_name(g, symbols)
+        if f != g:
+            inc[f] += c
+    return {f: {"self": sc.get(f, 0), "inclusive": inc[f]} for f in inc}
+
+
+def function_rows(r: dict, nb: int, top: int) -> list[dict]:
+    """One setting's ``top`` functions by their own instructions per bristle-step, after two
+    rows for the compiled step: the step kernel (``step.step_bristles`` or its coupled twin)
+    and the shaft's broad phase, inclusive."""
+    bsteps = r["steps"] * nb
+    fn = r["functions"]
+    setting = f"{r['bodies']} bodies, " + ("one sweep" if r["sweeps"] == 1 else "coupled")
+
+    def row(name, self_c, inc_c):
+        return {
+            "setting": setting,
+            "function": name,
+            "self_per_bristle_step": self_c / bsteps,
+            "inclusive_per_bristle_step": inc_c / bsteps,
+        }
+
+    step = sum(fn.get(k, {}).get("inclusive", 0) for k in STEP_KERNELS)
+    broad = fn.get("shaft.broad_phase", {}).get("inclusive", 0)
+    rows = [row("the step kernel (inclusive)", 0, step), row("broad phase (inclusive)", 0, broad)]
+    ranked = sorted(fn.items(), key=lambda kv: -kv[1]["self"])[:top]
+    return rows + [row(k, v["self"], v["inclusive"]) for k, v in ranked]
 
 
 def _valgrind_cpu() -> tuple[str, str]:
@@ -336,7 +383,8 @@ def _from_files(bodies: int, sweeps: int, keep: Path) -> dict:
     self_cost, arcs = read_callgrind(keep / f"callgrind_{bodies}_{sweeps}.out")
     symbols = json.loads((keep / f"symbols_{bodies}_{sweeps}.json").read_text())
     parts = split(self_cost, arcs, symbols)
-    return {"bodies": bodies, "sweeps": sweeps, **row, "parts": parts}
+    fn = functions(self_cost, arcs, symbols)
+    return {"bodies": bodies, "sweeps": sweeps, **row, "parts": parts, "functions": fn}
 
 
 def table_rows(r: dict, nb: int) -> list[dict]:
@@ -376,6 +424,14 @@ def add_arguments(p) -> None:
     )
     p.add_argument("--keep", default=None, help="keep callgrind's files in this folder")
     p.add_argument(
+        "--functions",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also a table of the N functions with the most own instructions per bristle-step "
+        "(and the step kernel's and the broad phase's inclusive totals)",
+    )
+    p.add_argument(
         "--from",
         dest="from_dir",
         default=None,
@@ -402,13 +458,15 @@ def add_arguments(p) -> None:
 def bench_cost(args) -> int:
     """``brush-env bench cost``: see the module docstring."""
     log = open_log(args)
-    rows = []
+    rows: list[dict] = []
+    frows: list[dict] = []
     if args.from_dir:
         for bodies in args.bodies:
             for sweeps in args.sweeps:
                 r = emit(args, _from_files(bodies, sweeps, Path(args.from_dir)))
                 rows += table_rows(r, r["bristles"])
-        return _print(args, rows)
+                frows += function_rows(r, r["bristles"], args.functions) if args.functions else []
+        return _print(args, rows, frows)
     name, feats = _valgrind_cpu()
     env = dict(os.environ)
     env.update(NUMBA_CPU_NAME=name, NUMBA_CPU_FEATURES=feats, NUMBA_CACHE_DIR=args.cache_dir)
@@ -420,10 +478,20 @@ def bench_cost(args) -> int:
             window = None if args.window == [0, 0] else args.window
             r = emit(args, _run_setting(bodies, sweeps, env, keep, window, args.motion))
             rows += table_rows(r, r["bristles"])
-    return _print(args, rows)
+            frows += function_rows(r, r["bristles"], args.functions) if args.functions else []
+    return _print(args, rows, frows)
 
 
-def _print(args, rows: list[dict]) -> int:
+def _print(args, rows: list[dict], frows: list[dict]) -> int:
+    if not args.json and frows:
+        fcols = [
+            ("setting", lambda r: r["setting"]),
+            ("function", lambda r: r["function"]),
+            ("own instr. / bristle-step", lambda r: f"{r['self_per_bristle_step']:,.0f}"),
+            ("with callees", lambda r: f"{r['inclusive_per_bristle_step']:,.0f}"),
+        ]
+        print(markdown_table(frows, fcols))
+        print()
     if not args.json:
         cols = [
             ("setting", lambda r: r["setting"]),

@@ -90,6 +90,27 @@ def test_split_sums_to_the_total_and_names_each_part(tmp_path):
     assert sum(parts.values()) == 99000  # the parts add up to the whole run
 
 
+def test_functions_own_and_inclusive_cost(tmp_path):
+    f = tmp_path / "callgrind.out"
+    f.write_text(CALLGRIND)
+    self_cost, arcs = C.read_callgrind(f)
+    fn = C.functions(self_cost, arcs, SYMBOLS)
+    # own cost as written; with callees: own + what its calls cost (callgrind's inclusive arcs)
+    assert fn["newton.newton_solve"] == {"self": 20000, "inclusive": 90000}
+    assert fn["step.step_bristles"] == {"self": 500, "inclusive": 98000}
+    assert fn["python_frame"]["inclusive"] == 99000
+    assert sum(v["self"] for v in fn.values()) == 99000
+    r = {"bodies": 6, "sweeps": 1, "steps": 10, "functions": fn}
+    rows = C.function_rows(r, 2, 3)  # per bristle-step: 10 steps x 2 bristles
+    assert rows[0]["inclusive_per_bristle_step"] == 98000 / 20  # the step kernel
+    assert rows[1]["inclusive_per_bristle_step"] == 0  # no broad phase in this graph
+    assert [x["function"] for x in rows[2:]] == [
+        "residual._jacobian_chain",
+        "_kernels._element_mid",
+        "newton.newton_solve",
+    ]  # the three largest own costs, largest first
+
+
 @pytest.mark.parametrize(
     "mangled, short",
     [
