@@ -326,8 +326,8 @@ ELEMENTS = {"paper": ELEM_PAPER, "mid": ELEM_MID}
 def _mid_strain(aIsBase, A, pAbase, B, length, e):
     """The mid-frame element's strain (``_element_mid``) into ``e``; returns what its loads
     need of the way there: (r_B, theta^2, theta/2, sin and cos of theta/2, the arc's q,
-    exp(psi/2) by rows, the chord in the A frame).  Shared by the loads and ``element_strain``,
-    so both give the strain to the same bits."""
+    exp(psi/2) by rows (9), the chord in the A frame (3)).  Shared by the loads and
+    ``element_strain``, so both give the strain to the same bits."""
     RA = A.R
     rB0, rB1, rB2, dx, dy, dz = _element_chord(aIsBase, A, pAbase, B)
     # relative rotation psi = log(R_A^T R_B) (the same components in the A, mid and B frames)
@@ -380,28 +380,8 @@ def _mid_strain(aIsBase, A, pAbase, B, length, e):
     e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
     e[1] = E01 * a0 + E11 * a1 + E21 * a2
     e[2] = E02 * a0 + E12 * a1 + E22 * a2
-    return (
-        rB0,
-        rB1,
-        rB2,
-        th2,
-        hn,
-        sh,
-        ch,
-        qarc,
-        E00,
-        E01,
-        E02,
-        E10,
-        E11,
-        E12,
-        E20,
-        E21,
-        E22,
-        a0,
-        a1,
-        a2,
-    )
+    E = (E00, E01, E02, E10, E11, E12, E20, E21, E22)
+    return (rB0, rB1, rB2), th2, hn, sh, ch, qarc, E, (a0, a1, a2)
 
 
 @njit(**HOT, inline="always")
@@ -519,28 +499,10 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     """
     RA = A.R
     halfA = A.half
-    (
-        rB0,
-        rB1,
-        rB2,
-        th2,
-        hn,
-        sh,
-        ch,
-        qarc,
-        E00,
-        E01,
-        E02,
-        E10,
-        E11,
-        E12,
-        E20,
-        E21,
-        E22,
-        a0,
-        a1,
-        a2,
-    ) = _mid_strain(aIsBase, A, pAbase, B, length, e)
+    rB, th2, hn, sh, ch, qarc, E, a = _mid_strain(aIsBase, A, pAbase, B, length, e)
+    rB0, rB1, rB2 = rB
+    E00, E01, E02, E10, E11, E12, E20, E21, E22 = E
+    a0, a1, a2 = a
     s0 = e[3]
     s1 = e[4]
     s2 = e[5]
