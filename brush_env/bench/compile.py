@@ -104,7 +104,7 @@ print("BENCH_COMPILE " + json.dumps({"import_s": t1 - t0, "warmup_s": t2 - t1, "
 #: ``--level``: which kernel groups the start compiles (``GROUPS`` in the script above)
 LEVEL_GROUPS = {
     "all": "warmup.GROUPS",  # brush-env warmup
-    "default": "warmup.groups_for(SimSettings())",  # brush-env reference's default set-up
+    "default": "warmup.groups_for(SimSettings(), follow=True)",  # brush-env reference's set-up
 }
 
 
@@ -113,7 +113,7 @@ def warmup_script(level: str = "all") -> str:
     default set-up ("default") or of a fidelity level's (``warmup.groups_for``)."""
     groups = LEVEL_GROUPS.get(level)
     if groups is None:
-        groups = f"warmup.groups_for(level_settings(load_fidelity({level!r})))"
+        groups = f"warmup.groups_for(level_settings(load_fidelity({level!r})), follow=True)"
     return _WARMUP.replace("warmup.warm_up(GROUPS)", f"warmup.warm_up({groups})")
 
 

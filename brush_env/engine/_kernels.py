@@ -36,6 +36,107 @@ from numba import njit
 HOT = dict(cache=True, _nrt=False, fastmath=False)
 
 
+# --------------------------------------------------------------------------- small-angle series
+# The rotation maps and the mid element take sin, cos and atan2 of angles that are mostly small:
+# a body's rotation over one step, an element's bend.  Below a bound each function is its Taylor
+# series in the squared angle, summed by Horner: every term kept past the bound's remainder of
+# ~1e-17 relative (tests/engine/test_series.py checks each against the closed form at 40 digits),
+# so the series is as exact as the libm call it replaces (~1 ulp), at ~1/5 of its instructions
+# (docs/benchmarks.md, "Small-angle series").  Coefficients lowest order first.
+
+#: sin(x) / x
+SINC = (
+    1.0,
+    -1.0 / 6.0,
+    1.0 / 120.0,
+    -1.0 / 5040.0,
+    1.0 / 362880.0,
+    -1.0 / 39916800.0,
+    1.0 / 6227020800.0,
+    -1.0 / 1307674368000.0,
+)
+#: (1 - cos x) / x^2
+VERS = (
+    0.5,
+    -1.0 / 24.0,
+    1.0 / 720.0,
+    -1.0 / 40320.0,
+    1.0 / 3628800.0,
+    -1.0 / 479001600.0,
+    1.0 / 87178291200.0,
+    -1.0 / 20922789888000.0,
+)
+#: (sin x - x cos x) / (4 x^3), the arc's q of the mid element
+QARC = (
+    1.0 / 12.0,
+    -1.0 / 120.0,
+    1.0 / 3360.0,
+    -1.0 / 181440.0,
+    1.0 / 15966720.0,
+    -1.0 / 2075673600.0,
+    1.0 / 373621248000.0,
+    -1.0 / 88921857024000.0,
+)
+#: the three above to 1e-17 relative for x^2 below this
+TRIG_SERIES_MAX = 0.25
+#: asin(s) / s, C(2k, k) / (4^k (2k + 1)); the rotation log's theta / sin(theta)
+ASIN = (
+    1.0,
+    1.0 / 6.0,
+    3.0 / 40.0,
+    5.0 / 112.0,
+    35.0 / 1152.0,
+    63.0 / 2816.0,
+    231.0 / 13312.0,
+    143.0 / 10240.0,
+    6435.0 / 557056.0,
+    12155.0 / 1245184.0,
+    46189.0 / 5505024.0,
+)
+#: ASIN to 3e-18 relative for s^2 below this (theta < 0.201)
+ASIN_SERIES_MAX = 0.04
+#: (1 - (x/2) cot(x/2)) / x^2 and tan(x/4) / x, the mid element's J_l^-T and T (Bernoulli numbers)
+JL_C = (
+    1.0 / 12.0,
+    1.0 / 720.0,
+    1.0 / 30240.0,
+    1.0 / 1209600.0,
+    1.0 / 47900160.0,
+    691.0 / 1307674368000.0,
+    1.0 / 74724249600.0,
+    3617.0 / 10670622842880000.0,
+    43867.0 / 5109094217170944000.0,
+    174611.0 / 802857662698291200000.0,
+    77683.0 / 14101100039391805440000.0,
+    236364091.0 / 1693824136731743669452800000.0,
+)
+JL_T = (
+    1.0 / 4.0,
+    1.0 / 192.0,
+    1.0 / 7680.0,
+    17.0 / 5160960.0,
+    31.0 / 371589120.0,
+    691.0 / 326998425600.0,
+    5461.0 / 102023508787200.0,
+    929569.0 / 685597979049984000.0,
+    3202291.0 / 93241325150797824000.0,
+    221930581.0 / 255108265612582846464000.0,
+    4722116521.0 / 214290943114569591029760000.0,
+    56963745931.0 / 102052910320915024057466880000.0,
+)
+#: JL_C and JL_T to 1e-19 relative for x^2 below this (theta < 1 rad)
+JL_SERIES_MAX = 1.0
+
+
+@njit(**HOT)
+def series(x2, coefs):
+    """sum_k coefs[k] x2^k by Horner (a small function: LLVM inlines it; numba does not need to)."""
+    r = 0.0
+    for k in range(len(coefs) - 1, -1, -1):
+        r = r * x2 + coefs[k]
+    return r
+
+
 # --------------------------------------------------------------------------- small linear algebra
 @njit(**HOT, inline="always")
 def log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
@@ -48,11 +149,17 @@ def log3s(r00, r01, r02, r10, r11, r12, r20, r21, r22, out):
     w0 = 0.5 * (r21 - r12)
     w1 = 0.5 * (r02 - r20)
     w2 = 0.5 * (r10 - r01)
-    s = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    s2 = w0 * w0 + w1 * w1 + w2 * w2
+    if c > 0.0 and s2 < ASIN_SERIES_MAX:
+        # |w| = sin(theta): theta / sin(theta) by its series (a step's rotation, most bends)
+        f = series(s2, ASIN)
+        out[0] = w0 * f
+        out[1] = w1 * f
+        out[2] = w2 * f
+        return
+    s = np.sqrt(s2)
     th = np.arctan2(s, c)
-    if th < 1e-6:
-        f = 1.0 + th * th / 6.0
-    elif th < 3.0:
+    if th < 3.0:
         f = th / s
     else:
         # close to pi: the axis is the dominant column of the symmetric part (R + R^T)/2 - c I
@@ -95,11 +202,11 @@ def local_rot_into(R, Rn, out):
 def rotate_left(v0, v1, v2, R, out):
     """out = exp([v]) @ R (Rodrigues), no allocation."""
     th2 = v0 * v0 + v1 * v1 + v2 * v2
-    th = np.sqrt(th2)
-    if th < 1e-6:
-        a = 1.0 - th2 / 6.0
-        b = 0.5 - th2 / 24.0
+    if th2 < TRIG_SERIES_MAX:
+        a = series(th2, SINC)
+        b = series(th2, VERS)
     else:
+        th = np.sqrt(th2)
         a = np.sin(th) / th
         b = (1.0 - np.cos(th)) / th2
     # E = I + a K + b K^2, K = skew(v)
@@ -342,12 +449,13 @@ def _mid_strain(aIsBase, A, pAbase, B, length, e):
     h2 = 0.5 * s2
     hh2 = 0.25 * th2
     # one sine/cosine of theta/2 serves exp(psi/2) and, below, J_l^-T and (I + exp(psi/2))^-1
+    # (theta below 1 rad: the element's J_l^-T and T take their series too and need neither)
     hn = 0.0
     sh = 0.0
     ch = 1.0
-    if hh2 < 1e-12:
-        sa = 1.0 - hh2 / 6.0
-        sb = 0.5 - hh2 / 24.0
+    if hh2 < TRIG_SERIES_MAX:
+        sa = series(hh2, SINC)
+        sb = series(hh2, VERS)
     else:
         hn = np.sqrt(hh2)
         sh = np.sin(hn)
@@ -370,9 +478,9 @@ def _mid_strain(aIsBase, A, pAbase, B, length, e):
     # the chord of a circular arc of length l bent by psi_b (the bending part of psi) is
     # l sinc(|psi_b| / 2), along the mid-frame's axis: measure the axial strain against it
     xb2 = 0.25 * (s1 * s1 + s2 * s2)
-    if xb2 < 1e-6:
-        sinc = 1.0 - xb2 / 6.0 + xb2 * xb2 / 120.0
-        qarc = 1.0 / 12.0 - xb2 / 120.0
+    if xb2 < TRIG_SERIES_MAX:
+        sinc = series(xb2, SINC)
+        qarc = series(xb2, QARC)
     else:
         xb = np.sqrt(xb2)
         sinc = np.sin(xb) / xb
@@ -516,9 +624,9 @@ def _element_mid(aIsBase, A, pAbase, B, K, length, damp, out12, e):
     g1 = E10 * f0 + E11 * f1 + E12 * f2
     g2 = E20 * f0 + E21 * f1 + E22 * f2
     # w = J_l(psi)^-T m = m + psi x m / 2 + c psi x (psi x m)
-    if th2 < 1e-8:
-        c = 1.0 / 12.0 + th2 / 720.0
-        t = 0.25 + th2 / 192.0
+    if th2 < JL_SERIES_MAX:  # = TRIG_SERIES_MAX for theta / 2: hn, sh, ch not computed
+        c = series(th2, JL_C)
+        t = series(th2, JL_T)
     else:  # c = (1 - (theta/2) cot(theta/2)) / theta^2, t = tan(theta/4) / theta
         c = (1.0 - hn * ch / sh) / th2
         t = sh / ((1.0 + ch) * 2.0 * hn)

@@ -38,7 +38,11 @@ from .sweeps import (
 )
 
 
-@njit(**HOT)
+# inline: a call from Python (``Simulator.step``) compiles it as a kernel of its own; inside the
+# compiled rollout (``chain_rollout.follow_*``) it is three calls, and not a kernel of its own
+# that numba would link, optimise and generate code for again with the whole step below it
+# (docs/benchmarks.md, "First start: the layers")
+@njit(**HOT, inline="always")
 def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     """Advance every bristle by one step h = prm.h (in place) in one sweep (prm.sweeps == 1);
     ``step_bristles_coupled`` is the step with more.  Two kernels, so that a run with one sweep
@@ -62,7 +66,7 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     note_one_sweep(model, prm, con, ws)
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")  # as step_bristles
 def step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out):
     """``step_bristles`` with up to prm.sweeps > 1 sweeps (arguments and outputs as there).
 

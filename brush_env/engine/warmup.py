@@ -46,6 +46,9 @@ class KernelGroup:
 
     name: str
     run: Callable[[_Tiny], None]
+    #: names of groups whose kernels this one compiles too (``STEP`` steps by ``follow`` as
+    #: well): a warm-up of this group counts as theirs (``kernels_compiled``)
+    covers: tuple[str, ...] = ()
 
 
 class _Tiny:
@@ -69,22 +72,24 @@ def _setup(t: _Tiny) -> None:
     sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
 
 
-def _steps(integrator: str, t: _Tiny, sweeps: int = 1) -> None:
+def _steps(integrator: str, t: _Tiny, sweeps: int = 1, by_step: bool = True) -> None:
     """Press 0.5 mm into the plate, then slide: contact, stick and slip, the Newton solve (with
-    ``sweeps`` > 1 the coupled tip-tip solve's kernel, ``step.step_bristles_coupled``), by
-    ``step`` and by ``follow`` (``chain_rollout``)."""
+    ``sweeps`` > 1 the coupled tip-tip solve's kernel, ``step.step_bristles_coupled``), through
+    the compiled pose rollout (``Simulator.follow``: the experiments) and, with ``by_step``, by
+    ``step`` (the envs, designers' scripts): two kernels, each with the whole step inside."""
     from .simulator import SimSettings, Simulator
 
     settings = SimSettings(dt=2e-3, integrator=integrator, tip_tip_sweeps=sweeps)
     sim = Simulator(t.scene, settings)
     sim.reset(np.array([0.0, 0.0, t.top + 0.05]), t.R)
-    for k in range(1, 26):
-        z = t.top + 0.05 - min(k, 10) * 0.05
-        sim.step(np.array([0.02 * max(k - 10, 0), 0.0, z]), t.R)
-    # and the same solve through the compiled pose rollout (``Simulator.follow``: the reference
-    # experiment, the envs' rollout)
-    P = sim.state.tcp_p[1] + np.outer(np.arange(1, 6), [0.02, 0.0, 0.0])
-    sim.follow(P, np.broadcast_to(t.R, (5, 3, 3)))
+    k = np.arange(1, 26)
+    z = t.top + 0.05 - np.minimum(k, 10) * 0.05
+    P = np.stack([0.02 * np.maximum(k - 10, 0), 0.0 * k, z], axis=1)
+    if by_step:
+        for p in P:
+            sim.step(p, t.R)
+        P = sim.state.tcp_p[1] + np.outer(np.arange(1, 6), [0.02, 0.0, 0.0])
+    sim.follow(P, np.broadcast_to(t.R, (P.shape[0], 3, 3)))
 
 
 def _static(t: _Tiny) -> None:
@@ -121,16 +126,37 @@ def _tip_table(t: _Tiny) -> None:
 
 
 SETUP = KernelGroup("set-up (surface gaps, pose checks, TCP wrench)", _setup)
+#: the experiments' (``brush-env reference``, the tooth row) step groups: they step only by
+#: ``follow``, so their first start compiles no ``step`` kernel (``groups_for(..., follow=True)``)
+FOLLOW = {
+    "bdf2": KernelGroup(
+        "bristle step, BDF2, by the compiled rollout (beam elements, contact and friction, "
+        "Newton solve, tip-tip pairs)",
+        partial(_steps, "bdf2", by_step=False),
+    ),
+    "euler": KernelGroup(
+        "bristle step, backward Euler, by the compiled rollout",
+        partial(_steps, "euler", by_step=False),
+    ),
+}
+FOLLOW_COUPLED = KernelGroup(
+    "coupled tip-tip solve by the compiled rollout (levels 'balanced', 'paper', 'reference')",
+    partial(_steps, "bdf2", sweeps=8, by_step=False),
+)
 STEP = {
     "bdf2": KernelGroup(
         "bristle step, BDF2 (beam elements, contact and friction, Newton solve, tip-tip pairs)",
         partial(_steps, "bdf2"),
+        covers=(FOLLOW["bdf2"].name,),
     ),
-    "euler": KernelGroup("bristle step, backward Euler", partial(_steps, "euler")),
+    "euler": KernelGroup(
+        "bristle step, backward Euler", partial(_steps, "euler"), covers=(FOLLOW["euler"].name,)
+    ),
 }
 COUPLED = KernelGroup(
     "coupled tip-tip solve (levels 'balanced', 'paper', 'reference')",
     partial(_steps, "bdf2", sweeps=8),
+    covers=(FOLLOW_COUPLED.name,),
 )
 REDUCED = {
     "prb": KernelGroup(
@@ -158,15 +184,19 @@ GROUPS: tuple[KernelGroup, ...] = (
 )
 
 
-def groups_for(settings) -> tuple[KernelGroup, ...]:
+def groups_for(settings, follow: bool = False) -> tuple[KernelGroup, ...]:
     """The kernel groups a run with these ``SimSettings`` uses, so that its first start compiles
     only those (issue 32: the reference experiment's first start compiled the reduced model and
     the tip table's builder too): the set-up, then the full chain's step in its integrator (and
     the coupled tip-tip solve with more than one sweep), or the reduced model's step (``prb``,
-    ``table``).  A bristle model registered elsewhere: every group."""
+    ``table``).  ``follow``: a run that steps the full chain only by ``Simulator.follow`` (the
+    experiments) compiles no ``step`` kernel.  A bristle model registered elsewhere: every
+    group."""
     if settings.model == "dfm":
-        step = [STEP[settings.integrator]]
-        return (SETUP, *step, *([COUPLED] if settings.tip_tip_sweeps > 1 else []))
+        coupled = settings.tip_tip_sweeps > 1
+        if follow:
+            return (SETUP, FOLLOW[settings.integrator], *([FOLLOW_COUPLED] if coupled else []))
+        return (SETUP, STEP[settings.integrator], *([COUPLED] if coupled else []))
     if settings.model in REDUCED:
         return (SETUP, REDUCED[settings.model])
     return GROUPS
@@ -196,7 +226,8 @@ def warm_up(
             progress.end_group()
     seconds = time.perf_counter() - t0
     mine = old if where == "this machine" else {}
-    write_stamp([g.name for g in groups], merged_profile(mine, progress.measured()))
+    done = [name for g in groups for name in (g.name, *g.covers)]
+    write_stamp(done, merged_profile(mine, progress.measured()))
     return seconds
 
 

@@ -104,7 +104,9 @@ def run_reference(
     scene_obj = resolve_scene(brush, scene, bodies, head_yaw_deg)
     check_press_depth(press_depth, scene_obj.brush, labels)  # inputs valid past here
     # only the kernels this level runs (warmup.groups_for); `brush-env warmup` compiles all
-    compile_s = ensure_compiled(notice=print if progress else None, groups=groups_for(settings))
+    compile_s = ensure_compiled(
+        notice=print if progress else None, groups=groups_for(settings, follow=True)
+    )
     t_setup = time.perf_counter()
     plan = make_plan(scene_obj, settings, args)
     t_setup = time.perf_counter() - t_setup

@@ -172,7 +172,9 @@ def run_tooth_row(
         scene_obj = with_mesh(scene_obj, mesh, mesh_units)
     check_press_depth(a["press_depth"], scene_obj.brush, labels)
     # only the kernels this level runs (warmup.groups_for); `brush-env warmup` compiles all
-    compile_s = ensure_compiled(notice=print if progress else None, groups=groups_for(settings))
+    compile_s = ensure_compiled(
+        notice=print if progress else None, groups=groups_for(settings, follow=True)
+    )
     t_setup = time.perf_counter()
     ensure_calibrated(scene_obj.brush, settings)  # the reduced model of `fast`
     sim = Simulator(scene_obj, settings)

@@ -100,12 +100,14 @@ def test_level_chooses_the_kernel_groups_the_start_compiles(capsys):
     ns.update(level_settings=level_settings, load_fidelity=load_fidelity)
     for level, groups in (
         ("all", warmup.GROUPS),
-        ("default", warmup.groups_for(SimSettings())),
-        ("balanced", warmup.groups_for(level_settings(load_fidelity("balanced")))),
+        ("default", warmup.groups_for(SimSettings(), follow=True)),
+        ("balanced", warmup.groups_for(level_settings(load_fidelity("balanced")), follow=True)),
     ):
         script = warmup_script(level)
         expr = re.search(r"seconds = warmup\.warm_up\((.*)\)\n", script).group(1)
         assert eval(expr, ns) == groups
-    assert warmup.COUPLED in warmup.groups_for(level_settings(load_fidelity("balanced")))
+    assert warmup.FOLLOW_COUPLED in warmup.groups_for(
+        level_settings(load_fidelity("balanced")), follow=True
+    )
     assert cli.main(["bench", "compile", "--level", "nonsense", "--repeats", "1"]) != 0
     assert "'nonsense' is not a known fidelity level (known: balanced" in capsys.readouterr().err

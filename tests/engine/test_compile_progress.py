@@ -241,6 +241,24 @@ def test_a_run_compiles_only_the_groups_its_level_uses():
     assert w.COUPLED in balanced and w.REDUCED["prb"] not in balanced
     assert w.groups_for(level_settings(load_fidelity("fast"))) == (w.SETUP, w.REDUCED["table"])
     assert w.groups_for(level_settings(load_fidelity("reduced"))) == (w.SETUP, w.REDUCED["prb"])
+    # the experiments step only by follow: their first start compiles no step kernel
+    assert w.groups_for(SimSettings(), follow=True) == (w.SETUP, w.FOLLOW["bdf2"])
+    assert w.FOLLOW_COUPLED in w.groups_for(level_settings(load_fidelity("balanced")), follow=True)
+    covered = {name for g in w.GROUPS for name in (g.name, *g.covers)}
     for level in ("coarse", "fast", "reduced", "balanced", "paper", "reference"):
-        assert set(w.groups_for(level_settings(load_fidelity(level)))) <= set(w.GROUPS)
+        for follow in (False, True):
+            groups = w.groups_for(level_settings(load_fidelity(level)), follow=follow)
+            assert {g.name for g in groups} <= covered
     assert w.groups_for(SimSettings(model="my_model")) == w.GROUPS
+
+
+def test_a_full_warm_up_counts_for_the_follow_groups(monkeypatch):
+    """``brush-env warmup`` steps by ``step`` and by ``follow``: its stamp names the follow-only
+    groups too, so the reference experiment does not announce a compile after it."""
+    written = {}
+    monkeypatch.setattr(warmup, "write_stamp", lambda names, profile: written.update(n=names))
+    monkeypatch.setattr(warmup, "_Tiny", lambda: None)
+    monkeypatch.setattr(warmup, "kernels_compiled", lambda *a: True)
+    fake = warmup.KernelGroup(warmup.STEP["bdf2"].name, lambda t: None, warmup.STEP["bdf2"].covers)
+    warmup.warm_up((fake,))
+    assert written["n"] == [warmup.STEP["bdf2"].name, warmup.FOLLOW["bdf2"].name]
