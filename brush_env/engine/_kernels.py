@@ -198,9 +198,11 @@ def local_rot_into(R, Rn, out):
     )
 
 
-@njit(**HOT, inline="always")
-def rotate_left(v0, v1, v2, R, out):
-    """out = exp([v]) @ R (Rodrigues), no allocation."""
+@njit(**HOT)
+def rodrigues(v0, v1, v2):
+    """exp([v]) = I + a K + b K^2 (Rodrigues; K = [v]x, a = sin t / t, b = (1 - cos t) / t^2,
+    t = |v|) by its nine entries, row by row.  A small function: LLVM inlines it (numba need
+    not, whose inlining is what the first start's compile pays for)."""
     th2 = v0 * v0 + v1 * v1 + v2 * v2
     if th2 < TRIG_SERIES_MAX:
         a = series(th2, SINC)
@@ -209,16 +211,23 @@ def rotate_left(v0, v1, v2, R, out):
         th = np.sqrt(th2)
         a = np.sin(th) / th
         b = (1.0 - np.cos(th)) / th2
-    # E = I + a K + b K^2, K = skew(v)
-    E00 = 1.0 - b * (v1 * v1 + v2 * v2)
-    E11 = 1.0 - b * (v0 * v0 + v2 * v2)
-    E22 = 1.0 - b * (v0 * v0 + v1 * v1)
-    E01 = -a * v2 + b * v0 * v1
-    E10 = a * v2 + b * v0 * v1
-    E02 = a * v1 + b * v0 * v2
-    E20 = -a * v1 + b * v0 * v2
-    E12 = -a * v0 + b * v1 * v2
-    E21 = a * v0 + b * v1 * v2
+    return (
+        1.0 - b * (v1 * v1 + v2 * v2),
+        -a * v2 + b * v0 * v1,
+        a * v1 + b * v0 * v2,
+        a * v2 + b * v0 * v1,
+        1.0 - b * (v0 * v0 + v2 * v2),
+        -a * v0 + b * v1 * v2,
+        -a * v1 + b * v0 * v2,
+        a * v0 + b * v1 * v2,
+        1.0 - b * (v0 * v0 + v1 * v1),
+    )
+
+
+@njit(**HOT, inline="always")
+def rotate_left(v0, v1, v2, R, out):
+    """out = exp([v]) @ R (Rodrigues), no allocation."""
+    E00, E01, E02, E10, E11, E12, E20, E21, E22 = rodrigues(v0, v1, v2)
     for j in range(3):
         r0 = R[0, j]
         r1 = R[1, j]
@@ -447,30 +456,18 @@ def _mid_strain(aIsBase, A, pAbase, B, length, e):
     h0 = 0.5 * s0
     h1 = 0.5 * s1
     h2 = 0.5 * s2
+    E = rodrigues(h0, h1, h2)
+    E00, E01, E02, E10, E11, E12, E20, E21, E22 = E
+    # theta/2's sine and cosine for J_l^-T and T in the loads, which take series of their own
+    # below 1 rad (hh2 < TRIG_SERIES_MAX): only above it are these needed
     hh2 = 0.25 * th2
-    # one sine/cosine of theta/2 serves exp(psi/2) and, below, J_l^-T and (I + exp(psi/2))^-1
-    # (theta below 1 rad: the element's J_l^-T and T take their series too and need neither)
     hn = 0.0
     sh = 0.0
     ch = 1.0
-    if hh2 < TRIG_SERIES_MAX:
-        sa = series(hh2, SINC)
-        sb = series(hh2, VERS)
-    else:
+    if hh2 >= TRIG_SERIES_MAX:
         hn = np.sqrt(hh2)
         sh = np.sin(hn)
         ch = np.cos(hn)
-        sa = sh / hn
-        sb = (1.0 - ch) / hh2
-    E00 = 1.0 - sb * (h1 * h1 + h2 * h2)
-    E11 = 1.0 - sb * (h0 * h0 + h2 * h2)
-    E22 = 1.0 - sb * (h0 * h0 + h1 * h1)
-    E01 = -sa * h2 + sb * h0 * h1
-    E10 = sa * h2 + sb * h0 * h1
-    E02 = sa * h1 + sb * h0 * h2
-    E20 = -sa * h1 + sb * h0 * h2
-    E12 = -sa * h0 + sb * h1 * h2
-    E21 = sa * h0 + sb * h1 * h2
     # chord in the A frame, then in the mid-frame
     a0 = RA[0, 0] * dx + RA[1, 0] * dy + RA[2, 0] * dz
     a1 = RA[0, 1] * dx + RA[1, 1] * dy + RA[2, 1] * dz
@@ -488,7 +485,6 @@ def _mid_strain(aIsBase, A, pAbase, B, length, e):
     e[0] = E00 * a0 + E10 * a1 + E20 * a2 - length * sinc
     e[1] = E01 * a0 + E11 * a1 + E21 * a2
     e[2] = E02 * a0 + E12 * a1 + E22 * a2
-    E = (E00, E01, E02, E10, E11, E12, E20, E21, E22)
     return (rB0, rB1, rB2), th2, hn, sh, ch, qarc, E, (a0, a1, a2)
 
 
