@@ -198,11 +198,11 @@ def local_rot_into(R, Rn, out):
     )
 
 
-@njit(**HOT)
+@njit(**HOT, inline="always")
 def rodrigues(v0, v1, v2):
     """exp([v]) = I + a K + b K^2 (Rodrigues; K = [v]x, a = sin t / t, b = (1 - cos t) / t^2,
-    t = |v|) by its nine entries, row by row.  A small function: LLVM inlines it (numba need
-    not, whose inlining is what the first start's compile pays for)."""
+    t = |v|) by its nine entries, row by row.  Inlined by numba: as a call (LLVM does not inline
+    it, its 9-tuple returns through memory) the step took 1.9 % more instructions."""
     th2 = v0 * v0 + v1 * v1 + v2 * v2
     if th2 < TRIG_SERIES_MAX:
         a = series(th2, SINC)
