@@ -41,7 +41,7 @@ from .sweeps import (
 # inline: a call from Python (``Simulator.step``) compiles it as a kernel of its own; inside the
 # compiled rollout (``chain_rollout.follow_*``) it is three calls, and not a kernel of its own
 # that numba would link, optimise and generate code for again with the whole step below it
-# (docs/benchmarks.md, "First start: the layers")
+# (docs/benchmarks.md, "... one kernel layer fewer")
 @njit(**HOT, inline="always")
 def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     """Advance every bristle by one step h = prm.h (in place) in one sweep (prm.sweeps == 1);
