@@ -190,13 +190,14 @@ def groups_for(settings, follow: bool = False) -> tuple[KernelGroup, ...]:
     the tip table's builder too): the set-up, then the full chain's step in its integrator (and
     the coupled tip-tip solve with more than one sweep), or the reduced model's step (``prb``,
     ``table``).  ``follow``: a run that steps the full chain only by ``Simulator.follow`` (the
-    experiments) compiles no ``step`` kernel.  A bristle model registered elsewhere: every
-    group."""
+    experiments) compiles no ``step`` kernel.  A coupled level compiles no one-sweep kernel:
+    its Simulator steps only by the coupled ones (``chain.DFMChain``; their first sweep is the
+    one-sweep step's), and a one-sweep rollout is a second copy of the whole step (~20 s of
+    LLVM).  A bristle model registered elsewhere: every group."""
     if settings.model == "dfm":
-        coupled = settings.tip_tip_sweeps > 1
-        if follow:
-            return (SETUP, FOLLOW[settings.integrator], *([FOLLOW_COUPLED] if coupled else []))
-        return (SETUP, STEP[settings.integrator], *([COUPLED] if coupled else []))
+        if settings.tip_tip_sweeps > 1:
+            return (SETUP, FOLLOW_COUPLED if follow else COUPLED)
+        return (SETUP, (FOLLOW if follow else STEP)[settings.integrator])
     if settings.model in REDUCED:
         return (SETUP, REDUCED[settings.model])
     return GROUPS

@@ -237,13 +237,14 @@ def test_a_run_compiles_only_the_groups_its_level_uses():
     w = warmup
     assert w.groups_for(SimSettings()) == (w.SETUP, w.STEP["bdf2"])
     assert w.groups_for(SimSettings(integrator="euler")) == (w.SETUP, w.STEP["euler"])
-    balanced = w.groups_for(level_settings(load_fidelity("balanced")))
-    assert w.COUPLED in balanced and w.REDUCED["prb"] not in balanced
+    # a coupled level steps only by the coupled kernels: no one-sweep step beside them
+    balanced = level_settings(load_fidelity("balanced"))
+    assert w.groups_for(balanced) == (w.SETUP, w.COUPLED)
+    assert w.groups_for(balanced, follow=True) == (w.SETUP, w.FOLLOW_COUPLED)
     assert w.groups_for(level_settings(load_fidelity("fast"))) == (w.SETUP, w.REDUCED["table"])
     assert w.groups_for(level_settings(load_fidelity("reduced"))) == (w.SETUP, w.REDUCED["prb"])
     # the experiments step only by follow: their first start compiles no step kernel
     assert w.groups_for(SimSettings(), follow=True) == (w.SETUP, w.FOLLOW["bdf2"])
-    assert w.FOLLOW_COUPLED in w.groups_for(level_settings(load_fidelity("balanced")), follow=True)
     covered = {name for g in w.GROUPS for name in (g.name, *g.covers)}
     for level in ("coarse", "fast", "reduced", "balanced", "paper", "reference"):
         for follow in (False, True):
