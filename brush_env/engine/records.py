@@ -352,7 +352,8 @@ Backup = namedtuple("Backup", ["v3", "R", "tip_state", "shaft"])
 #: holds it tips0 (nb, 6); groups (parent, grouped, slot, members); the dense system A, x, piv
 #: (3 rows per bristle of a group); scratch: one tip node's stiffness H (3, 3) [N/mm], A6, piv6,
 #: W3, Fc, Kc, f, C, e6; shaft (the bodies' shaft states at the step's start); lead (nb,): the
-#: fraction of h v_n each tip is moved on for the first sweep (``sweeps.lead_partners``)
+#: fraction of its extrapolated move each tip is moved on for the first sweep, ext (nb, 6): that
+#: move [mm] and the change of its velocity [mm/s] (``sweeps.lead_partners``)
 Sweeps = namedtuple(
     "Sweeps",
     [
@@ -386,6 +387,7 @@ Sweeps = namedtuple(
         "e6",
         "shaft",
         "lead",
+        "ext",
     ],
 )
 Work = namedtuple(
@@ -455,6 +457,7 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         v(6),
         np.zeros(n_bodies, SHAFT),
         v(n_bristles),
+        v(n_bristles, 6),
     )
     sh = ShaftScratch(
         v(nmax, 6, 6),

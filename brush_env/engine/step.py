@@ -74,9 +74,10 @@ def step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out):
     solved, the partners are placed where the linearised coupled problem puts them
     (``coupling.place_partners``) and those bristles are solved again from the step's start,
     warm-started at their last solution: at convergence both sides of every tip-tip contact see
-    the end-of-step tips (no lag).  ws.sw.count = [sweeps run, re-solves, 0 settled / 1 out of
-    sweeps with partners still moving by less than FALLBACK_MOVE / 2 fell back to the plain
-    sweep]; out.iters counts all sweeps.
+    the end-of-step tips (no lag).  ws.sw.count = [sweeps run, re-solves, 0 settled (after a
+    restart from the plain sweep too, ``sweeps.settle_tip_tip``) / 1 out of sweeps with partners
+    still moving by less than FALLBACK_MOVE / 2 fell back to the plain sweep]; out.iters counts
+    all sweeps.
     """
     start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
     sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle

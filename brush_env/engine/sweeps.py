@@ -204,27 +204,65 @@ def tip_node_state(b, il, bp, pos, rot, vel, omg, out):
 
 
 @njit(**HOT)
-def lead_partners(con, sw, h):
-    """The coupled solve's first guess: every tip with tip-tip partners is held, for the first
-    sweep, where it is heading, con.tips[b] <- p_b + lead_b h v_b (v_b its tip velocity at t_n,
-    lead_b h |v_b| at most LEAD_MAX tip radii),
-    so that a bristle solved before its partners sees them near their end-of-step tips rather
-    than a step behind: on the paper turn the brush carries every tip ~20 um per 1 ms step, and a
-    partner held at its start sends the first placement (``coupling``) 20 um off, more than its
-    safe fraction lets it take.  lead_b starts at 1 and is halved (both tips of a pair, up to
-    LEAD_HALVINGS times, then 0: held at the start) while a pair of tips within contact reach
-    would, both moved on, reverse its line of centres (pass through each other) or overlap by
-    more than it does now plus ``coupling.PLACE_OVERLAP``: the guess may not create the deep
-    overlaps that made the unclipped h v_n guess push tips through each other under random
-    actions (docs/model.md).  It only steers the sweeps: every bristle is then solved against its
-    partners' own solutions."""
+def extrapolate_tips(model, chain, drive, prm, con, ext):
+    """ext[b] <- where tip b heads over the step, for the coupled solve's first guess
+    (``lead_partners``): its move p_{n+1} - p_n [mm] extrapolated from the tip's own history as
+    each bristle's predictor extrapolates its bodies (``predict.py``: quadratic with two whole
+    steps behind, linear with one, h v_n without), and the change of its velocity [mm/s] that the
+    scheme's formula gives for that move (``scheme_coefficients``).  Only tips with partners."""
     tips = con.tips
+    bp = model.bp
+    bstart = model.bstart
+    h = prm.h
+    for b in range(tips.shape[0]):
+        for a in range(6):
+            ext[b, a] = 0.0
+        if con.pair_ptr[b + 1] == con.pair_ptr[b]:
+            continue
+        k = drive.hist_ok[b]
+        if k == 0 or prm.static:
+            for a in range(3):
+                ext[b, a] = h * tips[b, 3 + a]
+            continue
+        il = bstart[b + 1] - 1
+        hl = bp[il].half
+        c0, c1, c2 = scheme_coefficients(prm, True)
+        for a in range(3):
+            p0 = tips[b, a]
+            p1 = chain.ppos[il, a] + hl * chain.prot[il, a, 0]
+            if k >= 2:
+                p2 = chain.pppos[il, a] + hl * chain.pprot[il, a, 0]
+                p = 3.0 * p0 - 3.0 * p1 + p2
+            else:
+                p = 2.0 * p0 - p1
+            ext[b, a] = p - p0
+            ext[b, 3 + a] = (c0 * p + c1 * p0 + c2 * p1) / h - tips[b, 3 + a]
+
+
+@njit(**HOT)
+def lead_partners(con, sw):
+    """The coupled solve's first guess: every tip with tip-tip partners is held, for the first
+    sweep, where it is heading, con.tips[b] <- tips[b] + lead_b sw.ext[b] (position and velocity;
+    ``extrapolate_tips``: the tip's own history extrapolated as each bristle's predictor does, so
+    that the partners a bristle is solved against are as close to their end-of-step tips as its
+    own first guess is to its own; lead_b |ext_b| at most LEAD_MAX tip radii), so that a bristle
+    solved before its partners sees them near their end-of-step tips rather than a step behind:
+    on the paper turn the brush carries every tip ~20 um per 1 ms step, and a partner held at its
+    start sends the first placement (``coupling``) 20 um off, more than its safe fraction lets it
+    take.  lead_b starts at 1 and is halved (both tips of a pair, up to LEAD_HALVINGS times, then
+    0: held at the start) while a pair of tips within contact reach would, both moved on,
+    reverse its line of centres (pass through each other) or overlap by more than it does now
+    plus ``coupling.PLACE_OVERLAP``: the guess may not create the deep overlaps that made the
+    unclipped h v_n guess push tips through each other under random actions (docs/model.md).  It
+    only steers the sweeps: every bristle is then solved against its partners' own solutions."""
+    tips = con.tips
+    ext = sw.ext
     nb = tips.shape[0]
     lead = sw.lead
     for b in range(nb):
         lead[b] = 0.0
         if con.pair_ptr[b + 1] > con.pair_ptr[b]:
-            move = h * np.sqrt(tips[b, 3] ** 2 + tips[b, 4] ** 2 + tips[b, 5] ** 2)
+            move = np.sqrt(ext[b, 0] ** 2 + ext[b, 1] ** 2 + ext[b, 2] ** 2)
             lead[b] = min(1.0, LEAD_MAX * tips[b, 6] / move) if move > 0.0 else 0.0
     for _round in range(LEAD_HALVINGS + 1):
         bad = False
@@ -233,28 +271,28 @@ def lead_partners(con, sw, h):
                 j = con.pair_idx[q]
                 if j < b or (lead[b] == 0.0 and lead[j] == 0.0):
                     continue  # each pair once (the lists are symmetric)
-                if _lead_unsafe(b, j, lead[b] * h, lead[j] * h, tips):
+                if _lead_unsafe(b, j, lead[b], lead[j], tips, ext):
                     bad = True
                     for t in (b, j):
                         lead[t] = 0.0 if _round == LEAD_HALVINGS else 0.5 * lead[t]
         if not bad:
             break
     for b in range(nb):
-        for a in range(3):
-            tips[b, a] += lead[b] * h * tips[b, 3 + a]
+        for a in range(6):
+            tips[b, a] += lead[b] * ext[b, a]
 
 
 @njit(**HOT, inline="always")
-def _lead_unsafe(b, j, fb, fj, tips):
-    """True if moving tip b by fb v_b and tip j by fj v_j [s x mm/s] (``lead_partners``)
-    reverses their line of centres or overlaps them by more than now plus PLACE_OVERLAP [mm]."""
+def _lead_unsafe(b, j, fb, fj, tips, ext):
+    """True if moving tip b by fb ext_b and tip j by fj ext_j (``lead_partners``) reverses their
+    line of centres or overlaps them by more than now plus PLACE_OVERLAP [mm]."""
     reach = tips[b, 6] + tips[j, 6]
     d2 = 0.0
     dot = 0.0
     e2 = 0.0
     for a in range(3):
         d0 = tips[b, a] - tips[j, a]
-        d1 = d0 + fb * tips[b, 3 + a] - fj * tips[j, 3 + a]
+        d1 = d0 + fb * ext[b, a] - fj * ext[j, a]
         d2 += d0 * d0
         dot += d0 * d1
         e2 += d1 * d1
@@ -276,7 +314,8 @@ def start_sweeps(model, chain, drive, prm, con, ws, out):
     if sweeps > 1:
         _save_all(chain, con, drive, sw)
         if not prm.static:
-            lead_partners(con, sw, prm.h)
+            extrapolate_tips(model, chain, drive, prm, con, sw.ext)
+            lead_partners(con, sw)
     sw.count[0] = 1
     sw.count[1] = 0
     sw.count[2] = 0
@@ -285,9 +324,12 @@ def start_sweeps(model, chain, drive, prm, con, ws, out):
 @njit(**HOT, inline="always")
 def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     """After the first sweep: while touching partners moved by more than prm.tttol since a
-    bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN);
-    out of sweeps far from settled, or a bristle failed against led or placed partners: the
-    plain sweep (SWEEP_PLAIN).  Sets sw.count."""
+    bristle was solved, place them (``coupling.place_partners``) and sweep again (SWEEP_AGAIN).
+    Out of sweeps far from settled (the first guess overshot, e.g. at a stick-slip switch): the
+    plain sweep (SWEEP_PLAIN, partners at their start), then once more up to prm.sweeps sweeps
+    from its solution, and the plain sweep again if those run out too.  A bristle failed against
+    led or placed partners, or the budget spent: the plain sweep, and the step ends there.  Sets
+    sw.count (sweeps run, the plain ones included)."""
     nb = model.bstart.shape[0] - 1
     sw = ws.sw
     sweeps = prm.sweeps if con.pair_idx.shape[0] > 0 else 1
@@ -297,7 +339,9 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
     c0_inv_h = 0.0 if prm.static else c0 / prm.h
     # after the first sweep; only a coupled step has a budget (one sweep never falls back)
     budget = ITER_BUDGET * max(_iterations(out, nb), nb) if sweeps > 1 else 0
-    for sweep in range(1, sweeps + 1):
+    run = 1  # sweeps of this round (a second round starts from the plain sweep, once)
+    restarted = False
+    for _sweep in range(2 * sweeps):
         if sweeps > 1 and (_any_failed(out.status, nb) or _iterations(out, nb) > budget):
             # a bristle's Newton failed on its smallest sub-step against led or placed partners,
             # or the re-solves cost more than ITER_BUDGET first sweeps (tips packed under a brush
@@ -305,17 +349,26 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
             # start; a bristle failing there fails the step
             sw.count[2] = 2
             sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+            sw.count[0] += 1
             break
         moved = _max_partner_move(nb, con, sw.used)
         if moved <= prm.tttol:
             break
-        if sweep == sweeps:
+        if run == sweeps:
             sw.count[2] = 1  # out of sweeps with partners still moving
             if sweeps > 1 and moved > FALLBACK_MOVE:
-                # far from settled (the coupled step went astray): the plain sweep instead
+                # far from settled (the coupled step went astray): the plain sweep instead,
+                # then once more the coupled sweeps from its solution
                 sw.count[2] = 2
                 sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
+                sw.count[0] += 1
+                if not restarted:
+                    restarted = True
+                    run = 1
+                    sw.count[2] = 0
+                    continue
             break
-        sw.count[0] = sweep + 1
+        run += 1
+        sw.count[0] += 1
         place_partners(model, chain, con, jc, ws, c0_inv_h)
         sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_AGAIN)

@@ -108,11 +108,73 @@ def _lead(tips, pairs, h=DT):
     ptr = np.cumsum([0] + [len(x) for x in lists]).astype(np.int64)
     idx = np.array([j for x in lists for j in x], np.int64)
     Con = namedtuple("Con", ["tips", "pair_ptr", "pair_idx"])
-    Sw = namedtuple("Sw", ["lead"])
+    Sw = namedtuple("Sw", ["lead", "ext"])
     con = Con(np.array(tips, float), ptr, idx)
-    sw = Sw(np.zeros(nb))
-    lead_partners(con, sw, h)
+    ext = np.zeros((nb, 6))
+    ext[:, 0:3] = h * con.tips[:, 3:6]  # the move h v_n (no history: ``extrapolate_tips``)
+    sw = Sw(np.zeros(nb), ext)
+    lead_partners(con, sw)
     return con.tips, sw.lead
+
+
+def _extrapolated(hist, h, p, v):
+    """sweeps.extrapolate_tips for one tip with a partner: its node at t_n, t_{n-1}, t_{n-2}
+    (``p``, rows; the tip body's centre with half length 0) and velocity v at t_n, ``hist`` whole
+    steps of history, BDF2; returns its row of ext (move [mm], velocity change [mm/s]).  A second
+    tip without partners must stay unmoved."""
+    from collections import namedtuple
+
+    from brush_env.engine.records import BODY, METHOD_BDF2
+    from brush_env.engine.sweeps import extrapolate_tips
+
+    M = namedtuple("M", ["bstart", "bp"])
+    C = namedtuple("C", ["ppos", "prot", "pppos", "pprot"])
+    D = namedtuple("D", ["hist_ok"])
+    Prm = namedtuple("Prm", ["h", "static", "method"])
+    Con = namedtuple("Con", ["tips", "pair_ptr"])
+    R = np.broadcast_to(np.eye(3), (2, 3, 3)).copy()
+    tips = np.zeros((2, 7))
+    tips[:, 0:3] = p[0]
+    tips[:, 3:6] = v
+    ext = np.full((2, 6), np.nan)
+    extrapolate_tips(
+        M(np.array([0, 1, 2]), np.zeros(2, BODY)),
+        C(np.array([p[1], p[1]]), R, np.array([p[2], p[2]]), R.copy()),
+        D(np.array([hist, hist])),
+        Prm(h, False, METHOD_BDF2),
+        Con(tips, np.array([0, 1, 1])),
+        ext,
+    )
+    assert np.all(ext[1] == 0.0)
+    return ext[0]
+
+
+def test_first_guess_extrapolates_a_curving_tip_as_the_predictor_does():
+    """A tip in uniform circular motion (radius a, rate w: the paper turn carries tips on a 20 mm
+    circle) is led to the quadratic extrapolation of its last three nodes, whose error at
+    t_{n+1} is the Taylor remainder h^3 |d3p/dt3| = a w^3 h^3 (the order of each bristle's own
+    predictor), where p + h v_n misses by h^2 |d2p/dt2| / 2 = a w^2 h^2 / 2; its velocity is
+    BDF2's for that move, within (1/3 + 3/2) a w^3 h^2 of the true one.  With one step of
+    history the guess is linear (error h^2 |d2p/dt2|), without it h v_n."""
+    a, w, h = 10.0, 30.0, 1e-3
+
+    def p(t):
+        return a * np.array([np.cos(w * t), np.sin(w * t), 0.0])
+
+    def v(t):
+        return a * w * np.array([-np.sin(w * t), np.cos(w * t), 0.0])
+
+    nodes = np.array([p(0.0), p(-h), p(-2 * h)])
+    e = _extrapolated(2, h, nodes, v(0.0))
+    err = np.linalg.norm(nodes[0] + e[:3] - p(h))
+    assert err <= 1.01 * a * w**3 * h**3
+    assert np.linalg.norm(h * v(0.0) - (p(h) - p(0.0))) >= 0.99 * a * w**2 * h**2 / 2 > 10 * err
+    assert np.linalg.norm(v(0.0) + e[3:] - v(h)) <= 1.01 * (1 / 3 + 3 / 2) * a * w**3 * h**2
+    lin = _extrapolated(1, h, nodes, v(0.0))
+    assert np.allclose(lin[:3], nodes[0] - nodes[1])
+    assert np.linalg.norm(nodes[0] + lin[:3] - p(h)) <= 1.01 * a * w**2 * h**2
+    none = _extrapolated(0, h, nodes, v(0.0))
+    assert np.array_equal(none[:3], h * v(0.0)) and np.all(none[3:] == 0.0)
 
 
 def test_first_guess_moves_tips_that_travel_together_by_h_v():
