@@ -15,7 +15,7 @@ from numba import njit
 
 from ._kernels import HOT, local_rot_into, rotate_left
 from .newton import newton_solve
-from .predict import WARM
+from .predict import WARM, chain_rows
 from .records import METHOD_BDF2, Attempt, Substep
 
 # status codes per bristle (step_bristles' ``out.status``)
@@ -36,7 +36,16 @@ LAST_LEVEL_MAXIT = np.int64(100)
 
 @njit(**HOT)
 def _base_pose(p0, R0, p1, R1, s, pout, Rout, tmp):
-    """Base pose at fraction s of the step: linear in position, geodesic in rotation."""
+    """Base pose at fraction s of the step: linear in position, geodesic in rotation (at s = 0
+    and 1, a whole step's ends, the poses themselves: no log and exp of their rotation)."""
+    if s == 0.0 or s == 1.0:
+        p = p0 if s == 0.0 else p1
+        R = R0 if s == 0.0 else R1
+        for a in range(3):
+            pout[a] = p[a]
+            for b in range(3):
+                Rout[a, b] = R[a, b]
+        return
     for a in range(3):
         pout[a] = (1.0 - s) * p0[a] + s * p1[a]
     local_rot_into(R1, R0, tmp)  # tmp = log(R1 R0^T)
@@ -103,21 +112,7 @@ def _backup(br, chain, con, bk, save):
     """save: bk <- the bristle's state at the start of the step; else the bristle <- bk (every
     sub-step level failed)."""
     b0 = br.b0
-    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
-    vR = (chain.rot, chain.prot, chain.pprot)
-    for k in range(br.n):
-        for a in range(3):
-            for q in range(7):
-                if save:
-                    bk.v3[q, k, a] = v3[q][b0 + k, a]
-                else:
-                    v3[q][b0 + k, a] = bk.v3[q, k, a]
-            for c in range(3):
-                for q in range(3):
-                    if save:
-                        bk.R[q, k, a, c] = vR[q][b0 + k, a, c]
-                    else:
-                        vR[q][b0 + k, a, c] = bk.R[q, k, a, c]
+    chain_rows(chain, b0, bk.v3, bk.R, 0, br.n, save)
     if save:
         bk.tip_state[0] = con.tip_state[br.b]
     else:

@@ -167,6 +167,53 @@ def start_state(br, chain, it, save):
 
 
 @njit(**HOT, inline="always")
+def _rows3(src, s0, dst, d0, n):
+    """dst[d0 + k] <- src[s0 + k], k < n (rows of 3)."""
+    for k in range(n):
+        for a in range(3):
+            dst[d0 + k, a] = src[s0 + k, a]
+
+
+@njit(**HOT, inline="always")
+def _rows33(src, s0, dst, d0, n):
+    """dst[d0 + k] <- src[s0 + k], k < n (3 x 3 blocks)."""
+    for k in range(n):
+        for a in range(3):
+            for c in range(3):
+                dst[d0 + k, a, c] = src[s0 + k, a, c]
+
+
+@njit(**HOT, inline="always")
+def chain_rows(chain, c0, v3, R, r0, n, save):
+    """The state of bodies c0 .. c0 + n - 1 to (``save``) or from rows r0 .. r0 + n - 1 of the
+    stacks v3 (7, m, 3): pos, vel, omg, ppos, pvel, pomg, pppos, and R (3, m, 3, 3): rot, prot,
+    pprot.  One contiguous loop per array: the loop over a tuple of the ten arrays indexed at run
+    time that this replaced cost ~10 instructions a number (docs/benchmarks.md, session 32)."""
+    if save:
+        _rows3(chain.pos, c0, v3[0], r0, n)
+        _rows3(chain.vel, c0, v3[1], r0, n)
+        _rows3(chain.omg, c0, v3[2], r0, n)
+        _rows3(chain.ppos, c0, v3[3], r0, n)
+        _rows3(chain.pvel, c0, v3[4], r0, n)
+        _rows3(chain.pomg, c0, v3[5], r0, n)
+        _rows3(chain.pppos, c0, v3[6], r0, n)
+        _rows33(chain.rot, c0, R[0], r0, n)
+        _rows33(chain.prot, c0, R[1], r0, n)
+        _rows33(chain.pprot, c0, R[2], r0, n)
+    else:
+        _rows3(v3[0], r0, chain.pos, c0, n)
+        _rows3(v3[1], r0, chain.vel, c0, n)
+        _rows3(v3[2], r0, chain.omg, c0, n)
+        _rows3(v3[3], r0, chain.ppos, c0, n)
+        _rows3(v3[4], r0, chain.pvel, c0, n)
+        _rows3(v3[5], r0, chain.pomg, c0, n)
+        _rows3(v3[6], r0, chain.pppos, c0, n)
+        _rows33(R[0], r0, chain.rot, c0, n)
+        _rows33(R[1], r0, chain.prot, c0, n)
+        _rows33(R[2], r0, chain.pprot, c0, n)
+
+
+@njit(**HOT, inline="always")
 def save_chain(br, pos, rot, t_pos, t_rot):
     """t_pos/t_rot <- one bristle's positions and rotations (a trial point to come back to)."""
     for k in range(br.n):

@@ -15,7 +15,7 @@ from numba import njit
 from ._kernels import HOT
 from .advance import OK, advance_bristle, scheme_coefficients
 from .coupling import PLACE_OVERLAP, place_partners, store_tip_load
-from .predict import save_chain
+from .predict import chain_rows, save_chain
 from .records import Bristle
 
 #: modes of ``sweep_bristles``.  numpy integers, not Python ints: numba types a Python int
@@ -152,15 +152,7 @@ def _partner_move(b, con, used):
 @njit(**HOT, inline="always")
 def _save_all(chain, con, drive, sw):
     """sw <- every bristle's state at the step's start (chain, contact state, hist_ok)."""
-    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
-    vR = (chain.rot, chain.prot, chain.pprot)
-    for k in range(chain.pos.shape[0]):
-        for a in range(3):
-            for q in range(7):
-                sw.v3[q, k, a] = v3[q][k, a]
-            for c in range(3):
-                for q in range(3):
-                    sw.R[q, k, a, c] = vR[q][k, a, c]
+    chain_rows(chain, 0, sw.v3, sw.R, 0, chain.pos.shape[0], True)
     for b in range(con.tip_state.shape[0]):
         sw.tip_state[b] = con.tip_state[b]
         sw.hist_ok[b] = drive.hist_ok[b]
@@ -171,15 +163,7 @@ def _save_all(chain, con, drive, sw):
 @njit(**HOT, inline="always")
 def _restore_bristle(br, chain, con, drive, sw):
     """One bristle <- its state at the step's start (``_save_all``)."""
-    v3 = (chain.pos, chain.vel, chain.omg, chain.ppos, chain.pvel, chain.pomg, chain.pppos)
-    vR = (chain.rot, chain.prot, chain.pprot)
-    for k in range(br.b0, br.b0 + br.n):
-        for a in range(3):
-            for q in range(7):
-                v3[q][k, a] = sw.v3[q, k, a]
-            for c in range(3):
-                for q in range(3):
-                    vR[q][k, a, c] = sw.R[q, k, a, c]
+    chain_rows(chain, br.b0, sw.v3, sw.R, br.b0, br.n, False)
     con.tip_state[br.b] = sw.tip_state[br.b]
     drive.hist_ok[br.b] = sw.hist_ok[br.b]
     if con.shaft.shape[0] > 0:
