@@ -35,15 +35,19 @@ import math
 import sys
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .engine import BrushConfig, SimSettings, Simulator, load_brush
 from .engine import prb_calibration as pc
 from .engine.scene import ContactParams
-from .validation.buckling import R_DOWN, BucklingCase
-from .validation.references import timoshenko_cantilever_tip
-from .validation.rod import buckled_bristle
+
+if TYPE_CHECKING:
+    from .validation.buckling import BucklingCase
+
+# brush_env.validation (the rod solver, scipy.integrate: ~0.7 s of imports) is imported where a
+# fit needs it, not here: every experiment imports this module for ``ensure_calibrated``
 
 #: compressions of the fit [mm] (the acceptance range of ``validate buckling``, issue 11)
 PRESS_MM = (0.5, 1.0, 2.0, 3.0, 3.5)
@@ -102,6 +106,8 @@ def press_reduced(case: BucklingCase, constants, targets=None, model="prb") -> n
     along the plate from its touch point [mm] of the reduced model with ``constants``, pressed
     to each compression of ``targets`` [mm] (the protocol of ``validation.buckling.press``);
     ``model`` "table": its touching steps by the tabulated tip law (``engine/tip_table.py``)."""
+    from .validation.buckling import R_DOWN
+
     if targets is None:
         targets = press_points(case.length)
     pc.set_override(constants)
@@ -139,6 +145,8 @@ def drag_trace(sim, length: float, direction, travel: float) -> np.ndarray:
     or 0.0) per step of ``sim`` (one bristle, ``bristle_case``'s scene) pressed DRAG_PRESS
     ``length`` in 0.25 s (minimum jerk), held 0.05 s, then its root dragged ``travel`` [mm] along
     ``direction`` (x, y) at DRAG_SPEED (``bench drag`` (a) runs the same protocol)."""
+    from .validation.buckling import R_DOWN
+
     dt = sim.settings.dt
     z0 = sim.touch_height(R_DOWN, 0.0)
     press = DRAG_PRESS * length
@@ -194,6 +202,8 @@ def bristle_case(br, lean: float, tip: str, bodies: int = 6) -> BucklingCase:
     """``validate buckling``'s one-bristle case for a bristle of ``br``'s type (section, length,
     material, tip radius) on a brush of effective lean ``lean`` [rad], ``tip`` "free" or
     "pinned", the full chain with ``bodies`` bodies."""
+    from .validation.buckling import BucklingCase
+
     sec, mat = br.section, br.material
     return BucklingCase(
         length=br.length,
@@ -212,6 +222,8 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
     """Fit the reduced model of bristle ``br`` (module docstring); returns the cache record:
     constants, the strong-side scale, the fit's force errors per case and compression, time."""
     from scipy.optimize import least_squares
+
+    from .validation.rod import buckled_bristle
 
     t0 = time.perf_counter()
     cases = {tip: bristle_case(br, lean, tip) for tip in ("free", "pinned")}
@@ -335,6 +347,8 @@ def fit(br, lean: float, verbose: bool = False) -> dict:
 def _strong_scale(br, constants) -> float:
     """The factor on the wide-side joint springs that makes the small-deflection tip compliance
     toward local y that of the Timoshenko cantilever about I_z (bending + shear)."""
+    from .validation.references import timoshenko_cantilever_tip
+
     g0, g1, c1, c2 = constants
     L = br.length
     sec, mat = br.section, br.material
