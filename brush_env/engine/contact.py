@@ -186,8 +186,9 @@ def tip_load(b, pt, sub, con, F, Kt, tw):
         F[a] = con.tip_args[b].fext[a]
         for bb in range(3):
             Kt[a, bb] = 0.0
-        # tip velocity from the discrete rate formula (zero for statics)
-        vt[a] = 0.0 if sub.static else (sub.c0 * pt[a] + state.hist[a]) * sub.inv_h
+        # tip velocity from the discrete rate formula, in the tip's move since the step start
+        # (records.TIP_STATE's hist; zero for statics)
+        vt[a] = 0.0 if sub.static else (sub.c0 * (pt[a] - state.pn[a]) + state.hist[a]) * sub.inv_h
     state.fn = 0.0
     state.ft[0] = 0.0
     state.ft[1] = 0.0
@@ -620,9 +621,9 @@ def slip_step_limit(pt, dp, state, c0, inv_h, v_d):
     n1 /= nn
     n2 /= nn
     rate = c0 * inv_h
-    v0 = (c0 * pt[0] + state.hist[0]) * inv_h
-    v1 = (c0 * pt[1] + state.hist[1]) * inv_h
-    v2 = (c0 * pt[2] + state.hist[2]) * inv_h
+    v0 = (c0 * (pt[0] - state.pn[0]) + state.hist[0]) * inv_h
+    v1 = (c0 * (pt[1] - state.pn[1]) + state.hist[1]) * inv_h
+    v2 = (c0 * (pt[2] - state.pn[2]) + state.hist[2]) * inv_h
     w0 = rate * dp[0]
     w1 = rate * dp[1]
     w2 = rate * dp[2]

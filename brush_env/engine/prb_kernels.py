@@ -1089,7 +1089,7 @@ def _halved(b, ctx, gtip, x0, frames):
             _frame_at(b, k / m, rw0, B0, rw1, B1, wk.rws, wk.Bs)
             for a in range(3):
                 st.pn[a] = wk.xs[a]
-                st.hist[a] = -wk.xs[a]
+                st.hist[a] = 0.0  # backward Euler: v = (p - p_n) / h
             for i in range(NQ):
                 wk.qt[i] = wk.qs[i]
             loose = LOOSE_TOL if lev < MAX_HALVINGS else ROUGH_TOL
@@ -1554,7 +1554,7 @@ def _step_one(b, joints, frames, ctx, gtip, rootw):
     _axial_direction(b, frames, con, wk.rp0)
     for a in range(3):
         st.pn[a] = tips[b, a]
-        st.hist[a] = -tips[b, a]  # backward Euler: v = (p - p_n) / h
+        st.hist[a] = 0.0  # backward Euler: v = (p - p_n) / h (records.TIP_STATE)
         wk.d0[a] = st.delta[a]
     wk.d0[3] = st.beta
     for i in range(NQ):

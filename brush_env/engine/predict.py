@@ -141,7 +141,9 @@ def start_step(br, model, chain, sub, base, con, ws, jc):
         ptn = chain.pos[il, a] + half * chain.rot[il, a, 0]
         ptp = chain.ppos[il, a] + half * chain.prot[il, a, 0]
         tip_state.pn[a] = ptn
-        tip_state.hist[a] = sub.c1 * ptn + sub.c2 * ptp
+        # the rate's history relative to p_n (``contact.tip_load``): a tip at rest has v = 0
+        # exactly, also when a multiply and an add fuse (FMA, ``_kernels.HOT``)
+        tip_state.hist[a] = (sub.c0 + sub.c1) * ptn + sub.c2 * ptp
 
 
 @njit(**HOT, inline="always")

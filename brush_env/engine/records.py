@@ -109,8 +109,9 @@ BODY = np.dtype(
 TIP_ARGS = np.dtype([("fext", "f8", 3), ("radius", "f8"), ("cax", "f8"), ("axis", "f8", 3)])
 
 #: a tip's contact state, ``ContactScene.tip_state`` (nb,) (contact.py writes it):
-#: delta: stiction deformation Delta [mm, world] (committed); hist: c1 p_n + c2 p_{n-1} of the
-#: tip node (rate history) [mm]; pn: tip node at the step start [mm]; fn: normal force of the last
+#: delta: stiction deformation Delta [mm, world] (committed); hist: (c0 + c1) p_n + c2 p_{n-1} of
+#: the tip node (rate history, v = (c0 (p - pn) + hist) / h) [mm]; pn: tip node at the step start
+#: [mm]; fn: normal force of the last
 #: evaluation [N]; ft: tangential (friction) force [N, world]; slide: 1 if sliding (|v| > v_s);
 #: pen: penetration [mm]; cpt: contact point [mm]; dnew: trial stiction deformation of the last
 #: evaluation; ftt: tip-tip normal force magnitude (sum) [N]; beta: beta of the step start

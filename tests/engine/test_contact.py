@@ -385,7 +385,7 @@ def test_slip_step_limit_stops_a_newton_step_at_the_slip_turning_point(case):
     pt = np.array([0.0, 0.0, 0.43])
     state["cpt"] = (0.0, 0.0, 0.0)
     v0 = np.array([0.0 if case == "inside" else 5.0, 0.0, 0.0]) + (case == "inside") * 0.5
-    state["hist"] = v0 * h - pt  # backward Euler: v = (pt + hist) / h
+    state["hist"] = v0 * h - (pt - state["pn"])  # backward Euler: v = (pt - pn + hist) / h
     dv = {
         "reversal": [-10.0, 0.0, 0.0],
         "band": [-10.0, 2.0, 0.0],

@@ -50,7 +50,8 @@ def _state(con, pt, v, delta, beta):
     """Tip at pt [mm] moving at v [mm/s] with stiction deformation delta [mm] and frozen beta."""
     st = con.tip_state[0]
     st["pn"] = pt - np.asarray(v) * H  # the tip a step ago
-    st["hist"] = np.asarray(v) * H - C0 * np.asarray(pt)
+    # the rate history (records.TIP_STATE): v = (C0 (pt - pn) + hist) / H
+    st["hist"] = np.asarray(v) * H - C0 * (np.asarray(pt) - st["pn"])
     st["delta"] = delta
     st["beta"] = beta
 

@@ -126,7 +126,7 @@ def kernel_tip_load(
     st["delta"] = delta
     st["beta"] = beta
     st["pn"] = p_n
-    st["hist"] = 0.0 if static else c[1] * p_n + c[2] * p_p
+    st["hist"] = 0.0 if static else (c[0] + c[1]) * p_n + c[2] * p_p
     surf = np.zeros(len(planes), rec.SURFACE)
     for j, (p0, nrm) in enumerate(planes):
         surf[j] = rec.surface_row(rec.SURF_PLANE, p0, nrm)
@@ -234,7 +234,7 @@ def kernel_residual(
     ptn = pos_n[-1] + bp[-1]["half"] * rot_n[-1][:, 0]
     ptp = pos_p[-1] + bp[-1]["half"] * rot_p[-1][:, 0]
     st["pn"] = ptn
-    st["hist"] = c1 * ptn + c2 * ptp
+    st["hist"] = (c0 + c1) * ptn + c2 * ptp
     con = ctx._replace(tip_args=tip_args, tip_state=tip_state)
     trial = at_n._replace(pos=np.array(pos, float), rot=np.array(rot, float))
     rootw = np.zeros(6)
