@@ -142,7 +142,7 @@ def start_step(br, model, chain, sub, base, con, ws, jc):
         ptp = chain.ppos[il, a] + half * chain.prot[il, a, 0]
         tip_state.pn[a] = ptn
         # the rate's history relative to p_n (``contact.tip_load``): a tip at rest has v = 0
-        # exactly, also when a multiply and an add fuse (FMA, ``_kernels.HOT``)
+        # exactly however c0 p rounds (with FMA it did not: docs/benchmarks.md, session 32)
         tip_state.hist[a] = (sub.c0 + sub.c1) * ptn + sub.c2 * ptp
 
 
