@@ -127,6 +127,7 @@ def simulate_contact(
     max_substep: float | None = None,
     observe=None,
     sim_settings=None,
+    shift: float = 0.0,
     **settings,
 ) -> ContactRun:
     """The default ``flat_plate`` scene with ``bodies`` per bristle and ``tip_tip`` on/off: tips
@@ -140,7 +141,10 @@ def simulate_contact(
     kept and ``status`` says when it diverged.  Further keywords are SimSettings fields
     (e.g. ``tip_tip_sweeps``); ``sim_settings``, if given, is the whole ``SimSettings`` (a
     fidelity level's, ``fidelity.level_settings``), used unchanged (its bodies per bristle and
-    step win over ``bodies``, ``dt``, ``integrator``, ``element`` and ``max_substep``)."""
+    step win over ``bodies``, ``dt``, ``integrator``, ``element`` and ``max_substep``).
+    ``shift`` [mm] moves the whole path along the plate (x): physically nothing on the infinite
+    plate, but every position rounds differently -- a last-place perturbation for ensembles
+    (``bench coupled --ensemble``)."""
     from dataclasses import replace
 
     from ..engine import SimSettings, Simulator, load_scene
@@ -162,6 +166,7 @@ def simulate_contact(
     n = int(round((t_circle + arc) / dt))
     times = np.arange(n + 1) * dt
     P, R, _, _ = traj.sample(times)
+    P[:, 0] += shift
     theta_end = float(traj.angle(times[-1]))
     F = np.zeros((n + 1, 3))
     F[0] = sim.reset(P[0], R[0]).tcp_force

@@ -20,6 +20,12 @@ of the same bodies).  Per row, by the measures of ``fidelity_metrics`` (docs/ben
     brush-env bench coupled [--bodies 6] [--dt 0.001] [--sweeps 1 8] [--tol 1e-6]
         [--reference FILE] [--write-reference FILE] [--json]
 
+With ``--ensemble K`` every setting runs K times, its path moved along the plate by k x
+ENSEMBLE_SHIFT (k = 0 .. K-1; 1e-9 mm: nothing physically, but every position rounds
+differently), and a summary row per setting gives each measure's mean and range.  On this turn a
+single run's RMS and CPU are samples: marginal stick-slip releases go one way or the other on
+last-place differences (docs/benchmarks.md, session 32), so a change is judged on the ensemble.
+
 The reference at 0.125 ms takes ~3 min of one core at 6 bodies; a row at 1 ms 10-45 s.
 """
 
@@ -38,12 +44,33 @@ REFERENCE_DT = 1.25e-4  # [s] the done-line's "same bodies at 0.125 ms"
 REFERENCE_SWEEPS = 8
 REFERENCE_TOL = 1e-6  # [mm]
 SAMPLE = 5e-3  # [s] comparison grid (bench element's)
+#: [mm] the path's shift between two members of an ensemble (``--ensemble``): 1 pm, ~1e-10 of
+#: the positions, far above their last place and far below anything physical
+ENSEMBLE_SHIFT = 1e-9
+#: measures an ensemble's summary row averages (mean, min, max)
+ENSEMBLE_KEYS = (
+    "cpu_s",
+    "rtf_cpu",
+    "newton_per_bristle_step",
+    "sweeps_per_step",
+    "resolves_per_step",
+    "fallback_share",
+    "rms",
+    "rms_outside_events",
+    "phase_press",
+    "phase_hold",
+    "phase_sliding",
+    "event_median_ms",
+    "event_max_ms",
+    "events_matched",
+)
 
 
-def turn_run(bodies: int, dt: float, sweeps: int, tol: float) -> dict:
-    """One turn (module docstring): times [s], TCP force [N] (n, 3), per engine step the tips'
-    sliding and in-contact flags (n, 40), the CPU time of the loop [s], Newton iterations,
-    sweeps, re-solves, unsettled and fallen-back steps, and the status."""
+def turn_run(bodies: int, dt: float, sweeps: int, tol: float, shift: float = 0.0) -> dict:
+    """One turn (module docstring), its path moved ``shift`` [mm] along the plate: times [s],
+    TCP force [N] (n, 3), per engine step the tips' sliding and in-contact flags (n, 40), the CPU
+    time of the loop [s], Newton iterations, sweeps, re-solves, unsettled and fallen-back steps,
+    and the status."""
     from .contact import CONTACT_GRID_FULL as G
     from .contact import arc_seconds, simulate_contact
 
@@ -67,7 +94,16 @@ def turn_run(bodies: int, dt: float, sweeps: int, tol: float) -> dict:
 
     t0 = time.process_time()
     run = simulate_contact(
-        bodies, dt, "bdf2", True, G["press"], G["hold"], arc_seconds(G), observe=observe, **extra
+        bodies,
+        dt,
+        "bdf2",
+        True,
+        G["press"],
+        G["hold"],
+        arc_seconds(G),
+        observe=observe,
+        shift=shift,
+        **extra,
     )
     cpu = time.process_time() - t0
     n = max(len(sims), 1)
@@ -76,6 +112,7 @@ def turn_run(bodies: int, dt: float, sweeps: int, tol: float) -> dict:
         "dt": dt,
         "sweeps": sweeps,
         "tol": tol,
+        "shift_mm": shift,
         "t": run.t,
         "F": run.F,
         "event_t": np.asarray(sims),
@@ -153,6 +190,13 @@ def add_arguments(p) -> None:
     p.add_argument("--sweeps", type=int, nargs="+", default=[1, 8], help="tip-tip sweeps (1 8)")
     p.add_argument("--tol", type=float, nargs="+", default=[1e-6], help="tip_tip_tol [mm]")
     p.add_argument(
+        "--ensemble",
+        type=int,
+        default=1,
+        help="runs per setting, each path moved 1e-9 mm more along the plate; a summary row "
+        "per setting (mean and range) (1)",
+    )
+    p.add_argument(
         "--reference",
         default=None,
         help="read the 0.125 ms reference from this .npz (computed and not kept if absent)",
@@ -171,6 +215,8 @@ def bench_coupled(args) -> int:
     for dt in args.dt:
         if not 0.0 < dt <= 4e-3:
             raise UserError(f"--dt {dt}: must be in (0, 0.004] s")
+    if not 1 <= args.ensemble <= 100:
+        raise UserError(f"--ensemble = {args.ensemble}: must be in [1, 100]")
     log = open_log(args)
     ref = load_reference(Path(args.reference), args.bodies) if args.reference else None
     if ref is None:
@@ -182,22 +228,82 @@ def bench_coupled(args) -> int:
         if out:
             save_reference(Path(out), ref)
     rows = []
+    summaries = []
     for dt in args.dt:
         for sweeps in args.sweeps:
             for tol in args.tol if sweeps > 1 else args.tol[:1]:
-                print(f"  dt {dt:g} s, {sweeps} sweep(s), tol {tol:g} mm ...", file=log, flush=True)
-                run = turn_run(args.bodies, dt, sweeps, tol)
-                row = {k: v for k, v in run.items() if not isinstance(v, np.ndarray)} | compare(
-                    run, ref
-                )
-                row["rtf_cpu"] = (
-                    float(run["t"][-1]) / row["cpu_s"] if row["cpu_s"] > 0 else math.nan
-                )
-                rows.append(emit(args, row))
+                members = []
+                for k in range(args.ensemble):
+                    shift = k * ENSEMBLE_SHIFT
+                    print(
+                        f"  dt {dt:g} s, {sweeps} sweep(s), tol {tol:g} mm, shift {shift:g} mm ...",
+                        file=log,
+                        flush=True,
+                    )
+                    run = turn_run(args.bodies, dt, sweeps, tol, shift)
+                    row = {k: v for k, v in run.items() if not isinstance(v, np.ndarray)} | compare(
+                        run, ref
+                    )
+                    row["rtf_cpu"] = (
+                        float(run["t"][-1]) / row["cpu_s"] if row["cpu_s"] > 0 else math.nan
+                    )
+                    members.append(emit(args, row))
+                rows += members
+                if args.ensemble > 1:
+                    summaries.append(emit(args, ensemble_summary(members)))
     if not args.json:
         print_machine(log)
         print(_table(rows), file=log)
+        if summaries:
+            print(f"\nensembles of {args.ensemble} (mean, [min, max]):", file=log)
+            print(_summary_table(summaries), file=log)
     return 0
+
+
+def ensemble_summary(members: list[dict]) -> dict:
+    """One setting's ensemble: for each of ENSEMBLE_KEYS its mean, min and max over the members
+    that finished (``<key>``, ``<key>_min``, ``<key>_max``), and how many finished."""
+    ok = [m for m in members if m["status"] == "ok"]
+    head = members[0]
+    out: dict = {k: head[k] for k in ("bodies", "dt", "sweeps", "tol")}
+    out |= {"ensemble": len(members), "finished": len(ok), "status": "ok" if ok else "failed"}
+    for key in ENSEMBLE_KEYS:
+        vals = np.array([float(m[key]) for m in ok if key in m])
+        if vals.size:
+            out[key] = float(vals.mean())
+            out[key + "_min"] = float(vals.min())
+            out[key + "_max"] = float(vals.max())
+    return out
+
+
+def _summary_table(rows: list[dict]) -> str:
+    def rng(key, scale, fmt):
+        def cell(r):
+            if key not in r:
+                return "—"
+            v, lo, hi = (scale * r[key + s] for s in ("", "_min", "_max"))
+            return f"{v:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]"
+
+        return cell
+
+    return markdown_table(
+        rows,
+        [
+            ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
+            ("sweeps", lambda r: str(r["sweeps"])),
+            ("tol [mm]", lambda r: f"{r['tol']:g}" if r["sweeps"] > 1 else "—"),
+            ("runs", lambda r: f"{r['finished']}/{r['ensemble']}"),
+            ("CPU [s]", rng("cpu_s", 1.0, ".2f")),
+            ("sim s / CPU s", rng("rtf_cpu", 1.0, ".2f")),
+            ("Newton it. / bristle-step", rng("newton_per_bristle_step", 1.0, ".2f")),
+            ("re-solves / step", rng("resolves_per_step", 1.0, ".1f")),
+            ("RMS F [%]", rng("rms", 100.0, ".2f")),
+            ("RMS outside events [%]", rng("rms_outside_events", 100.0, ".2f")),
+            ("sliding phase [%]", rng("phase_sliding", 100.0, "+.2f")),
+            ("event |dt| max [ms]", rng("event_max_ms", 1.0, ".1f")),
+            ("events matched", rng("events_matched", 1.0, ".1f")),
+        ],
+    )
 
 
 def _table(rows: list[dict]) -> str:
