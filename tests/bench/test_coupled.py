@@ -46,3 +46,21 @@ def test_a_force_one_percent_high_and_a_late_slip():
 def test_a_diverged_run_has_no_errors_but_its_status():
     run = _run() | {"status": "diverged at t=1 s"}
     assert compare(run, _run()) == {"status": "diverged at t=1 s"}
+
+
+def test_an_ensemble_summary_averages_the_finished_members_only():
+    """Three members compared against one reference, 0 %, 2 % and 4 % high, and one that
+    diverged: the summary's RMS is their mean (2 %) with range [0, 4] %, over 3 of 4 runs."""
+    from brush_env.bench.coupled import ensemble_summary
+
+    ref = _run()
+    members = []
+    for scale in (1.0, 1.02, 1.04):
+        members.append({"bodies": 6, "dt": 1e-3, "sweeps": 8, "tol": 1e-6, "status": "ok"})
+        members[-1] |= compare(_run(scale=scale), ref) | {"cpu_s": 2.0 * scale}
+    members.append(members[0] | {"status": "diverged at t=1 s", "rms": 9.0})
+    s = ensemble_summary(members)
+    assert (s["ensemble"], s["finished"]) == (4, 3)
+    assert s["rms"] == pytest.approx(0.02, rel=1e-9)
+    assert (s["rms_min"], s["rms_max"]) == (0.0, pytest.approx(0.04, rel=1e-9))
+    assert s["cpu_s"] == pytest.approx(2.04, rel=1e-12)
