@@ -109,8 +109,9 @@ def _substep(prm, whole, hist_ok, h, last):
 
 @njit(**HOT, inline="always")
 def _backup(br, chain, con, bk, save):
-    """save: bk <- the bristle's state at the start of the step; else the bristle <- bk (every
-    sub-step level failed)."""
+    """save: bk <- the bristle's state at the start of the step (``advance_bristle`` saves it
+    when the whole step has failed, which leaves the bristle there); else the bristle <- bk
+    (every sub-step level failed)."""
     b0 = br.b0
     chain_rows(chain, b0, bk.v3, bk.R, 0, br.n, save)
     if save:
@@ -135,7 +136,6 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
     h = prm.h
     maxlev = prm.maxlev
     hist_ok = drive.hist_ok[b]
-    _backup(br, chain, con, ws.backup, True)
     s = 0.0
     level = 0
     tot = 0
@@ -166,6 +166,12 @@ def advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, warm):
             if level > 0 and abs(s / (2.0 * ds) - np.floor(s / (2.0 * ds) + 0.5)) < 1e-9:
                 level -= 1
         else:
+            if level == 0 and s == 0.0:
+                # the whole step failed: Newton left the bristle at the step's start (nothing
+                # committed yet), which a later failure returns to.  Saved here, not before the
+                # step: ~99 % of steps succeed whole, and the copy (chain rows, tip and shaft
+                # records) cost ~2 % of a bristle-step (docs/benchmarks.md, session 33)
+                _backup(br, chain, con, ws.backup, True)
             level += 1
             if level > maxlev:
                 out.status[b] = NEWTON_FAILED

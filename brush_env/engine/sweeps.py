@@ -125,12 +125,22 @@ def _partners_moved(b, con, used, tol):
 @njit(**HOT)
 def _partner_move(b, con, used):
     """The largest move [mm] since bristle b was solved of a partner that is (or was, when b was
-    solved) within contact reach of b's tip."""
+    solved) within contact reach of b's tip.  A partner is tested for reach only if it moved
+    further than the largest so far (compared squared: sqrt is monotone, so the result is the
+    same number): most partners have not moved since b was solved (a later sweep re-solves a
+    few bristles), and this runs for every bristle after every sweep."""
     tips = con.tips
     rb = tips[b, 6]
-    m = 0.0
+    m2 = 0.0
     for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
         j = con.pair_idx[q]
+        m0 = tips[j, 0] - used[q, 0]
+        m1 = tips[j, 1] - used[q, 1]
+        m2j = tips[j, 2] - used[q, 2]
+        mm = m0 * m0 + m1 * m1 + m2j * m2j
+        if mm <= m2:
+            continue
+        mv = np.sqrt(mm)
         reach = rb + tips[j, 6]
         dn0 = tips[b, 0] - tips[j, 0]
         dn1 = tips[b, 1] - tips[j, 1]
@@ -138,15 +148,11 @@ def _partner_move(b, con, used):
         du0 = tips[b, 0] - used[q, 0]
         du1 = tips[b, 1] - used[q, 1]
         du2 = tips[b, 2] - used[q, 2]
-        m0 = tips[j, 0] - used[q, 0]
-        m1 = tips[j, 1] - used[q, 1]
-        m2 = tips[j, 2] - used[q, 2]
-        mv = np.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
         r2 = (reach + mv) * (reach + mv)
         if dn0 * dn0 + dn1 * dn1 + dn2 * dn2 > r2 and du0 * du0 + du1 * du1 + du2 * du2 > r2:
             continue
-        m = max(m, mv)
-    return m
+        m2 = mm
+    return np.sqrt(m2)
 
 
 @njit(**HOT, inline="always")
@@ -198,6 +204,7 @@ def extrapolate_tips(model, chain, drive, prm, con, ext):
     bp = model.bp
     bstart = model.bstart
     h = prm.h
+    c0, c1, c2 = scheme_coefficients(prm, True)
     for b in range(tips.shape[0]):
         for a in range(6):
             ext[b, a] = 0.0
@@ -210,7 +217,6 @@ def extrapolate_tips(model, chain, drive, prm, con, ext):
             continue
         il = bstart[b + 1] - 1
         hl = bp[il].half
-        c0, c1, c2 = scheme_coefficients(prm, True)
         for a in range(3):
             p0 = tips[b, a]
             p1 = chain.ppos[il, a] + hl * chain.prot[il, a, 0]

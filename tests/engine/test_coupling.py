@@ -204,3 +204,41 @@ def test_first_guess_never_pushes_tips_into_each_other():
     # a tip without partners is not moved
     alone, lead = _lead([[0, 0, 0, 50, 0, 0, r]], [])
     assert lead[0] == 0.0 and alone[0, 0] == 0.0
+
+
+def test_partner_move_is_the_largest_move_of_a_partner_within_reach():
+    """``sweeps._partner_move`` (which skips partners that moved no further than the largest so
+    far) against its definition evaluated pair by pair: the largest |x_j - u_q| over the partners
+    j of b whose tip, now or where b saw it (u_q), is within reach + that move of b's tip."""
+    from collections import namedtuple
+
+    from brush_env.engine.sweeps import _partner_move
+
+    Con = namedtuple("Con", ["tips", "pair_ptr", "pair_idx"])
+    rng = np.random.default_rng(7)
+    nb = 7
+    for _trial in range(20):
+        tips = np.zeros((nb, 7))
+        tips[:, 0:3] = rng.uniform(-0.6, 0.6, (nb, 3))
+        tips[:, 6] = rng.uniform(0.1, 0.2, nb)  # radii [mm]
+        ptr = [0]
+        idx = []
+        for b in range(nb):
+            idx += [j for j in range(nb) if j != b]
+            ptr.append(len(idx))
+        pair_idx = np.array(idx, dtype=np.int64)
+        used = tips[pair_idx, 0:3].copy()
+        moved = rng.random(pair_idx.size) < 0.4  # most partners did not move since b was solved
+        used[moved] += rng.normal(0.0, 0.05, (int(moved.sum()), 3))
+        con = Con(tips, np.array(ptr, dtype=np.int64), pair_idx)
+        for b in range(nb):
+            want = 0.0
+            for q in range(ptr[b], ptr[b + 1]):
+                j = pair_idx[q]
+                mv = np.linalg.norm(tips[j, 0:3] - used[q])
+                reach = tips[b, 6] + tips[j, 6] + mv
+                near_now = np.linalg.norm(tips[b, 0:3] - tips[j, 0:3]) <= reach
+                near_then = np.linalg.norm(tips[b, 0:3] - used[q]) <= reach
+                if near_now or near_then:
+                    want = max(want, mv)
+            assert _partner_move(b, con, used) == pytest.approx(want, rel=1e-15, abs=0.0)
