@@ -330,6 +330,37 @@ def test_paper_penetration_criterion_7MPa_meets_7GPa_does_not(E, must_meet):
         assert len(warned) == 1 and re.search(r"tip of bristle \d+ penetrates [\d.]+ um", warned[0])
 
 
+def test_a_deep_sliding_press_closes_no_newton_limit_cycle():
+    """The 7 GPa press above at t = 0.248 s, its state saved from a run whose arithmetic differed in
+    the last bits (FMA, docs/benchmarks.md, session 33): bristle 38's tip sinks 0.93 mm into the
+    plate and slides.  Newton took a direction uphill of its line search's merit whole (old
+    factors at a kink of the friction law: the residual rose 12x), which closed a
+    four-iteration limit cycle at every halving of the step, down to h / 256, and the press
+    diverged.  Now such a direction is halved until the residual falls (``newton._line_search``):
+    the next ten steps run, and the press stays as deep as the criterion above says."""
+    from pathlib import Path
+
+    data = np.load(Path(__file__).parents[1] / "data" / "deep_press_7GPa_state.npz")
+    brush = load_brush("default")
+    brush = brush.with_material(dataclasses.replace(brush.bristles[0].material, E=7000.0, name="m"))
+    sim = Simulator(load_scene("flat_plate", brush=brush), SimSettings(dt=1e-3))
+    z0 = brush.max_length + 0.44
+    sim.reset(np.array([0.0, 0.0, z0]), R0)
+    st = sim.get_state()
+    arrays = {k: data[k] for k in data.files if not k.startswith("jac_")}
+    arrays["time"] = float(arrays["time"])
+    arrays["steps"] = int(arrays["steps"])
+    jac = st.jac._replace(**{k[4:]: data[k] for k in data.files if k.startswith("jac_")})
+    sim.set_state(dataclasses.replace(st, **arrays, jac=jac))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PenetrationWarning)
+        for k in range(249, 259):
+            s = k / 400.0
+            out = sim.step(np.array([0.0, 0.0, z0 - 3.0 * (3 * s * s - 2 * s**3)]), R0)
+    assert np.all(np.isfinite(out.tcp_force)) and sim.state.steps == 258
+    assert out.tip_penetration.max() * 1e3 > 20.0 * PAPER_PENETRATION_UM
+
+
 def test_mesh_plate_and_analytic_plane_give_the_same_forces():
     """The paper meshed its flat plate: the triangle mesh (closest point on triangles, grid index)
     and the analytic plane give the same press-and-drag forces to solver tolerance."""
