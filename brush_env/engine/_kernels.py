@@ -28,15 +28,18 @@ from numba import njit
 #: (scratch memory comes from the caller), and with NRT on numba increfs/decrefs (atomically)
 #: every array view it hands to a helper -- measured with ``perf`` at ~30 % of a whole step.
 #: Without NRT a view is a plain struct.  Kernels that do allocate keep the default options.
-#: ``fastmath=False`` is explicit: numba gives a kernel that does not set the flag the flag of the
-#: first caller that compiles it (numba issue 7168) and caches that version without the flag in its
+#: ``fastmath`` is explicit: numba gives a kernel that does not set the flag the flag of the first
+#: caller that compiles it (numba issue 7168) and caches that version without the flag in its
 #: key, so a strict kernel first reached from the reduced model's fast-math kernels (``PRB``) was
 #: compiled fast-math for the whole process -- the full chain's results then depended on which
 #: level ran first and on which process wrote the cache (the last digits; issue 32's note).
-#: Not ``contract`` (FMA) either: -11.8 % instructions per bristle-step on the turn, but the 7 GPa
-#: press of ``tests/engine/test_contact.py`` (tips 1.7 mm deep, far outside eq 6's range) then
-#: failed Newton on its smallest halving (docs/benchmarks.md, session 32).
-HOT = dict(cache=True, _nrt=False, fastmath=False)
+#: ``contract`` alone: LLVM may fuse a multiply and an add into one FMA (one rounding instead of
+#: two, C compilers' default), -11.8 % instructions per bristle-step on the turn; none of the
+#: flags that reorder or assume finite values.  Session 32 tried it and reverted: the 7 GPa press of
+#: ``tests/engine/test_contact.py`` then failed Newton on its smallest halving -- a limit cycle
+#: that the strict kernels escaped by their last bits, closed since by ``newton._line_search``
+#: (docs/benchmarks.md, session 33).
+HOT = dict(cache=True, _nrt=False, fastmath={"contract"})
 
 
 # --------------------------------------------------------------------------- small-angle series
