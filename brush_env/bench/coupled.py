@@ -276,6 +276,14 @@ def ensemble_summary(members: list[dict]) -> dict:
     return out
 
 
+#: the columns that name a row's setting (both tables)
+_SETTING_COLUMNS = [
+    ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
+    ("sweeps", lambda r: str(r["sweeps"])),
+    ("tol [mm]", lambda r: f"{r['tol']:g}" if r["sweeps"] > 1 else "—"),
+]
+
+
 def _summary_table(rows: list[dict]) -> str:
     def rng(key, scale, fmt):
         def cell(r):
@@ -289,9 +297,7 @@ def _summary_table(rows: list[dict]) -> str:
     return markdown_table(
         rows,
         [
-            ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
-            ("sweeps", lambda r: str(r["sweeps"])),
-            ("tol [mm]", lambda r: f"{r['tol']:g}" if r["sweeps"] > 1 else "—"),
+            *_SETTING_COLUMNS,
             ("runs", lambda r: f"{r['finished']}/{r['ensemble']}"),
             ("CPU [s]", rng("cpu_s", 1.0, ".2f")),
             ("sim s / CPU s", rng("rtf_cpu", 1.0, ".2f")),
@@ -313,9 +319,7 @@ def _table(rows: list[dict]) -> str:
     return markdown_table(
         rows,
         [
-            ("dt [ms]", lambda r: f"{1e3 * r['dt']:g}"),
-            ("sweeps", lambda r: str(r["sweeps"])),
-            ("tol [mm]", lambda r: f"{r['tol']:g}" if r["sweeps"] > 1 else "—"),
+            *_SETTING_COLUMNS,
             ("CPU [s]", lambda r: f"{r['cpu_s']:.1f}"),
             ("sim s / CPU s", lambda r: f"{r['rtf_cpu']:.2f}"),
             ("Newton it. / bristle-step", lambda r: f"{r['newton_per_bristle_step']:.2f}"),
