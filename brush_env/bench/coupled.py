@@ -233,8 +233,8 @@ def bench_coupled(args) -> int:
         for sweeps in args.sweeps:
             for tol in args.tol if sweeps > 1 else args.tol[:1]:
                 members = []
-                for k in range(args.ensemble):
-                    shift = k * ENSEMBLE_SHIFT
+                for member in range(args.ensemble):
+                    shift = member * ENSEMBLE_SHIFT
                     print(
                         f"  dt {dt:g} s, {sweeps} sweep(s), tol {tol:g} mm, shift {shift:g} mm ...",
                         file=log,
