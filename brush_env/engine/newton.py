@@ -32,6 +32,8 @@ MAX_ROT_STEP = 0.5  # [rad] largest rotation increment of one Newton iteration
 MAX_TIP_STEP = 0.25  # largest tip displacement of one Newton iteration, in tip radii
 #: halvings of a step that is no descent direction of the line search's merit (``_line_search``)
 UPHILL_HALVINGS = 20
+#: a solve's first such step is taken whole if the residual norm at most rises by this factor
+UPHILL_RISE = 2.0
 #: Reused Newton factors are rebuilt when an iteration with them reduces the residual by less than
 #: SLOW and, at that rate, more than REBUILD_ITERS further iterations would be needed: a rebuild
 #: (finite-difference chain Jacobian + factorisation, ~8.5 us at 6 bodies) costs about as much
@@ -195,15 +197,19 @@ def _step_cap(br, model, chain, sub, con, ws):
 @njit(**HOT, inline="always")
 def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     """Move along the correction from the saved trial point (``ws.it.t_pos``/``t_rot``); returns
-    (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm)``, the capped
-    step, the slope dq . r at alpha = 0 and the residual norm there.
+    (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm, whole)``, the
+    capped step, the slope dq . r at alpha = 0, the residual norm there and whether a direction
+    uphill of the merit is taken whole.
 
     The merit is the directional derivative g(alpha) = dq . r(q + alpha dq) (the energy-like
     measure of structural Newton solvers): the residual norm itself is a poor merit here, because
     the stiff axial/shear terms react to second-order geometry.  On overshoot (g changed sign) the
     next alpha is the secant estimate of the zero of g, safeguarded.  A direction along which g
-    starts uphill (g0 >= 0: old factors, or a kink of the friction or contact law) is halved
-    until the residual norm falls (up to UPHILL_HALVINGS times; before, it was taken whole)."""
+    starts uphill (g0 >= 0: old factors, or a kink of the friction or contact law) is taken
+    whole the first time in a solve (``trial.whole``) if the residual norm at most doubles
+    (UPHILL_RISE), and otherwise halved until the residual norm falls (up to UPHILL_HALVINGS
+    times): taking every such step whole closed a limit cycle, halving every one cost the tooth
+    row 27 % more Newton iterations (docs/benchmarks.md, session 34)."""
     it = ws.it
     alpha = trial.alpha
     g0 = trial.g0
@@ -214,6 +220,11 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
         if not np.isfinite(new):
             alpha *= 0.25
             continue
+        if g0 >= 0.0 and trial.whole and new <= UPHILL_RISE * trial.nrm:
+            # the solve's first uphill direction, taken whole when the residual at most doubles
+            # (a non-monotone step: on curved surfaces such steps mostly pay; once per solve and
+            # bounded, the rise cannot repeat in a cycle)
+            return True, new, alpha
         if g0 >= 0.0:
             # dq is no descent direction of the merit (a kink of the friction or contact law
             # between the iterate and the factors' point): taken whole, such a step raised the
@@ -345,6 +356,7 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
     key = -1.0 if sub.static else sub.c0 * sub.inv_h
     jc.age[b] += 1
     need = jc.key[b] != key or jc.age[b] > sub.jage
+    whole = True  # the solve's first direction uphill of the merit is taken whole
     while not ok and it < sub.maxit and np.isfinite(nrm):
         it += 1
         fresh = need
@@ -364,8 +376,10 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
         g0 = _direction(br, jc, ws)
         save_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
         alpha = _step_cap(br, model, chain, sub, con, ws)
-        trial = Trial(alpha, g0, nrm)
+        trial = Trial(alpha, g0, nrm, whole)
         accepted, new, alpha = _line_search(br, model, chain, sub, base, con, ws, rootw, trial)
+        if g0 >= 0.0:
+            whole = False
         if not accepted:
             # restore the iterate; retry with fresh factors unless they were fresh already
             load_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)

@@ -336,8 +336,9 @@ def test_a_deep_sliding_press_closes_no_newton_limit_cycle():
     plate and slides.  Newton took a direction uphill of its line search's merit whole (old
     factors at a kink of the friction law: the residual rose 12x), which closed a
     four-iteration limit cycle at every halving of the step, down to h / 256, and the press
-    diverged.  Now such a direction is halved until the residual falls (``newton._line_search``):
-    the next ten steps run, and the press stays as deep as the criterion above says."""
+    diverged.  Now only a solve's first such direction is taken whole, the later ones halved
+    until the residual falls (``newton._line_search``): the next ten steps run, and the press
+    stays as deep as the criterion above says."""
     from pathlib import Path
 
     data = np.load(Path(__file__).parents[1] / "data" / "deep_press_7GPa_state.npz")
