@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, local_rot_into, reorthonormalize, rotate_left
+from ._kernels import HOT, local_rot_into, log3s, reorthonormalize, rodrigues
 from .contact import in_contact
 from .residual import bristle_residual, strain_at
 
@@ -236,6 +236,12 @@ def load_chain(br, pos, rot, t_pos, t_rot):
 
 
 @njit(**HOT, inline="always")
+def _to_base(RA, pA, x, a):
+    """Component a of RA^T (x - pA) (a point in the base frame)."""
+    return RA[0, a] * (x[0] - pA[0]) + RA[1, a] * (x[1] - pA[1]) + RA[2, a] * (x[2] - pA[2])
+
+
+@njit(**HOT, inline="always")
 def _extrapolate(br, chain, order, base, it, mot):
     """chain.pos/rot <- the state at t_n (it.s_pos, it.s_rot) moved on by polynomial
     extrapolation in the base frame.
@@ -245,6 +251,10 @@ def _extrapolate(br, chain, order, base, it, mot):
     order 3: x = 3 x_n - 3 x_{n-1} + x_{n-2}, Q = exp(phi_2 - 3 phi_1) Q_n with
     phi_j = log(Q_{n-j} Q_n^T) (the quadratic through the three rotation vectors about Q_n).  Then
     back to the world with the base at the step's end (pAe, RAe).
+
+    The 3x3 products run on scalars (``_Q``, ``_QQt``): through the scratch arrays, the one large
+    compiled function reloaded each array's data pointer before most multiply-adds (session 34).
+    The arithmetic, and so the result, is the same to the bit.
     """
     pos = chain.pos
     rot = chain.rot
@@ -256,67 +266,96 @@ def _extrapolate(br, chain, order, base, it, mot):
     pprot = chain.pprot
     pAs, RAs, pAp, RAp = base.pAs, base.RAs, base.pAp, base.RAp
     pAq, RAq, pAe, RAe = base.pAq, base.RAq, base.pAe, base.RAe
-    Qn, Qp, Qq, Qr = mot.Qn, mot.Qp, mot.Qq, mot.Qr
-    phi1, phi2, xp = mot.phi1, mot.phi2, mot.xp
+    phi1, phi2 = mot.phi1, mot.phi2
+    third = order >= 3
     for k in range(br.n):
         i = br.b0 + k
-        for a in range(3):
-            xn = (
-                RAs[0, a] * (s_pos[k, 0] - pAs[0])
-                + RAs[1, a] * (s_pos[k, 1] - pAs[1])
-                + RAs[2, a] * (s_pos[k, 2] - pAs[2])
-            )
-            xm = (
-                RAp[0, a] * (ppos[i, 0] - pAp[0])
-                + RAp[1, a] * (ppos[i, 1] - pAp[1])
-                + RAp[2, a] * (ppos[i, 2] - pAp[2])
-            )
-            if order >= 3:
-                xq = (
-                    RAq[0, a] * (pppos[i, 0] - pAq[0])
-                    + RAq[1, a] * (pppos[i, 1] - pAq[1])
-                    + RAq[2, a] * (pppos[i, 2] - pAq[2])
-                )
-                xp[a] = 3.0 * xn - 3.0 * xm + xq
-            else:
-                xp[a] = 2.0 * xn - xm
-            for bb in range(3):
-                Qn[a, bb] = (
-                    RAs[0, a] * s_rot[k, 0, bb]
-                    + RAs[1, a] * s_rot[k, 1, bb]
-                    + RAs[2, a] * s_rot[k, 2, bb]
-                )
-                Qp[a, bb] = (
-                    RAp[0, a] * prot[i, 0, bb]
-                    + RAp[1, a] * prot[i, 1, bb]
-                    + RAp[2, a] * prot[i, 2, bb]
-                )
-                if order >= 3:
-                    Qq[a, bb] = (
-                        RAq[0, a] * pprot[i, 0, bb]
-                        + RAq[1, a] * pprot[i, 1, bb]
-                        + RAq[2, a] * pprot[i, 2, bb]
-                    )
-        if order >= 3:
-            local_rot_into(Qp, Qn, phi1)  # log(Q_{n-1} Q_n^T)
-            local_rot_into(Qq, Qn, phi2)  # log(Q_{n-2} Q_n^T)
-            rotate_left(
-                phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1], phi2[2] - 3.0 * phi1[2], Qn, Qr
+        x0 = _to_base(RAs, pAs, s_pos[k], 0)
+        x1 = _to_base(RAs, pAs, s_pos[k], 1)
+        x2 = _to_base(RAs, pAs, s_pos[k], 2)
+        m0 = _to_base(RAp, pAp, ppos[i], 0)
+        m1 = _to_base(RAp, pAp, ppos[i], 1)
+        m2 = _to_base(RAp, pAp, ppos[i], 2)
+        if third:
+            xp0 = 3.0 * x0 - 3.0 * m0 + _to_base(RAq, pAq, pppos[i], 0)
+            xp1 = 3.0 * x1 - 3.0 * m1 + _to_base(RAq, pAq, pppos[i], 1)
+            xp2 = 3.0 * x2 - 3.0 * m2 + _to_base(RAq, pAq, pppos[i], 2)
+        else:
+            xp0 = 2.0 * x0 - m0
+            xp1 = 2.0 * x1 - m1
+            xp2 = 2.0 * x2 - m2
+        n00, n01, n02, n10, n11, n12, n20, n21, n22 = _Q(RAs, s_rot[k])
+        p00, p01, p02, p10, p11, p12, p20, p21, p22 = _Q(RAp, prot[i])
+        if third:
+            q00, q01, q02, q10, q11, q12, q20, q21, q22 = _Q(RAq, pprot[i])
+            # log(Q_{n-1} Q_n^T), log(Q_{n-2} Q_n^T) (``local_rot_into``'s products)
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(
+                p00, p01, p02, p10, p11, p12, p20, p21, p22,
+                n00, n01, n02, n10, n11, n12, n20, n21, n22,
+            )  # fmt: skip
+            log3s(a00, a01, a02, a10, a11, a12, a20, a21, a22, phi1)
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(
+                q00, q01, q02, q10, q11, q12, q20, q21, q22,
+                n00, n01, n02, n10, n11, n12, n20, n21, n22,
+            )  # fmt: skip
+            log3s(a00, a01, a02, a10, a11, a12, a20, a21, a22, phi2)
+            e00, e01, e02, e10, e11, e12, e20, e21, e22 = rodrigues(
+                phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1], phi2[2] - 3.0 * phi1[2]
             )
         else:
-            for a in range(3):  # Qq = Qn Qp^T, the last step's rotation
-                for bb in range(3):
-                    Qq[a, bb] = Qn[a, 0] * Qp[bb, 0] + Qn[a, 1] * Qp[bb, 1] + Qn[a, 2] * Qp[bb, 2]
-            for a in range(3):  # Qr = Qq Qn, repeated once more
-                for bb in range(3):
-                    Qr[a, bb] = Qq[a, 0] * Qn[0, bb] + Qq[a, 1] * Qn[1, bb] + Qq[a, 2] * Qn[2, bb]
+            # Qq = Qn Qp^T, the last step's rotation, repeated once more
+            e00, e01, e02, e10, e11, e12, e20, e21, e22 = _QQt(
+                n00, n01, n02, n10, n11, n12, n20, n21, n22,
+                p00, p01, p02, p10, p11, p12, p20, p21, p22,
+            )  # fmt: skip
+        # Qr = E Qn (``rotate_left``'s and the old product's order)
+        r00 = e00 * n00 + e01 * n10 + e02 * n20
+        r01 = e00 * n01 + e01 * n11 + e02 * n21
+        r02 = e00 * n02 + e01 * n12 + e02 * n22
+        r10 = e10 * n00 + e11 * n10 + e12 * n20
+        r11 = e10 * n01 + e11 * n11 + e12 * n21
+        r12 = e10 * n02 + e11 * n12 + e12 * n22
+        r20 = e20 * n00 + e21 * n10 + e22 * n20
+        r21 = e20 * n01 + e21 * n11 + e22 * n21
+        r22 = e20 * n02 + e21 * n12 + e22 * n22
         for a in range(3):
-            pos[i, a] = pAe[a] + RAe[a, 0] * xp[0] + RAe[a, 1] * xp[1] + RAe[a, 2] * xp[2]
-            for bb in range(3):
-                rot[i, a, bb] = (
-                    RAe[a, 0] * Qr[0, bb] + RAe[a, 1] * Qr[1, bb] + RAe[a, 2] * Qr[2, bb]
-                )
+            pos[i, a] = pAe[a] + RAe[a, 0] * xp0 + RAe[a, 1] * xp1 + RAe[a, 2] * xp2
+            rot[i, a, 0] = RAe[a, 0] * r00 + RAe[a, 1] * r10 + RAe[a, 2] * r20
+            rot[i, a, 1] = RAe[a, 0] * r01 + RAe[a, 1] * r11 + RAe[a, 2] * r21
+            rot[i, a, 2] = RAe[a, 0] * r02 + RAe[a, 1] * r12 + RAe[a, 2] * r22
         reorthonormalize(rot[i])
+
+
+@njit(**HOT, inline="always")
+def _Q(RA, R):
+    """The nine entries of RA^T R, row by row."""
+    return (
+        RA[0, 0] * R[0, 0] + RA[1, 0] * R[1, 0] + RA[2, 0] * R[2, 0],
+        RA[0, 0] * R[0, 1] + RA[1, 0] * R[1, 1] + RA[2, 0] * R[2, 1],
+        RA[0, 0] * R[0, 2] + RA[1, 0] * R[1, 2] + RA[2, 0] * R[2, 2],
+        RA[0, 1] * R[0, 0] + RA[1, 1] * R[1, 0] + RA[2, 1] * R[2, 0],
+        RA[0, 1] * R[0, 1] + RA[1, 1] * R[1, 1] + RA[2, 1] * R[2, 1],
+        RA[0, 1] * R[0, 2] + RA[1, 1] * R[1, 2] + RA[2, 1] * R[2, 2],
+        RA[0, 2] * R[0, 0] + RA[1, 2] * R[1, 0] + RA[2, 2] * R[2, 0],
+        RA[0, 2] * R[0, 1] + RA[1, 2] * R[1, 1] + RA[2, 2] * R[2, 1],
+        RA[0, 2] * R[0, 2] + RA[1, 2] * R[1, 2] + RA[2, 2] * R[2, 2],
+    )
+
+
+@njit(**HOT, inline="always")
+def _QQt(a00, a01, a02, a10, a11, a12, a20, a21, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22):
+    """The nine entries of A B^T, row by row."""
+    return (
+        a00 * b00 + a01 * b01 + a02 * b02,
+        a00 * b10 + a01 * b11 + a02 * b12,
+        a00 * b20 + a01 * b21 + a02 * b22,
+        a10 * b00 + a11 * b01 + a12 * b02,
+        a10 * b10 + a11 * b11 + a12 * b12,
+        a10 * b20 + a11 * b21 + a12 * b22,
+        a20 * b00 + a21 * b01 + a22 * b02,
+        a20 * b10 + a21 * b11 + a22 * b12,
+        a20 * b20 + a21 * b21 + a22 * b22,
+    )
 
 
 @njit(**HOT, inline="always")

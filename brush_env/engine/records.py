@@ -306,14 +306,9 @@ BlockScratch = namedtuple("BlockScratch", ["Sr", "SF", "KS", "SrK", "SrKS", "SFS
 MotionScratch = namedtuple(
     "MotionScratch",
     [
-        "Qn",
-        "Qp",
-        "Qq",
-        "Qr",
         "Tr",
         "phi1",
         "phi2",
-        "xp",
         "pAo",
         "pBo",
         "dpA",
