@@ -199,7 +199,7 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     """Move along the correction from the saved trial point (``ws.it.t_pos``/``t_rot``); returns
     (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm, whole)``, the
     capped step, the slope dq . r at alpha = 0, the residual norm there and whether a direction
-    uphill of the merit is taken whole.
+    uphill of the merit may be taken whole.
 
     The merit is the directional derivative g(alpha) = dq . r(q + alpha dq) (the energy-like
     measure of structural Newton solvers): the residual norm itself is a poor merit here, because
