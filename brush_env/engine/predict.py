@@ -284,30 +284,22 @@ def _extrapolate(br, chain, order, base, it, mot):
             xp0 = 2.0 * x0 - m0
             xp1 = 2.0 * x1 - m1
             xp2 = 2.0 * x2 - m2
-        n00, n01, n02, n10, n11, n12, n20, n21, n22 = _Q(RAs, s_rot[k])
-        p00, p01, p02, p10, p11, p12, p20, p21, p22 = _Q(RAp, prot[i])
+        Qn = _Q(RAs, s_rot[k])
+        Qp = _Q(RAp, prot[i])
+        n00, n01, n02, n10, n11, n12, n20, n21, n22 = Qn
         if third:
-            q00, q01, q02, q10, q11, q12, q20, q21, q22 = _Q(RAq, pprot[i])
+            Qq = _Q(RAq, pprot[i])
             # log(Q_{n-1} Q_n^T), log(Q_{n-2} Q_n^T) (``local_rot_into``'s products)
-            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(
-                p00, p01, p02, p10, p11, p12, p20, p21, p22,
-                n00, n01, n02, n10, n11, n12, n20, n21, n22,
-            )  # fmt: skip
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(Qp, Qn)
             log3s(a00, a01, a02, a10, a11, a12, a20, a21, a22, phi1)
-            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(
-                q00, q01, q02, q10, q11, q12, q20, q21, q22,
-                n00, n01, n02, n10, n11, n12, n20, n21, n22,
-            )  # fmt: skip
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = _QQt(Qq, Qn)
             log3s(a00, a01, a02, a10, a11, a12, a20, a21, a22, phi2)
             e00, e01, e02, e10, e11, e12, e20, e21, e22 = rodrigues(
                 phi2[0] - 3.0 * phi1[0], phi2[1] - 3.0 * phi1[1], phi2[2] - 3.0 * phi1[2]
             )
         else:
             # Qq = Qn Qp^T, the last step's rotation, repeated once more
-            e00, e01, e02, e10, e11, e12, e20, e21, e22 = _QQt(
-                n00, n01, n02, n10, n11, n12, n20, n21, n22,
-                p00, p01, p02, p10, p11, p12, p20, p21, p22,
-            )  # fmt: skip
+            e00, e01, e02, e10, e11, e12, e20, e21, e22 = _QQt(Qn, Qp)
         # Qr = E Qn (``rotate_left``'s and the old product's order)
         r00 = e00 * n00 + e01 * n10 + e02 * n20
         r01 = e00 * n01 + e01 * n11 + e02 * n21
@@ -343,8 +335,10 @@ def _Q(RA, R):
 
 
 @njit(**HOT, inline="always")
-def _QQt(a00, a01, a02, a10, a11, a12, a20, a21, a22, b00, b01, b02, b10, b11, b12, b20, b21, b22):
-    """The nine entries of A B^T, row by row."""
+def _QQt(A, B):
+    """The nine entries of A B^T, row by row (A, B: nine entries each, row by row)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = B
     return (
         a00 * b00 + a01 * b01 + a02 * b02,
         a00 * b10 + a01 * b11 + a02 * b12,
