@@ -254,7 +254,8 @@ def _extrapolate(br, chain, order, base, it, mot):
 
     The 3x3 products run on scalars (``_Q``, ``_QQt``): through the scratch arrays, the one large
     compiled function reloaded each array's data pointer before most multiply-adds (session 34).
-    The arithmetic, and so the result, is the same to the bit.
+    The arithmetic is the same: with strict kernels the result is the same to the bit; with FMA
+    (``_kernels.HOT``) LLVM fuses some products differently, a difference in the last bits.
     """
     pos = chain.pos
     rot = chain.rot
