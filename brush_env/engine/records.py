@@ -422,7 +422,7 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
     el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(3), v(3))
     tipw = TipScratch(*(v(3, 3) if f in ("J", "A") else v(3) for f in TipScratch._fields))
     blk = BlockScratch(*(v(3, 3) for _ in BlockScratch._fields))
-    mot = MotionScratch(*(v(3, 3) if f[0] in "QT" else v(3) for f in MotionScratch._fields))
+    mot = MotionScratch(*(v(3, 3) if f == "Tr" else v(3) for f in MotionScratch._fields))
     backup = Backup(v(7, nmax, 3), v(3, nmax, 3, 3), np.zeros(1, TIP_STATE), np.zeros(nmax, SHAFT))
     # the coupling's dense system: only with tip-tip pairs, at most MAX_GROUP bristles
     n3 = 3 * min(n_bristles, MAX_GROUP) if n_pair_entries else 1
