@@ -10,6 +10,30 @@ import numpy as np
 
 from .analysis import PAPER_JAMMING_ANGLES, TWO_PI, pi_label
 
+#: Figure 7's margins (fractions of the figure; the legend below the axes, the title above):
+#: what ``tight_layout(rect=(0, 0.06, 1, 1))`` found on the default run, left a little wider
+_FORCES_LAYOUT = dict(left=0.085, right=0.98, bottom=0.12, top=0.915, hspace=0.14)
+#: Figure 9's margins in inches (one or two events, each a side and a top view row; four
+#: columns): what ``tight_layout(rect=(0, 0.06, 1, 0.95), h_pad=3.0)`` found on the default run
+#: (two events, 14.4 x 10 in): the title above, the legend below, a title and an x label between
+#: two rows
+_SHAPES_IN = dict(top=1.36, bottom=1.13, gap=0.99, left=0.65, right=0.49, wspace=0.24)
+
+
+def _shapes_layout(fig, rows: int) -> None:
+    """Figure 9's fixed margins (``_SHAPES_IN``) for ``rows`` rows of axes on ``fig``."""
+    w, h = fig.get_size_inches()
+    m = _SHAPES_IN
+    mean_ax = (h - m["top"] - m["bottom"] - (rows - 1) * m["gap"]) / rows
+    fig.subplots_adjust(
+        left=m["left"] / w,
+        right=1.0 - m["right"] / w,
+        bottom=m["bottom"] / h,
+        top=1.0 - m["top"] / h,
+        wspace=m["wspace"],
+        hspace=m["gap"] / mean_ax,
+    )
+
 
 def _pi_ticks(ax, lo, hi, denom=4):
     step = math.pi / denom
@@ -84,7 +108,9 @@ def plot_forces_vs_angle(
         )
     else:
         fig.suptitle(f"Forces vs rotation angle, {what} (paper Figure 7)\n{title}", fontsize=10)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    # fixed margins (what tight_layout found for this layout, with room for wider tick labels):
+    # tight_layout measures every text of the figure in an extra draw, ~35 % of its time
+    fig.subplots_adjust(**_FORCES_LAYOUT)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -310,10 +336,11 @@ def plot_deformed_shapes(
         "columns: θ before, at and after the peak",
         fontsize=11,
     )
-    fig.tight_layout(rect=(0, 0.06, 1, 0.95), h_pad=3.0)
+    _shapes_layout(fig, 2 * len(events))  # fixed, as Figure 7's (``_FORCES_LAYOUT``)
+    h_in = fig.get_size_inches()[1]  # row labels 0.27 in above the row's axes, over its titles
     for e, (_, label) in enumerate(events):  # row labels placed after the layout is fixed
         pos = axes[2 * e, 0].get_position()
-        fig.text(pos.x0, pos.y1 + 0.025, label, fontsize=10, fontweight="bold", ha="left")
+        fig.text(pos.x0, pos.y1 + 0.27 / h_in, label, fontsize=10, fontweight="bold", ha="left")
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
