@@ -20,6 +20,7 @@ from .config import (
     load_materials,
 )
 from .fidelity import Fidelity, load_fidelity
+from .numba_inline import install as install_numba_inline
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import (
     PenetrationWarning,
@@ -58,3 +59,6 @@ __all__ = [
 # at its first call): a cached kernel may carry the old code of a callee in another module that
 # changed since (kernel_cache.purge_stale_kernels)
 purge_stale_kernels()
+# before any kernel compiles: numba's inlining without its two defensive copies of each callee's
+# IR (half the first start's compile; the machine code the same, numba_inline.py)
+install_numba_inline()
