@@ -374,19 +374,33 @@ class BrushConfig:
     def min_tip_gap(self) -> tuple[float, int, int]:
         """Smallest clearance [mm] between two tip spheres of the straight brush at rest (centre
         distance minus both radii, head frame), and that pair; < 0 means they overlap.
-        (inf, -1, -1) when no two tips are within reach of each other (or one bristle)."""
-        from scipy.spatial import cKDTree
-
+        (inf, -1, -1) when no two tips are within reach of each other (or one bristle).  Ties:
+        the first pair in (i, j) order."""
         tips = np.array([np.add(b.root, np.multiply(b.length, b.axis)) for b in self.bristles])
         r = np.array([b.tip_radius for b in self.bristles])
-        pairs = cKDTree(tips).query_pairs(2.0 * float(r.max()), output_type="ndarray")
-        if len(pairs) == 0:
+        reach = 2.0 * float(r.max())
+        if len(tips) <= TIP_PAIRS_DIRECT:
+            # every pair at once: importing scipy.spatial for its k-d tree cost ~0.5 s of every
+            # start (a brush loads on every run), more than a few thousand distances
+            d = np.linalg.norm(tips[:, None, :] - tips[None, :, :], axis=2)
+            i, j = np.nonzero(np.triu(d <= reach, k=1))
+        else:
+            from scipy.spatial import cKDTree
+
+            pairs = cKDTree(tips).query_pairs(reach, output_type="ndarray")
+            pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs
+            i, j = (pairs[:, 0], pairs[:, 1]) if len(pairs) else (pairs, pairs)
+        if len(i) == 0:
             return math.inf, -1, -1
-        i, j = pairs[:, 0], pairs[:, 1]
         gap = np.linalg.norm(tips[i] - tips[j], axis=1) - r[i] - r[j]
         k = int(np.argmin(gap))
         return float(gap[k]), int(min(i[k], j[k])), int(max(i[k], j[k]))
 
+
+#: brushes of at most this many bristles find their nearest tips from every pair's distance
+#: (``BrushConfig.min_tip_gap``; 512 bristles: 0.26 M distances, a 6 MB temporary); larger ones by
+#: a k-d tree
+TIP_PAIRS_DIRECT = 512
 
 # ------------------------------------------ TOML -> configs (files and tables: config_files.py)
 _read_toml = read_toml  # fidelity.py's name for it (it cannot import config_files on this branch)

@@ -43,10 +43,30 @@ def test_overlapping_tip_spheres_are_refused_with_the_pair():
     with pytest.raises(ConfigError) as e:
         load_brush("default", overrides={"tip_radius_mm": 5.0})
     msg = str(e.value)
-    assert "the tip spheres of bristle 1 (group 'inner', tip_radius_mm = 5)" in msg
-    assert "bristle 11 (group 'inner', tip_radius_mm = 5) overlap by 8.4 mm at rest" in msg
+    # ten pairs tie at 1.6 mm (0-10, 1-11, ...): the first is named
+    assert "the tip spheres of bristle 0 (group 'inner', tip_radius_mm = 5)" in msg
+    assert "bristle 10 (group 'inner', tip_radius_mm = 5) overlap by 8.4 mm at rest" in msg
     assert "tip_radius_mm <= 0.8 mm" in msg
     assert load_brush("default").min_tip_gap()[0] > 0
+
+
+@pytest.mark.parametrize("direct", [True, False])
+def test_nearest_tips_of_a_lattice(monkeypatch, direct):
+    """Tips on a square lattice of pitch 0.25 mm (exact in binary: every neighbour pair ties) with
+    radius 0.13 mm overlap by 0.01 mm with each lattice neighbour; the first such pair is
+    (0, 1).  Both ways to find the pairs (every distance; scipy's k-d tree for large brushes)
+    give it."""
+    from types import SimpleNamespace
+
+    from brush_env.engine import config
+
+    monkeypatch.setattr(config, "TIP_PAIRS_DIRECT", 512 if direct else 0)
+    xy = [(0.25 * i, 0.25 * j, 0.0) for j in range(5) for i in range(5)]
+    up = np.array([0.0, 0.0, 1.0])
+    bristles = [SimpleNamespace(root=p, length=6.0, axis=up, tip_radius=0.13) for p in xy]
+    gap, i, j = config.BrushConfig.min_tip_gap(SimpleNamespace(bristles=bristles))
+    assert gap == pytest.approx(0.25 - 2 * 0.13, abs=1e-12)
+    assert (i, j) == (0, 1)
 
 
 def test_a_scene_syntax_error_names_the_file(tmp_path):
