@@ -197,9 +197,11 @@ def _step_cap(br, model, chain, sub, con, ws):
 @njit(**HOT, inline="always")
 def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     """Move along the correction from the saved trial point (``ws.it.t_pos``/``t_rot``); returns
-    (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm, whole)``, the
-    capped step, the slope dq . r at alpha = 0, the residual norm there and whether a direction
-    uphill of the merit may be taken whole.
+    (accepted, residual norm, alpha taken).  ``trial``: ``Trial(alpha, g0, nrm, whole, fresh)``,
+    the capped step, the slope dq . r at alpha = 0, the residual norm there, whether a direction
+    uphill of the merit may be taken whole and whether the factors are fresh.  Not accepted: the
+    bristle is back at the trial point, and with old factors the norm returned is its residual's
+    (the solve goes on with fresh factors from there).
 
     The merit is the directional derivative g(alpha) = dq . r(q + alpha dq) (the energy-like
     measure of structural Newton solvers): the residual norm itself is a poor merit here, because
@@ -214,9 +216,20 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
     alpha = trial.alpha
     g0 = trial.g0
     new = np.inf
-    for _ls in range(8 if g0 < 0.0 else UPHILL_HALVINGS):
-        _chain_update(br, model, chain, it, alpha, base, ws.mot)
+    tries = 8 if g0 < 0.0 else UPHILL_HALVINGS
+    for ls in range(tries + 1):
+        if ls < tries:
+            _chain_update(br, model, chain, it, alpha, base, ws.mot)
+        else:
+            # out of tries: back to the trial point, and (old factors: the solve goes on with
+            # fresh ones) its residual -- at this one call site: the residual is inlined, and
+            # each copy costs compile time (docs/benchmarks.md, session 35)
+            load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
+            if trial.fresh:
+                return False, new, alpha
         new = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
+        if ls == tries:
+            return False, new, alpha
         if not np.isfinite(new):
             alpha *= 0.25
             continue
@@ -242,7 +255,7 @@ def _line_search(br, model, chain, sub, base, con, ws, rootw, trial):
         if new <= sub.rtol or ga <= 0.5 * abs(g0) or new < 0.9 * trial.nrm:
             return True, new, alpha
         alpha = max(0.1 * alpha, min(0.9 * alpha, alpha * (-g0) / (ga - g0)))
-    return False, new, alpha
+    return False, new, alpha  # (not reached: the last try returns)
 
 
 @njit(**HOT, inline="always")
@@ -376,17 +389,17 @@ def newton_solve(br, model, chain, sub, base, con, jc, ws, rootw, attempt):
         g0 = _direction(br, jc, ws)
         save_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
         alpha = _step_cap(br, model, chain, sub, con, ws)
-        trial = Trial(alpha, g0, nrm, whole)
+        trial = Trial(alpha, g0, nrm, whole, fresh)
         accepted, new, alpha = _line_search(br, model, chain, sub, base, con, ws, rootw, trial)
         if g0 >= 0.0:
             whole = False
         if not accepted:
-            # restore the iterate; retry with fresh factors unless they were fresh already
-            load_chain(br, chain.pos, chain.rot, ws.it.t_pos, ws.it.t_rot)
+            # the iterate restored (``_line_search``); retry with fresh factors unless they
+            # were fresh already (then ``new`` is the residual at the restored iterate)
             if fresh:
                 break
             need = True
-            nrm = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
+            nrm = new
             continue
         if fresh and new > 0.5 * nrm and new <= STAGNATION * rtol:
             # stagnation: a fresh Newton step no longer reduces a residual already within

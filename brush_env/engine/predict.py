@@ -21,6 +21,12 @@ from .residual import bristle_residual, strain_at
 #: ``extrap`` of ``predict_start`` for a re-solve in a later Gauss-Seidel sweep (warm start)
 WARM = -1
 
+#: ``predict_start``'s starting points, one call site each (int64: one type, no literal copies)
+_RIGID = np.int64(0)
+_EXTRAP = np.int64(1)
+_WARM = np.int64(2)
+_RELOAD = np.int64(3)
+
 #: a tip in contact keeps the extrapolated start unless its residual of eq 11 exceeds this many
 #: times Newton's tolerance.  On the paper turn the rigid carry won only where the extrapolation's
 #: residual was >= 1.04e5 tolerances (an overshoot into the plate); trusting the extrapolation
@@ -406,33 +412,31 @@ def predict_start(br, model, chain, sub, base, con, ws, rootw, extrap):
     extrap_first = touching and extrap >= 2
     nrm = np.inf
     nx = np.inf
-    # one residual call site for the three evaluations (first, second, first again): the
-    # residual is inlined, and each copy costs compile time
+    # one call site each for the residual (first, second, first again) and for each predictor
+    # (first or second): all three are inlined, and each copy costs compile time (the scalar
+    # extrapolation with its rotation logs most: docs/benchmarks.md, session 35)
     for stage in range(3):
+        start = _RELOAD  # stage 2: back to the first start, if it was the better one
         if stage == 0:
-            if extrap == WARM:
-                # a later sweep: this bristle's own solution of the previous sweep
-                load_chain(
-                    br, chain.pos, chain.rot, ws.sw.warm_pos[br.b0 :], ws.sw.warm_rot[br.b0 :]
-                )
-            elif extrap_first:
-                _extrapolate(br, chain, extrap, base, it, ws.mot)
-            else:
-                _rigid_predict(br, chain, base, it, ws.mot)
+            start = _WARM if extrap == WARM else (_EXTRAP if extrap_first else _RIGID)
         elif stage == 1:
             if extrap == WARM:
                 break
             if extrap < 2 or nrm <= (EXTRAP_TRUST if extrap_first else 1.0) * sub.rtol:
                 break
             save_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
-            if extrap_first:
-                _rigid_predict(br, chain, base, it, ws.mot)
-            else:
-                _extrapolate(br, chain, extrap, base, it, ws.mot)
+            start = _RIGID if extrap_first else _EXTRAP
+        elif nx < nrm:
+            nrm = nx
+            break
+        if start == _EXTRAP:
+            _extrapolate(br, chain, extrap, base, it, ws.mot)
+        elif start == _RIGID:
+            _rigid_predict(br, chain, base, it, ws.mot)
+        elif start == _WARM:
+            # a later sweep: this bristle's own solution of the previous sweep
+            load_chain(br, chain.pos, chain.rot, ws.sw.warm_pos[br.b0 :], ws.sw.warm_rot[br.b0 :])
         else:
-            if nx < nrm:
-                nrm = nx
-                break
             load_chain(br, chain.pos, chain.rot, it.t_pos, it.t_rot)
         r = bristle_residual(br, model, chain, sub, base, con, ws, rootw)
         if stage == 1:

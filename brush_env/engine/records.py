@@ -46,7 +46,8 @@ record              fields [unit]
 ``Node``            one element end: c (3,) body centre [mm], R (3, 3), half (body half length)
 ``Trial``           a Newton correction to search along: capped step alpha, slope g0 = dq . r,
                     residual norm nrm at its start, whole (True: a direction uphill of the
-                    merit may be taken whole, the solve's first such)
+                    merit may be taken whole, the solve's first such), fresh (the factors were
+                    rebuilt for it: a failed search ends the solve without a residual)
 ``Attempt``         how ``newton_solve`` starts and ends one (sub)step: extrap (the predictor's
                     order, or WARM) and split (True: a converged step whose tip dived into a
                     surface is refused, to be halved: ``newton._met_within``)
@@ -273,7 +274,7 @@ Substep = namedtuple(
 )
 Base = namedtuple("Base", ["pAs", "RAs", "pAe", "RAe", "pAp", "RAp", "pAq", "RAq"])
 Node = namedtuple("Node", ["c", "R", "half"])
-Trial = namedtuple("Trial", ["alpha", "g0", "nrm", "whole"])
+Trial = namedtuple("Trial", ["alpha", "g0", "nrm", "whole", "fresh"])
 Attempt = namedtuple("Attempt", ["extrap", "split"])
 Damp = namedtuple("Damp", ["ehist", "gs", "hs"])
 History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "hs"])
