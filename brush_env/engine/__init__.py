@@ -60,5 +60,5 @@ __all__ = [
 # changed since (kernel_cache.purge_stale_kernels)
 purge_stale_kernels()
 # before any kernel compiles: numba's inlining without its two defensive copies of each callee's
-# IR (half the first start's compile; the machine code the same, numba_inline.py)
+# IR (a quarter of the first start's compile; the machine code the same, numba_inline.py)
 install_numba_inline()

@@ -387,9 +387,9 @@ class BrushConfig:
         else:
             from scipy.spatial import cKDTree
 
-            pairs = cKDTree(tips).query_pairs(reach, output_type="ndarray")
-            pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else pairs
-            i, j = (pairs[:, 0], pairs[:, 1]) if len(pairs) else (pairs, pairs)
+            pairs = cKDTree(tips).query_pairs(reach, output_type="ndarray").reshape(-1, 2)
+            pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]  # (i, j) order, as above
+            i, j = pairs[:, 0], pairs[:, 1]
         if len(i) == 0:
             return math.inf, -1, -1
         gap = np.linalg.norm(tips[i] - tips[j], axis=1) - r[i] - r[j]

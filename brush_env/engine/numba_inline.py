@@ -6,8 +6,9 @@ Where the first start's compile went (issue 32, docs/benchmarks.md, session 35):
 that fresh IR twice, block by block: once to mutate it and once as an unmutated original that the
 inlining pass (``InlineInlinables``) throws away.  A block's deep copy re-copies the function's
 whole variable scope (every ``ir.Var`` holds it), so one copy costs blocks x variables: on the
-engine's large inlined stages (the residual inside the line search, the predictors) it was most
-of the compile (numba issue #8989, open; numba-cuda PR #689 removes the same copies).
+engine's large inlined stages (the residual inside the line search, the predictors) it was a
+third of the reference's cold compile, 64 of 203 s CPU (numba issue #8989, open; numba-cuda PR
+#689 removes the same copies).
 
 :func:`install` makes ``inline_function`` -- and only it: the typed pass that inlines
 ``@overload`` implementations from a shared IR keeps its copies -- hand ``inline_ir`` the fresh IR
