@@ -12,10 +12,13 @@ third of the reference's cold compile, 64 of 203 s CPU (numba issue #8989, open;
 
 :func:`install` makes ``inline_function`` -- and only it: the typed pass that inlines
 ``@overload`` implementations from a shared IR keeps its copies -- hand ``inline_ir`` the fresh IR
-uncopied.  The inlined IR, and so the machine code, is the same (checked byte for byte on the
-cached kernels, ``tests/engine/test_numba_inline.py``).  It is applied only where numba's code is
-the code it was written against (``_recognised``), and ``BRUSH_ENV_NUMBA_COPY_IR=1`` switches it
-off (numba as shipped: an A/B of the compile).
+uncopied.  It is process-wide (any ``inline="always"`` kernel compiled after ``brush_env.engine``'s
+import, a user's own too), and safe there: the IR it no longer copies was built for that one call
+site and is dropped after it, so nothing shared is mutated.  The inlined IR, and so the machine
+code, is the same (checked byte for byte on the cached kernels,
+``tests/engine/test_numba_inline.py``).  It is applied only where numba's code is the code it was
+written against (``_recognised``), and ``BRUSH_ENV_NUMBA_COPY_IR=1`` switches it off (numba as
+shipped: an A/B of the compile).
 """
 
 from __future__ import annotations
