@@ -32,7 +32,7 @@ import threading
 #: set while ``inline_ir`` runs on a callee IR built for this call site alone (its copies skipped)
 _FRESH = threading.local()
 
-#: what numba's two functions must say for the patch to apply (numba 0.58-0.68's text)
+#: what numba's two functions must say for the patch to apply (numba 0.68.1's text, the one checked)
 _INLINE_FUNCTION_TEXT = ("callee_ir = self.run_untyped_passes(function)", "return self.inline_ir(")
 _INLINE_IR_TEXT = (
     "new_block = copy.deepcopy(the_ir.blocks[block_label])",
