@@ -21,6 +21,7 @@ from .config import (
 )
 from .fidelity import Fidelity, load_fidelity
 from .numba_inline import install as install_numba_inline
+from .numba_lowering import install as install_numba_lowering
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import (
     PenetrationWarning,
@@ -62,3 +63,6 @@ purge_stale_kernels()
 # before any kernel compiles: numba's inlining without its two defensive copies of each callee's
 # IR (a quarter of the first start's compile; the machine code the same, numba_inline.py)
 install_numba_inline()
+# ... and its lowering without the loads and zero-fills NRT would need (the kernels run without
+# NRT): most of LLVM's SROA time in the first start's compile (numba_lowering.py)
+install_numba_lowering()
