@@ -35,6 +35,9 @@ from .sdf import FAR
 from .surfaces import normal_rate, surface_gap
 
 PEN_STEP_MIN = 2e-3  # [mm] a Newton step may always reach this penetration
+#: the first surface's index, typed int64: a literal 0 made numba compile ``surface_gap`` (and its
+#: callees) once more, specialised on the constant (issue 32, session 36)
+FIRST = np.int64(0)
 #: [N] a tip with an axial compliance (``series_law``) may always step as deep as this load
 #: compresses it: its overlap with a surface is mostly the bristle's compression (~0.09 mm at
 #: 0.1 N for the default brush's inner bristle), which the doubling rule of
@@ -248,7 +251,7 @@ def _surface_load(pt, args, sub, con, state, F, Kt, tw):
         return
     if surf.shape[0] == 0:
         return
-    best = surface_gap(surf, 0, pt, nrm, cpt, con.mesh, con.sdf)
+    best = surface_gap(surf, FIRST, pt, nrm, cpt, con.mesh, con.sdf)
     if best >= R:
         return
     delta = R - best

@@ -336,9 +336,14 @@ def _met_within(br, con, ws):
     surf = con.surf
     R = con.tip_args[br.b].radius
     tw = ws.tipw
+    # the start's tip node as a plain array: the record's field (a nested array) is another type,
+    # for which numba compiled every surface's gap kernel a second time (issue 32, session 36)
+    pn = ws.it.tip
+    for a in range(3):
+        pn[a] = st.pn[a]
     pen0 = 0.0
     for k in range(surf.shape[0]):
-        pen0 = max(pen0, R - surface_gap(surf, k, st.pn, tw.pnrm, tw.pcpt, con.mesh, con.sdf))
+        pen0 = max(pen0, R - surface_gap(surf, k, pn, tw.pnrm, tw.pcpt, con.mesh, con.sdf))
     # ... a tip that met it (clear at the start) or ends the step sliding; a stuck tip pressed
     # deeper (a column loaded past its buckling load, which buckles) is left to the step: halving
     # it kept one such bristle straight at 1.8 N where the 0.25 ms run buckles (seed 7)
