@@ -21,6 +21,7 @@ from .config import (
 )
 from .fidelity import Fidelity, load_fidelity
 from .numba_inline import install as install_numba_inline
+from .numba_linking import install as install_numba_linking
 from .numba_lowering import install as install_numba_lowering
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import (
@@ -66,3 +67,6 @@ install_numba_inline()
 # ... and its lowering without the loads and zero-fills NRT would need (the kernels run without
 # NRT): most of LLVM's SROA time in the first start's compile (numba_lowering.py)
 install_numba_lowering()
+# ... and its linking of a kernel's callees as internal copies, so LLVM can drop the record fields a
+# call passes and the callee never reads: -14 % of the step's instructions (numba_linking.py)
+install_numba_linking()
