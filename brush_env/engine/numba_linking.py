@@ -17,11 +17,12 @@ already: numba's cache keeps a kernel with all the code it calls, and the execut
 caller's), and LLVM's interprocedural passes may remove unused arguments, propagate constants and
 inline where its cost model says.  The library's own functions (the kernel and its wrappers, the
 names the JIT looks up) keep their linkage; so do global variables.  Measured: the one-sweep
-bristle-step on the paper turn 51,178 -> 43,988 instructions (-14 %), the cold compile of the
-reference's groups ~+15 %.  The results differ from numba as linked before in the last bits (LLVM
-inlines and contracts across the old call boundaries).  It applies only where numba's code is the
-code it was written against (``_recognised``), and ``BRUSH_ENV_NUMBA_LINKONCE=1`` switches it off
-(numba as shipped: an A/B).
+bristle-step on the paper turn 51,178 -> 43,988 instructions (-14 %), coupled 66,289 -> 57,994;
+the reference's simulation -20 to -25 % wall; its cold compile 122.9 -> 130.4 s CPU (not back to
+back: LLVM optimises each caller's private copies).  The results differ from numba as linked
+before in the last bits (LLVM inlines and contracts across the old call boundaries).  It applies
+only where numba's code is the code it was written against (``_recognised``), and
+``BRUSH_ENV_NUMBA_LINKONCE=1`` switches it off (numba as shipped: an A/B).
 """
 
 from __future__ import annotations
