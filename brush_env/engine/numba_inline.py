@@ -24,11 +24,13 @@ shipped: an A/B of the compile).
 from __future__ import annotations
 
 import copy
-import inspect
-import os
 import re
 import threading
 
+from .numba_patching import apply, sources
+
+#: numba's own ``inline_function``
+_ORIGINAL: dict[str, object] = {}
 #: set while ``inline_ir`` runs on a callee IR built for this call site alone (its copies skipped)
 _FRESH = threading.local()
 
@@ -56,12 +58,10 @@ class _CopyModule:
 
 def _recognised(icc) -> bool:
     """True if numba's ``InlineWorker`` is the code this patch was written against."""
-    try:
-        f_src = inspect.getsource(icc.InlineWorker.inline_function)
-        ir_src = inspect.getsource(icc.InlineWorker.inline_ir)
-        mod_src = inspect.getsource(icc)
-    except (OSError, TypeError):
+    src = sources(icc.InlineWorker.inline_function, icc.InlineWorker.inline_ir, icc)
+    if src is None:
         return False
+    f_src, ir_src, mod_src = src
     return (
         all(t in f_src for t in _INLINE_FUNCTION_TEXT)
         and all(t in ir_src for t in _INLINE_IR_TEXT)
@@ -85,15 +85,16 @@ def install() -> bool:
     """Apply the patch once (idempotent); returns True if it is in place."""
     from numba.core import inline_closurecall as icc
 
-    if icc.InlineWorker.inline_function is _inline_function:
-        return True
-    if os.environ.get("BRUSH_ENV_NUMBA_COPY_IR", "") not in ("", "0"):
-        return False
-    if not _recognised(icc):
-        return False
-    icc.copy = _CopyModule()
-    icc.InlineWorker.inline_function = _inline_function
-    return True
+    ok = apply(
+        icc.InlineWorker,
+        {"inline_function": _inline_function},
+        "BRUSH_ENV_NUMBA_COPY_IR",
+        lambda: _recognised(icc),
+        _ORIGINAL,
+    )
+    if ok and not isinstance(icc.copy, _CopyModule):
+        icc.copy = _CopyModule()  # the block copies of ``inline_ir`` (its only use of ``copy``)
+    return ok
 
 
 def installed() -> bool:

@@ -27,8 +27,7 @@ only where numba's code is the code it was written against (``_recognised``), an
 
 from __future__ import annotations
 
-import inspect
-import os
+from .numba_patching import apply, sources
 
 #: what numba's methods must say for the patch to apply (numba 0.68.1's text, the one checked)
 _FINALIZE_TEXT = (
@@ -46,12 +45,14 @@ _MANGLED = "_ZN"
 
 def _recognised(codegen) -> bool:
     """True if numba's ``CPUCodeLibrary`` links libraries the way this patch was written against."""
-    try:
-        fin = inspect.getsource(codegen.CPUCodeLibrary.finalize)
-        link = inspect.getsource(codegen.CPUCodeLibrary._get_module_for_linking)
-        opt = inspect.getsource(codegen.CPUCodeLibrary._optimize_final_module)
-    except (OSError, TypeError):
+    src = sources(
+        codegen.CPUCodeLibrary.finalize,
+        codegen.CPUCodeLibrary._get_module_for_linking,
+        codegen.CPUCodeLibrary._optimize_final_module,
+    )
+    if src is None:
         return False
+    fin, link, opt = src
     return (
         all(t in fin for t in _FINALIZE_TEXT)
         and all(t in link for t in _LINKING_TEXT)
@@ -81,17 +82,13 @@ def install() -> bool:
     """Apply the patch once (idempotent); returns True if it is in place."""
     from numba.core import codegen
 
-    if codegen.CPUCodeLibrary.finalize is _finalize:
-        return True
-    if os.environ.get("BRUSH_ENV_NUMBA_LINKONCE", "") not in ("", "0"):
-        return False
-    if not _recognised(codegen):
-        return False
-    _ORIGINAL["finalize"] = codegen.CPUCodeLibrary.finalize
-    _ORIGINAL["_optimize_final_module"] = codegen.CPUCodeLibrary._optimize_final_module
-    codegen.CPUCodeLibrary.finalize = _finalize
-    codegen.CPUCodeLibrary._optimize_final_module = _optimize_final_module
-    return True
+    return apply(
+        codegen.CPUCodeLibrary,
+        {"finalize": _finalize, "_optimize_final_module": _optimize_final_module},
+        "BRUSH_ENV_NUMBA_LINKONCE",
+        lambda: _recognised(codegen),
+        _ORIGINAL,
+    )
 
 
 def installed() -> bool:

@@ -29,10 +29,9 @@ it was written against (``_recognised``), and ``BRUSH_ENV_NUMBA_NRT_STORES=1`` s
 
 from __future__ import annotations
 
-import inspect
-import os
-
 from llvmlite import ir as llvmir
+
+from .numba_patching import apply, sources
 
 #: what numba's two methods must say for the patch to apply (numba 0.68.1's text, the one checked)
 _STOREVAR_TEXT = (
@@ -52,19 +51,17 @@ _ORIGINAL: dict[str, object] = {}
 def _recognised(lowering, cgutils) -> bool:
     """True if numba's ``Lower.storevar``/``delvar`` are the code this patch was written against
     and ``decref`` does nothing without NRT."""
-    try:
-        store = inspect.getsource(lowering.Lower.storevar)
-        delete = inspect.getsource(lowering.Lower.delvar)
-        decref = inspect.getsource(lowering.Lower.decref)
-        alloca = inspect.getsource(lowering.Lower.alloca_lltype)
-    except (OSError, TypeError):
+    L = lowering.Lower
+    src = sources(L.storevar, L.delvar, L.decref, L.alloca_lltype, cgutils.alloca_once)
+    if src is None:
         return False
+    store, delete, decref, alloca, alloca_once = src
     return (
         all(t in store for t in _STOREVAR_TEXT)
         and all(t in delete for t in _DELVAR_TEXT)
         and "if not self.context.enable_nrt:\n            return" in decref
         and "cgutils.alloca_once(self.builder, lltype" in alloca
-        and "builder.store(ty(None), ptr)" in inspect.getsource(cgutils.alloca_once)
+        and "builder.store(ty(None), ptr)" in alloca_once
     )
 
 
@@ -120,19 +117,13 @@ def install() -> bool:
     """Apply the patch once (idempotent); returns True if it is in place."""
     from numba.core import cgutils, lowering
 
-    if lowering.Lower.storevar is _storevar:
-        return True
-    if os.environ.get("BRUSH_ENV_NUMBA_NRT_STORES", "") not in ("", "0"):
-        return False
-    if not _recognised(lowering, cgutils):
-        return False
-    _ORIGINAL["storevar"] = lowering.Lower.storevar
-    _ORIGINAL["delvar"] = lowering.Lower.delvar
-    _ORIGINAL["alloca_lltype"] = lowering.Lower.alloca_lltype
-    lowering.Lower.storevar = _storevar
-    lowering.Lower.delvar = _delvar
-    lowering.Lower.alloca_lltype = _alloca_lltype
-    return True
+    return apply(
+        lowering.Lower,
+        {"storevar": _storevar, "delvar": _delvar, "alloca_lltype": _alloca_lltype},
+        "BRUSH_ENV_NUMBA_NRT_STORES",
+        lambda: _recognised(lowering, cgutils),
+        _ORIGINAL,
+    )
 
 
 def installed() -> bool:

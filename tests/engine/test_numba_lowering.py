@@ -8,14 +8,13 @@ patch none of that is emitted, and the kernel computes the same numbers, bit for
 
 from __future__ import annotations
 
-import json
 import os
-import subprocess
-import sys
 
 import pytest
 
 from brush_env.engine import numba_lowering
+
+from .numba_patch_script import run_script
 
 _KERNEL = r"""
 import json, re
@@ -61,14 +60,7 @@ print(json.dumps({"installed": numba_lowering.installed(), "value": value.hex(),
 
 
 def _run(shipped: bool, tmp_path) -> dict:
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / ("shipped" if shipped else "patched")))
-    env.pop("BRUSH_ENV_NUMBA_NRT_STORES", None)
-    if shipped:
-        env["BRUSH_ENV_NUMBA_NRT_STORES"] = "1"
-    out = subprocess.run(
-        [sys.executable, "-c", _KERNEL], env=env, capture_output=True, text=True, check=True
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_script(_KERNEL, "BRUSH_ENV_NUMBA_NRT_STORES", shipped, tmp_path)
 
 
 def test_patch_applies_to_this_numba():
