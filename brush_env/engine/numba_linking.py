@@ -27,6 +27,8 @@ only where numba's code is the code it was written against (``_recognised``), an
 
 from __future__ import annotations
 
+from llvmlite import binding as ll
+
 from .numba_patching import apply, sources
 
 #: what numba's methods must say for the patch to apply (numba 0.68.1's text, the one checked)
@@ -70,8 +72,6 @@ def _optimize_final_module(self):
     """``CPUCodeLibrary._optimize_final_module`` with the linked-in functions made internal."""
     own = getattr(self, "_brush_env_own", None)
     if own is not None:
-        from llvmlite import binding as ll
-
         for f in self._final_module.functions:
             if not f.is_declaration and f.name not in own and f.name.startswith(_MANGLED):
                 f.linkage = ll.Linkage.internal

@@ -33,7 +33,7 @@ from llvmlite import ir as llvmir
 
 from .numba_patching import apply, sources
 
-#: what numba's two methods must say for the patch to apply (numba 0.68.1's text, the one checked)
+#: what numba's methods must say for the patch to apply (numba 0.68.1's text, the one checked)
 _STOREVAR_TEXT = (
     "old = self.loadvar(name)",
     "self.decref(fetype, old)",
@@ -104,9 +104,10 @@ def _delvar(self, name):
 
 def _alloca_lltype(self, name, lltype, datamodel=None):
     """``Lower.alloca_lltype`` -- a variable's slot -- without the zero store after the
-    ``alloca`` (``cgutils.alloca_once`` stores zeros into every slot it makes, at the entry
-    block): a slot is written before it is read on every path of a kernel that runs (numba's
-    front end rejects a read of an unset variable), and without NRT no ``decref`` reads it."""
+    ``alloca`` for an aggregate (``cgutils.alloca_once`` stores zeros into every slot it makes, at
+    the entry block).  Without NRT no ``decref`` reads a slot; a path that reads a variable before
+    setting it is an error in Python (UnboundLocalError) whatever the slot holds (the engine's
+    results stayed deterministic, bit for bit, run to run); scalar slots keep their zeros."""
     if not _plain(self) or not isinstance(lltype, (llvmir.LiteralStructType, llvmir.ArrayType)):
         return _ORIGINAL["alloca_lltype"](self, name, lltype, datamodel)
     with self.builder.goto_entry_block():
