@@ -69,8 +69,6 @@ import numbers
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import root
 
 __all__ = ["buckled_bristle", "section_stiffness", "cowper_rect", "TIPS", "MODELS"]
 
@@ -193,6 +191,10 @@ class _Rod:
         self.n = 3 if pinned else 2
 
     def shoot(self, u, sens=True, t_eval=None):
+        # scipy is imported where it is used: the CLI builds every subcommand's parser, and
+        # importing scipy.integrate at module level cost every command ~0.4 s (issue 32)
+        from scipy.integrate import solve_ivp
+
         h = u[2] if self.pinned else 0.0
         ns = self.n if sens else 0
         y0 = np.zeros(4 + 4 * ns)
@@ -248,6 +250,8 @@ class _Rod:
                 u, r, J, y = u + t * du, r2, J2, y2
         except (np.linalg.LinAlgError, RuntimeError):
             pass
+        from scipy.optimize import root  # (see ``shoot``)
+
         sol = root(
             lambda w: self.residual(w, alpha, D)[:2],
             np.asarray(u0, float),
