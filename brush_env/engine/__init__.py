@@ -22,6 +22,7 @@ from .config import (
 from .fidelity import Fidelity, load_fidelity
 from .numba_inline import install as install_numba_inline
 from .numba_linking import install as install_numba_linking
+from .numba_loading import install as install_numba_loading
 from .numba_lowering import install as install_numba_lowering
 from .scene import Cylinder, MeshPlate, Plane, Scene, load_scene
 from .simulator import (
@@ -70,3 +71,6 @@ install_numba_lowering()
 # ... and its linking of a kernel's callees as internal copies, so LLVM can drop the record fields a
 # call passes and the callee never reads: -14 % of the step's instructions (numba_linking.py)
 install_numba_linking()
+# ... and its loading of a cached kernel without installing the compiler's lowering registries
+# (a compile installs them itself): 0.37 s of every warm start (numba_loading.py)
+install_numba_loading()

@@ -1,6 +1,7 @@
 """What the engine's patches of numba share (``numba_inline``, ``numba_lowering``,
-``numba_linking``): reading numba's source for the guard that it is the code a patch was written
-against, the environment switch that leaves numba as shipped, and applying a patch once."""
+``numba_linking``, ``numba_loading``): reading numba's source for the guard that it is the code a
+patch was written against, the environment switch that leaves numba as shipped, and applying a
+patch once."""
 
 from __future__ import annotations
 
