@@ -306,14 +306,15 @@ class DFMChain(BristleModel):
         out = self._out
         return int(out.iters.sum()), int(out.nsub.sum())
 
-    def follow(self, P, R, limits, record) -> tuple[int, int, SimulationDivergence | None]:
+    def follow(self, P, R, limits, record, keep) -> tuple[int, int, SimulationDivergence | None]:
         """Engine steps in one compiled call (``chain_rollout``: the stages of ``_advance`` per
         solver step, with no Python between steps), the TCP at pose (P[i] [mm], R[i]) at the end
         of solver step i (``settings.substeps`` per engine step, ``Simulator._split_poses``); row
-        k of ``record`` (``chain_rollout.FollowRecord``) holds engine step k's outputs.  limits:
-        ``FollowRun.limits``.  Returns (steps done, ``records.STOP_*``); after a divergence
-        the state is that of the failed engine step's start, as ``_accept_or_rollback`` leaves
-        it, and the third value its ``SimulationDivergence`` (else None)."""
+        k of ``record`` (``chain_rollout.FollowRecord``) holds engine step k's outputs.  limits,
+        keep: ``FollowRun.limits``, ``FollowRun.keep``.  Returns (steps done,
+        ``records.STOP_*``); after a divergence the state is that of the failed engine step's
+        start, as ``_accept_or_rollback`` leaves it, and the third value its
+        ``SimulationDivergence`` (else None)."""
         st, s = self.state, self.settings
         live, snap = self._follow_views()
         head = self._head if self._head is not None else np.zeros((0, 3))
@@ -333,6 +334,7 @@ class DFMChain(BristleModel):
             head,
             np.zeros_like(head),
             limits,
+            keep,
         )
         chain = rec.Chain(
             st.pos, st.rot, st.vel, st.omg, st.ppos, st.prot, st.pvel, st.pomg, st.pppos, st.pprot

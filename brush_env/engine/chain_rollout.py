@@ -45,7 +45,8 @@ from .step import all_finite, step_bristles, step_bristles_coupled, tcp_wrench, 
 #: (Table 3), surf (n, nb) deepest surface (-1 none); pen_max (n,) [mm] deepest tip penetration,
 #: beyond (n,) 1 if a tip is beyond the penalty law's range, shaft_pen (n,) [mm] deepest shaft
 #: penetration, shaft_fn (n, nb) [N] each bristle's shaft normal force, head (n,) [mm] the head's
-#: clearance (inf without head contact)
+#: clearance (inf without head contact); body (m, n bodies, 3) [mm] every body's centre at the
+#: rows ``FollowRun.keep`` names (m = 0: none kept)
 FollowRecord = namedtuple(
     "FollowRecord",
     [
@@ -67,6 +68,7 @@ FollowRecord = namedtuple(
         "shaft_pen",
         "shaft_fn",
         "head",
+        "body",
     ],
 )
 
@@ -78,15 +80,20 @@ FollowRecord = namedtuple(
 #: head contact), headw (nh, 3) scratch; limits (4,): stop after a step whose total normal force
 #: exceeds limits[0] [N], whose deepest penetration exceeds limits[1] [mm], whose head clearance
 #: is <= limits[2] [mm] (-inf: never); limits[3] the penetration fraction of the tip radius beyond
-#: which a step counts in ``beyond``
+#: which a step counts in ``beyond``; keep (n,) int64: the slot of ``FollowRecord.body`` that
+#: engine step k's body centres go to (-1: not kept)
 FollowRun = namedtuple(
     "FollowRun",
-    ["P", "R", "sub", "clock", "live", "snap", "shaft_on", "g23", "head", "headw", "limits"],
-)
+    [
+        "P", "R", "sub", "clock", "live", "snap", "shaft_on", "g23", "head", "headw", "limits",
+        "keep",
+    ],
+)  # fmt: skip
 
 
-def make_follow_record(n: int, nb: int) -> FollowRecord:
-    """Zeroed record of n steps of nb bristles (head clearance inf)."""
+def make_follow_record(n: int, nb: int, kept: int = 0, n_bodies: int = 0) -> FollowRecord:
+    """Zeroed record of n steps of nb bristles (head clearance inf), with room for the body
+    centres of ``kept`` steps of ``n_bodies`` bodies."""
     return FollowRecord(
         np.zeros(n),
         np.zeros((n, 6)),
@@ -106,6 +113,7 @@ def make_follow_record(n: int, nb: int) -> FollowRecord:
         np.zeros(n),
         np.zeros((n, nb)),
         np.full(n, np.inf),
+        np.zeros((kept, n_bodies, 3)),
     )
 
 
@@ -201,7 +209,7 @@ def _end(i, model, chain, drive, con, jc, ws, out, run, rec):
     if i % run.sub != run.sub - 1:
         return STOP_NONE
     run.clock[0] = run.clock[0] + run.clock[1]  # t0 + dt: no drift of the step grid
-    return _record(i, k, model, con, ws, out, run, rec)
+    return _record(i, k, model, chain, con, ws, out, run, rec)
 
 
 @njit(**HOT, inline="always")
@@ -230,10 +238,15 @@ def _peaks(i, k, model, con, out, run, rec):
 
 
 @njit(**HOT, inline="always")
-def _record(i, k, model, con, ws, out, run, rec):
-    """Row k of ``rec`` after the engine step's last solver step i; returns STOP_* by
-    ``run.limits``."""
+def _record(i, k, model, chain, con, ws, out, run, rec):
+    """Row k of ``rec`` after the engine step's last solver step i (and the body centres, if
+    ``run.keep`` keeps the step's); returns STOP_* by ``run.limits``."""
     rec.t[k] = run.clock[0]
+    slot = run.keep[k]
+    if slot >= 0:
+        for j in range(chain.pos.shape[0]):
+            for a in range(3):
+                rec.body[slot, j, a] = chain.pos[j, a]
     tcp_wrench(run.R[i], model.root_p, out.rootw, rec.FM[k])  # R[i]: the drive's row 1 now
     for a in range(3):
         rec.sweeps[k, a] = ws.sw.count[a]

@@ -293,6 +293,7 @@ class Simulator:
         force_stop: float = math.inf,
         penetration_stop: float = math.inf,
         stop_at_head_contact: bool = False,
+        keep_bodies=(),
     ) -> Follow:
         """``len(P)`` steps of ``settings.dt``, the TCP at pose (P[k] [mm], R[k]) at the end of
         step k -- ``step`` for each pose, with every step's outputs in the arrays of
@@ -306,7 +307,10 @@ class Simulator:
         which the total normal force (tips and shafts) exceeds ``force_stop`` [N], a penetration
         exceeds ``penetration_stop`` [mm], or (``stop_at_head_contact``) the head touches; a
         divergence restores the state of the failed step's start and stops
-        (``Follow.error`` holds the ``SimulationDivergence``)."""
+        (``Follow.error`` holds the ``SimulationDivergence``).  ``keep_bodies``: the steps
+        (indices into P, increasing) after which every body's centre [mm] (``State.pos``) is
+        kept, in ``Follow.record.body`` in that order: a caller that stores bristle shapes
+        every few steps need not end a ``follow`` at each."""
         st = self.state
         if st is None:
             raise RuntimeError("call reset() before follow()")
@@ -314,7 +318,9 @@ class Simulator:
         R = np.ascontiguousarray(R, dtype=float)
         self._check_poses(P, R)
         n, nb = P.shape[0], self.model.n_bristles
-        rec = make_follow_record(n, nb)
+        keep = _keep_slots(keep_bodies, n)
+        kept = int(keep.max()) + 1 if n else 0
+        rec = make_follow_record(n, nb, kept, st.pos.shape[0] if kept else 0)
         limits = np.array(
             [
                 force_stop,
@@ -326,7 +332,7 @@ class Simulator:
         )
         fast = getattr(self.bristles, "follow", None)
         if fast is None:
-            return self._follow_steps(P, R, limits, rec)
+            return self._follow_steps(P, R, limits, rec, keep)
         sub = self.settings.substeps
         if sub > 1:  # every solver step's pose, as _advance_split interpolates them
             Pi, Ri = np.empty((n * sub, 3)), np.empty((n * sub, 3, 3))
@@ -336,7 +342,7 @@ class Simulator:
                 Pi[rows], Ri[rows] = _split_poses(p0, R0, P[k], R[k], sub)
                 p0, R0 = P[k], R[k]
             P, R = Pi, Ri
-        done, stop, error = fast(P, R, limits, rec)
+        done, stop, error = fast(P, R, limits, rec, keep)
         if done:
             k = done - 1
             self._peaks = _Peaks(
@@ -383,7 +389,7 @@ class Simulator:
                     f"{s.dt:g} s, allowed up to settings.{name} = {limit:g} {unit}"
                 )
 
-    def _follow_steps(self, P, R, limits, rec) -> Follow:
+    def _follow_steps(self, P, R, limits, rec, keep) -> Follow:
         """``follow`` through ``step`` (models without a compiled one)."""
         done, stop, error = 0, None, None
         for k in range(P.shape[0]):
@@ -393,6 +399,8 @@ class Simulator:
                 stop, error = "divergence", e
                 break
             record_row(rec, k, out)
+            if keep[k] >= 0:
+                rec.body[keep[k]] = self.state.pos
             done = k + 1
             total = float(out.tip_normal_force.sum()) + float(rec.shaft_fn[k].sum())
             if total > limits[0]:
@@ -617,6 +625,19 @@ def record_row(rec, k: int, out: StepResult) -> None:
     if "shaft_normal_force" in ex:
         rec.shaft_fn[k] = ex["shaft_normal_force"]
     rec.head[k] = ex.get("head_clearance", math.inf)
+
+
+def _keep_slots(keep_bodies, n: int) -> np.ndarray:
+    """``FollowRun.keep`` for ``Simulator.follow``'s ``keep_bodies`` (steps of n): step k's slot
+    in ``FollowRecord.body``, -1 where not kept."""
+    rows = np.asarray(keep_bodies, dtype=np.int64).reshape(-1)
+    if rows.size and (rows[0] < 0 or rows[-1] >= n or np.any(np.diff(rows) <= 0)):
+        raise ValueError(
+            f"keep_bodies {rows.tolist()}: must be increasing step indices in [0, {n - 1}]"
+        )
+    keep = np.full(n, -1, np.int64)
+    keep[rows] = np.arange(rows.size)
+    return keep
 
 
 def _split_poses(p0, R0, p1, R1, n: int) -> tuple[np.ndarray, np.ndarray]:

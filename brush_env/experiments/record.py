@@ -64,12 +64,11 @@ class _Recorder:
         new.shapes = {k: v.copy() for k, v in self.shapes.items()}
         return new
 
-    def add_rows(self, fr, n, sim):
+    def add_rows(self, fr, n):
         """The next n rows from a ``Simulator.follow`` record fr (``chain_rollout.FollowRecord``),
         every row at once: the TCP wrench, the tips' force sums, contacts, deepest penetration and
         solver counts per row, the tips every tips_stride rows and the bristles' centre lines
-        every shapes_stride rows; only the last of the n may be a kept centre-line row (the
-        state is its)."""
+        every shapes_stride rows (from ``fr.body``: the follow kept them, ``kept_rows``)."""
         i = self.n
         rows = slice(i, i + n)
         s = self.step
@@ -105,30 +104,39 @@ class _Recorder:
             t["pen"][dst] = fr.pen[ks]
             t["tiptip"][dst] = fr.ftt[ks]
             self.nt += ks.size
-        kept = np.flatnonzero((np.arange(i, i + n) % self.shapes_stride) == 0)
+        kept = self.kept_rows(i, n)
         if kept.size:
-            if kept.tolist() != [n - 1]:
-                raise ValueError(f"rows {i + kept}: only the last row of a follow is kept")
-            k = self.ns
+            if fr.body.shape[0] < kept.size:
+                raise ValueError(f"rows {i + kept}: the follow kept no body centres for them")
+            dst = slice(self.ns, self.ns + kept.size)
             sh = self.shapes
-            sh["row"][k] = i + n - 1
-            sh["body"][k] = sim.state.pos
-            sh["tip"][k] = fr.tips[n - 1, :, 0:3]
-            sh["contact"][k] = fr.fn[n - 1] > 0.0
-            self.ns += 1
+            sh["row"][dst] = i + kept
+            sh["body"][dst] = fr.body[: kept.size]
+            sh["tip"][dst] = fr.tips[kept, :, 0:3]
+            sh["contact"][dst] = fr.fn[kept] > 0.0
+            self.ns += kept.size
         self.n += n
+
+    def kept_rows(self, i, n):
+        """Which of the n rows from row i have their bristle centre lines kept (offsets)."""
+        return np.flatnonzero((np.arange(i, i + n) % self.shapes_stride) == 0)
+
+
+#: engine steps per ``Simulator.follow`` call of the reference (the progress bar moves on
+#: between calls): each call costs ~0.4 ms of Python around the compiled steps, 5 % of the
+#: simulation when a call ended at every kept centre line (20 steps; issue 32, session 37)
+CHUNK = 1000
 
 
 def _simulate(sim, P, R, rec, theta, i0, i1, bar, label):
     """Step rows i0..i1-1 (row i is the pose at time i·dt; row 0 is the reset), in
-    ``Simulator.follow`` calls (the steps compiled, no Python between them) that end at the rows
-    whose bristle centre lines are kept, where the state is that row's."""
-    stride = rec.shapes_stride
+    ``Simulator.follow`` calls of up to CHUNK steps (the steps compiled, no Python between
+    them), which keep the body centres of the rows whose bristle centre lines are stored."""
     i = i0
     while i < i1:
-        j = min(i1, -(-i // stride) * stride + 1)  # through the next kept row (or i1 - 1)
-        run = sim.follow(P[i:j], R[i:j])
-        rec.add_rows(run.record, run.done, sim)
+        j = min(i1, i + CHUNK)
+        run = sim.follow(P[i:j], R[i:j], keep_bodies=rec.kept_rows(i, j - i))
+        rec.add_rows(run.record, run.done)
         if bar is not None:
             bar.update(run.done)
             k = i + run.done - 1
@@ -164,9 +172,11 @@ def simulate_runs(plan, progress: bool):
     rec = _Recorder(
         n_steps + 1, sim.model.n_bristles, sim.model.n_bodies, plan.tips_stride, plan.shapes_stride
     )
-    row0 = make_follow_record(1, sim.model.n_bristles)  # the reset, as a follow's row
+    # the reset, as a follow's row (its centre lines kept)
+    row0 = make_follow_record(1, sim.model.n_bristles, 1, sim.model.n_bodies)
     record_row(row0, 0, sim.reset(P[0], R[0]))
-    rec.add_rows(row0, 1, sim)
+    row0.body[0] = sim.state.pos
+    rec.add_rows(row0, 1)
     branch = _shared_prefix(plan.poses, n_steps)
     total = n_steps + (n_steps + 1 - branch if "pitch" in plan.poses else 0)
     bar = (

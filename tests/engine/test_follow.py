@@ -127,8 +127,11 @@ def test_follow_through_step_fills_the_same_record():
     sim_a, top = _sim()
     sim_b, _ = _sim()
     P, R = _poses(top)
-    fast = sim_a.follow(P, R).record
-    slow = sim_b._follow_steps(P, R, np.array([np.inf, np.inf, -np.inf, 0.1]), _empty(sim_b))
+    keep = np.full(N_STEPS, -1, np.int64)
+    keep[[3, 40, 89]] = [0, 1, 2]
+    fast = sim_a.follow(P, R, keep_bodies=[3, 40, 89]).record
+    limits = np.array([np.inf, np.inf, -np.inf, 0.1])
+    slow = sim_b._follow_steps(P, R, limits, _empty(sim_b, 3), keep)
     for name in fast._fields:
         a, b = getattr(fast, name), getattr(slow.record, name)
         if name == "head":
@@ -139,10 +142,38 @@ def test_follow_through_step_fills_the_same_record():
             assert np.array_equal(a, b), name
 
 
-def _empty(sim):
+def _empty(sim, kept=0):
     from brush_env.engine.chain_rollout import make_follow_record
 
-    return make_follow_record(N_STEPS, sim.model.n_bristles)
+    return make_follow_record(N_STEPS, sim.model.n_bristles, kept, sim.model.n_bodies)
+
+
+@pytest.mark.parametrize("sweeps", [1, 8])
+def test_follow_keeps_the_body_centres_of_the_steps_asked(sweeps):
+    """``keep_bodies``: every body's centre after the steps named, as ``State.pos`` is after
+    stepping to them one by one (and a follow without it keeps none)."""
+    sim_a, top = _sim(sweeps)
+    sim_b, _ = _sim(sweeps)
+    P, R = _poses(top)
+    rows = [0, 16, 17, 60, N_STEPS - 1]
+    want = []
+    for k in range(N_STEPS):
+        sim_a.step(P[k], R[k])
+        if k in rows:
+            want.append(sim_a.state.pos.copy())
+    run = sim_b.follow(P, R, keep_bodies=rows)
+    assert run.record.body.shape == (len(rows), sim_b.model.n_bodies, 3)
+    assert np.array_equal(run.record.body, np.stack(want))
+    assert np.array_equal(_state(sim_a), _state(sim_b))
+    assert sim_b.follow(P[-1:], R[-1:]).record.body.shape[0] == 0  # (held at the last pose)
+
+
+@pytest.mark.parametrize("rows", [[5, 5], [7, 3], [-1], [N_STEPS]])
+def test_follow_refuses_bad_kept_steps(rows):
+    sim, top = _sim()
+    P, R = _poses(top)
+    with pytest.raises(ValueError, match="keep_bodies"):
+        sim.follow(P, R, keep_bodies=rows)
 
 
 @pytest.mark.parametrize("dt", [1e-3, 4e-3])
