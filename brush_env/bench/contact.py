@@ -46,7 +46,9 @@ from .harness import (
 class ContactRun:
     """One press + arc run: times [s] and TCP force [N] up to the last completed step, wall time
     [s] of the stepping loop, Newton iterations and sub-steps (summed over bristles and steps),
-    steps taken, bristles, status ("ok" or "diverged at t=... s") and the circle's start [s]."""
+    steps taken, bristles, status ("ok" or "diverged at t=... s"), the circle's start [s], the
+    angle reached [rad] and the CPU time [s] of the ``Simulator.follow`` calls alone (the
+    engine's: not the observer's, not the set-up's)."""
 
     t: np.ndarray
     F: np.ndarray
@@ -58,6 +60,7 @@ class ContactRun:
     status: str
     t_circle: float
     theta_end: float
+    cpu: float
 
 
 #: Contact grid.  ``press``/``hold``: the paper's 3 mm minimum-jerk press in 0.5 s and 0.25 s
@@ -173,11 +176,14 @@ def simulate_contact(
     newton = subs = 0
     status = "ok"
     k = 1  # rows done (row 0: the reset)
+    cpu = 0.0
     t0 = time.perf_counter()
     # the steps in ``Simulator.follow`` calls of CHUNK poses (compiled, no Python between
     # steps); the observer sees each step's row of the record
     for i in range(1, n + 1, CHUNK):
+        c0 = time.process_time()
         run = sim.follow(P[i : i + CHUNK], R[i : i + CHUNK])
+        cpu += time.process_time() - c0
         rec, done = run.record, run.done
         F[i : i + done] = rec.FM[:done, 0:3]
         newton += int(rec.iters[:done].sum())
@@ -201,6 +207,7 @@ def simulate_contact(
         status,
         t_circle,
         theta_end,
+        cpu,
     )
 
 
