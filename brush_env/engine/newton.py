@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import HOT, block_solve, local_rot_into, reorthonormalize, rotate_left
+from ._kernels import HOT, block_solve, reorthonormalize, rotate_left
 from .contact import PEN_STEP_MIN, in_contact, penetration_step_limit, slip_step_limit
 from .predict import load_chain, predict_start, save_chain, start_state, start_step
 from .records import Trial
@@ -291,10 +291,16 @@ def _update_negligible(br, model, chain, it, alpha):
 @njit(**HOT, inline="always")
 def _commit(br, chain, sub, con, ws):
     """Accept the step: commit the stiction deformation and beta (eq 7-10), rates from the
-    discrete formula, shift the history (t_n -> t_{n-1} -> t_{n-2})."""
+    discrete formula, shift the history (t_n -> t_{n-1} -> t_{n-2}).
+
+    The angular rates take each body's rotation vector log(R R_n^T) from the last residual
+    evaluation (hist.thn): every path to a commit ends with a residual at the committed iterate
+    (the predictor's or the accepted line-search point), so this is the rate the converged
+    momentum balance used -- six rotation logs a bristle-step fewer (issue 32, session 37).  The
+    rotations are then re-orthonormalised for the next step (a round-off change: before,
+    the rate was taken after it)."""
     it = ws.it
     hist = ws.hist
-    th = ws.el.th
     tip_state = con.tip_state[br.b]
     for a in range(3):
         tip_state.delta[a] = tip_state.dnew[a]
@@ -309,7 +315,7 @@ def _commit(br, chain, sub, con, ws):
                 chain.vel[i, a] = 0.0
                 chain.omg[i, a] = 0.0
         else:
-            local_rot_into(rot[i], hist.Rn[k], th)
+            th = hist.thn[k]
             for a in range(3):
                 chain.vel[i, a] = (sub.c0 * pos[i, a] + hist.cm[k, a]) * sub.inv_h
                 chain.omg[i, a] = (sub.c0 * th[a] + hist.thp[k, a]) * sub.inv_h

@@ -53,7 +53,9 @@ record              fields [unit]
                     surface is refused, to be halved: ``newton._met_within``)
 ``Damp``            element rate terms: ehist (6,), gs, hs (see ``_kernels.element_force``)
 ``History``         constants of a (sub)step (``predict._prepare``): cm, vm, Lm, thp (n, 3),
-                    Rn (n, 3, 3), ehist (n, 6), gs, hs (n,)
+                    Rn (n, 3, 3), ehist (n, 6), gs, hs (n,); and thn (n, 3), each body's
+                    rotation vector log(R Rn^T) at the last residual evaluation (its angular
+                    rate, ``residual._inertia_residual``; what ``newton._commit`` takes)
 ``Sweeps``          the Gauss-Seidel sweeps' start state, warm starts and partner tips
 ``Work``            the scratch of ``step_bristles`` (allocated once per Simulator)
 ``StepParams``      the integrator's settings: h, method, static, rtol, maxit, maxlev, g, jage,
@@ -277,7 +279,7 @@ Node = namedtuple("Node", ["c", "R", "half"])
 Trial = namedtuple("Trial", ["alpha", "g0", "nrm", "whole", "fresh"])
 Attempt = namedtuple("Attempt", ["extrap", "split"])
 Damp = namedtuple("Damp", ["ehist", "gs", "hs"])
-History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "hs"])
+History = namedtuple("History", ["cm", "vm", "Lm", "thp", "Rn", "ehist", "gs", "hs", "thn"])
 
 #: scratch of the element kernels (strain, generalised forces, finite-difference perturbations)
 ElementScratch = namedtuple(
@@ -417,7 +419,15 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         v(3),
     )
     hist = History(
-        v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3), v(nmax, 3, 3), v(nmax, 6), v(nmax), v(nmax)
+        v(nmax, 3),
+        v(nmax, 3),
+        v(nmax, 3),
+        v(nmax, 3),
+        v(nmax, 3, 3),
+        v(nmax, 6),
+        v(nmax),
+        v(nmax),
+        v(nmax, 3),
     )
     base = Base(v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3), v(3), v(3, 3))
     el = ElementScratch(v(6), v(12), v(12), v(12), v(3), v(3, 3), v(3), v(3))

@@ -59,8 +59,10 @@ def strain_at(k, br, model, P, Q, pAb, RAb, e):
 
 
 @njit(**HOT, inline="always")
-def _inertia_residual(br, model, chain, sub, hist, res, th):
-    """res <- rate of momentum minus gravity of every body (eq 11, the discrete formula)."""
+def _inertia_residual(br, model, chain, sub, hist, res):
+    """res <- rate of momentum minus gravity of every body (eq 11, the discrete formula); each
+    body's rotation vector log(R R_n^T) into hist.thn (``newton._commit`` takes the converged
+    iterate's from there: the last residual evaluated is always at the committed state)."""
     bp = model.bp
     pos = chain.pos
     rot = chain.rot
@@ -78,6 +80,7 @@ def _inertia_residual(br, model, chain, sub, hist, res, th):
         for a in range(3):
             vk = (c0 * pos[i, a] + hist.cm[k, a]) * inv_h
             res[k, a] = m * (c0 * vk + hist.vm[k, a]) * inv_h - m * gvec[a]
+        th = hist.thn[k]
         local_rot_into(rot[i], hist.Rn[k], th)
         om0 = (c0 * th[0] + hist.thp[k, 0]) * inv_h
         om1 = (c0 * th[1] + hist.thp[k, 1]) * inv_h
@@ -126,7 +129,7 @@ def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     el = ws.el
     res = it.res
     out12 = el.out12
-    _inertia_residual(br, model, chain, sub, hist, res, el.th)
+    _inertia_residual(br, model, chain, sub, hist, res)
     for k in range(br.n):
         damp = Damp(hist.ehist[k], hist.gs[k], hist.hs[k])
         element_at(k, br, model, chain.pos, chain.rot, base.pAe, base.RAe, damp, el)
