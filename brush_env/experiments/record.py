@@ -123,8 +123,9 @@ class _Recorder:
 
 
 #: engine steps per ``Simulator.follow`` call of the reference (the progress bar moves on
-#: between calls): each call costs ~0.4 ms of Python around the compiled steps, 5 % of the
-#: simulation when a call ended at every kept centre line (20 steps; issue 32, session 37)
+#: between calls): each call costs ~0.4 ms of Python around the compiled steps; when a call
+#: ended at every kept centre line (20 steps) that was 2 % of the 4-turn run's simulation
+#: (issue 32, session 37)
 CHUNK = 1000
 
 
