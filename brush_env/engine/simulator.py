@@ -319,7 +319,7 @@ class Simulator:
         self._check_poses(P, R)
         n, nb = P.shape[0], self.model.n_bristles
         keep = _keep_slots(keep_bodies, n)
-        kept = int(keep.max()) + 1 if n else 0
+        kept = int(keep.max()) + 1  # (n >= 1: _check_poses)
         rec = make_follow_record(n, nb, kept, st.pos.shape[0] if kept else 0)
         limits = np.array(
             [
