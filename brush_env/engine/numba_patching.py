@@ -18,6 +18,12 @@ def sources(*objs) -> list[str] | None:
         return None
 
 
+def switched_off(switch: str) -> bool:
+    """True if the environment variable ``switch`` leaves numba as shipped (set to anything but
+    "" or "0")."""
+    return os.environ.get(switch, "") not in ("", "0")
+
+
 def apply(
     owner,
     replacements: dict[str, object],
@@ -31,7 +37,7 @@ def apply(
     ``original`` receives what was replaced (the patched functions call it)."""
     if all(getattr(owner, name) is fn for name, fn in replacements.items()):
         return True
-    if os.environ.get(switch, "") not in ("", "0"):
+    if switched_off(switch):
         return False
     if not recognised():
         return False

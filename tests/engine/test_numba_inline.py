@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from brush_env.engine import numba_inline
+from brush_env.engine.numba_patching import switched_off
 
 _COMPILE = """
 from brush_env.engine import numba_inline, warmup
@@ -46,7 +47,7 @@ def _machine_code(cache: Path) -> dict[str, tuple[bytes, bytes]]:
 def test_patch_applies_to_this_numba():
     """The pinned numba is the code the patch was written against (else it stays off: the
     first start's compile doubles, and this test says so)."""
-    if os.environ.get("BRUSH_ENV_NUMBA_COPY_IR", "") not in ("", "0"):
+    if switched_off("BRUSH_ENV_NUMBA_COPY_IR"):
         pytest.skip("switched off by BRUSH_ENV_NUMBA_COPY_IR")
     assert numba_inline.installed()
 

@@ -9,11 +9,10 @@ nothing may be contracted across the old call)."""
 
 from __future__ import annotations
 
-import os
-
 import pytest
 
 from brush_env.engine import numba_linking
+from brush_env.engine.numba_patching import switched_off
 
 from .numba_patch_script import run_script
 
@@ -72,7 +71,7 @@ def _run(shipped: bool, tmp_path) -> dict:
 def test_patch_applies_to_this_numba():
     """The pinned numba is the code the patch was written against (else it stays off: the step
     takes ~14 % more instructions, and this test says so)."""
-    if os.environ.get("BRUSH_ENV_NUMBA_LINKONCE", "") not in ("", "0"):
+    if switched_off("BRUSH_ENV_NUMBA_LINKONCE"):
         pytest.skip("switched off by BRUSH_ENV_NUMBA_LINKONCE")
     assert numba_linking.installed()
 

@@ -19,6 +19,7 @@ import sys
 import pytest
 
 from brush_env.engine import numba_loading
+from brush_env.engine.numba_patching import switched_off
 
 _SCRIPT = r"""
 import json, sys
@@ -69,7 +70,7 @@ def _twice(shipped: bool, tmp_path) -> tuple[dict, dict]:
 def test_patch_applies_to_this_numba():
     """The pinned numba is the code the patch was written against (else it stays off: every warm
     start pays ~0.37 s more, and this test says so)."""
-    if os.environ.get("BRUSH_ENV_NUMBA_REFRESH", "") not in ("", "0"):
+    if switched_off("BRUSH_ENV_NUMBA_REFRESH"):
         pytest.skip("switched off by BRUSH_ENV_NUMBA_REFRESH")
     assert numba_loading.installed()
 

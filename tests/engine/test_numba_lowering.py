@@ -8,11 +8,10 @@ patch none of that is emitted, and the kernel computes the same numbers, bit for
 
 from __future__ import annotations
 
-import os
-
 import pytest
 
 from brush_env.engine import numba_lowering
+from brush_env.engine.numba_patching import switched_off
 
 from .numba_patch_script import run_script
 
@@ -66,7 +65,7 @@ def _run(shipped: bool, tmp_path) -> dict:
 def test_patch_applies_to_this_numba():
     """The pinned numba is the code the patch was written against (else it stays off: LLVM's
     share of the first start's compile grows by half, and this test says so)."""
-    if os.environ.get("BRUSH_ENV_NUMBA_NRT_STORES", "") not in ("", "0"):
+    if switched_off("BRUSH_ENV_NUMBA_NRT_STORES"):
         pytest.skip("switched off by BRUSH_ENV_NUMBA_NRT_STORES")
     assert numba_lowering.installed()
 
