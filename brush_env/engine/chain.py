@@ -29,6 +29,7 @@ from .bristles import BristleModel, ShaftContact, TipContact, register_bristle_m
 from .checks import ConfigError
 from .config import BrushConfig
 from .mesh_contact import build_mesh, empty_mesh
+from .near import NEAR_MARGIN  # the step's near lists of tip-tip partners
 from .scene import MeshPlate
 from .sdf import pack_grids
 from .settings import INTEGRATORS, SimSettings, SimulationDivergence
@@ -171,6 +172,7 @@ class DFMChain(BristleModel):
             self.model.n_bodies,
             nb,
             len(self.pair_idx),
+            NEAR_MARGIN,
         )
         self._kmodel = self.model.arrays()
         self._tips = np.zeros((nb, 7))

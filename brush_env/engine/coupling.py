@@ -38,6 +38,7 @@ from numba import njit
 
 from ._kernels import HOT, lu6, lu_dense, lus6, lus_dense
 from .contact import pair_law
+from .near import entry, moved, span
 from .records import MAX_GROUP  # a larger group keeps plain Gauss-Seidel
 from .tipblock import add_tip_block
 
@@ -78,9 +79,12 @@ def place_partners(model, chain, con, jc, ws, c0_inv_h):
     for b in range(nb):
         parent[b] = b
         sw.grouped[b] = 0
+    # over the near lists while no held tip moved by half their margin (``near.py``)
+    need = 2.0 * sw.near.d[0]
     for b in range(nb):  # groups: connected components of the pairs touching at x* or u
-        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-            j = con.pair_idx[q]
+        k0, k1, on = span(con, sw.near, b, need)
+        for k in range(k0, k1):
+            q, j = entry(con, sw.near, k, on)
             if pair_law(b, j, tips[j], con, c0_inv_h, sw.f, sw.C) or pair_law(
                 b, j, sw.used[q], con, c0_inv_h, sw.f, sw.C
             ):
@@ -178,14 +182,16 @@ def _solve_group(model, chain, con, jc, ws, m, c0_inv_h):
         x[r] = 0.0
         for c in range(n):
             A[r, c] = 0.0
+    need = 2.0 * sw.near.d[0]  # pairs off the near lists do not touch (``near.py``)
     for s in range(m):
         b = sw.members[s]
         for a in range(3):
             sw.Fc[a] = sw.tipF[b, a]
             for c in range(3):
                 sw.Kc[a, c] = sw.tipK[b, a, c]
-        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-            j = con.pair_idx[q]
+        k0, k1, on = span(con, sw.near, b, need)
+        for k in range(k0, k1):
+            q, j = entry(con, sw.near, k, on)
             t = sw.slot[j]
             if t >= m or sw.members[t] != j:
                 continue  # not in this group (touches b only since another group was placed)
@@ -220,6 +226,7 @@ def _solve_group(model, chain, con, jc, ws, m, c0_inv_h):
         for a in range(3):
             tips[b, a] += alpha * x[3 * s + a]
             tips[b, 3 + a] += alpha * c0_inv_h * x[3 * s + a]
+        moved(con, sw.near, sw.tips0, b)
         sw.grouped[b] = 1
     return m
 
@@ -232,11 +239,19 @@ def _safe_fraction(con, sw, m):
     linear model knows no non-penetration, and a full step at contact onset can tunnel."""
     tips = con.tips
     x = sw.x
+    near = sw.near
+    # a pair off the near lists stays out of reach while 2 |x| + 2 D fits their margin
+    # (``near.py``): it adds nothing to the deepest overlap and never limits alpha
+    xmax = 0.0
+    for r in range(3 * m):
+        xmax = max(xmax, abs(x[r]))
+    need = 2.0 * np.sqrt(3.0) * xmax + 2.0 * near.d[0]
     deepest = 0.0
     for s in range(m):
         b = sw.members[s]
-        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-            j = con.pair_idx[q]
+        k0, k1, on = span(con, near, b, need)
+        for k in range(k0, k1):
+            _q, j = entry(con, near, k, on)
             d = 0.0
             for a in range(3):
                 d += (tips[b, a] - tips[j, a]) ** 2
@@ -247,8 +262,9 @@ def _safe_fraction(con, sw, m):
         ok = True
         for s in range(m):
             b = sw.members[s]
-            for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-                j = con.pair_idx[q]
+            k0, k1, on = span(con, near, b, need)
+            for k in range(k0, k1):
+                _q, j = entry(con, near, k, on)
                 t = sw.slot[j]
                 inside = t < m and sw.members[t] == j
                 dot = 0.0

@@ -15,6 +15,7 @@ from numba import njit
 
 from ._kernels import HOT, block_solve, reorthonormalize, rotate_left
 from .contact import PEN_STEP_MIN, in_contact, penetration_step_limit, slip_step_limit
+from .near import tip_scene
 from .predict import load_chain, predict_start, save_chain, start_state, start_step
 from .records import Trial
 from .residual import bristle_residual, rebuild_factors, tip_refactor
@@ -184,7 +185,9 @@ def _step_cap(br, model, chain, sub, con, ws):
     pt = it.tip
     for a in range(3):
         pt[a] = chain.pos[il, a] + hl * rot[il, a, 0]
-    apen = penetration_step_limit(br.b, pt, dp, radius, con, ws.tipw, PEN_STEP_MIN)
+    # the partners the step can reach: the step's near list where it holds (``near.py``)
+    pcon = tip_scene(con, ws.sw.near, ws.sw.tips0, br.b, pt, dtip)
+    apen = penetration_step_limit(br.b, pt, dp, radius, pcon, ws.tipw, PEN_STEP_MIN)
     if apen < alpha:
         alpha = max(apen, 1e-3)
     if not sub.static:

@@ -353,7 +353,8 @@ Backup = namedtuple("Backup", ["v3", "R", "tip_state", "shaft"])
 #: (3 rows per bristle of a group); scratch: one tip node's stiffness H (3, 3) [N/mm], A6, piv6,
 #: W3, Fc, Kc, f, C, e6; shaft (the bodies' shaft states at the step's start); lead (nb,): the
 #: fraction of its extrapolated move each tip is moved on for the first sweep, ext (nb, 6): that
-#: move [mm] and the change of its velocity [mm/s] (``sweeps.lead_partners``)
+#: move [mm] and the change of its velocity [mm/s] (``sweeps.lead_partners``); near: the step's
+#: near lists of partners (``NearPairs``)
 Sweeps = namedtuple(
     "Sweeps",
     [
@@ -388,16 +389,29 @@ Sweeps = namedtuple(
         "shaft",
         "lead",
         "ext",
+        "near",
     ],
 )
+#: the step's near lists of tip-tip partners (``near.py``): ptr (nb + 1), q and idx (entries of
+#: the pair list and the partners, CSR over the bristles), d (2,) = [D: how far [mm] a held tip
+#: moved from its start this step (inf: no near list), M: the margin [mm] (< 0: lists off)]
+NearPairs = namedtuple("NearPairs", ["ptr", "q", "idx", "d"])
 Work = namedtuple(
     "Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup", "sw", "sh"]
 )
 
 
-def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries: int = 0) -> Work:
+def make_work(
+    nmax: int,
+    n_bodies: int = 1,
+    n_bristles: int = 1,
+    n_pair_entries: int = 0,
+    near_margin: float = -1.0,
+) -> Work:
     """Scratch arrays for ``step_bristles`` (allocated once per Simulator; nmax = most bodies per
-    bristle; n_bodies, n_bristles, n_pair_entries: the whole brush, for the sweeps)."""
+    bristle; n_bodies, n_bristles, n_pair_entries: the whole brush, for the sweeps; near_margin
+    [mm]: the near lists' margin, ``near.NEAR_MARGIN``; < 0: every partner loop takes the whole
+    list)."""
 
     def v(*shape):
         return np.zeros(shape)
@@ -466,6 +480,12 @@ def make_work(nmax: int, n_bodies: int = 1, n_bristles: int = 1, n_pair_entries:
         np.zeros(n_bodies, SHAFT),
         v(n_bristles),
         v(n_bristles, 6),
+        NearPairs(
+            np.zeros(n_bristles + 1, np.int64),
+            np.zeros(max(n_pair_entries, 1), np.int64),
+            np.zeros(max(n_pair_entries, 1), np.int64),
+            np.array([np.inf, near_margin]),
+        ),
     )
     sh = ShaftScratch(
         v(nmax, 6, 6),

@@ -25,6 +25,7 @@ from ._kernels import (
     rotate_left,
 )
 from .contact import tip_load
+from .near import tip_scene
 from .records import Damp, Node, ShaftWork
 from .shaft import add_shaft_blocks, shaft_load
 from .tipblock import add_tip_block as _add_tip_block
@@ -146,7 +147,9 @@ def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     pt = el.pt
     tipF = it.tipF
     body_node(pos[il], chain.rot[il], model.bp[il].half, pt)
-    tip_load(br.b, pt, sub, con, tipF, it.tipK, ws.tipw)
+    # the partners that can touch this tip: the step's near list where it holds (``near.py``)
+    tcon = tip_scene(con, ws.sw.near, ws.sw.tips0, br.b, pt, 0.0)
+    tip_load(br.b, pt, sub, tcon, tipF, it.tipK, ws.tipw)
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]
     rz = pt[2] - pos[il, 2]

@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import HOT
+from .near import close
 from .sweeps import (
     SWEEP_FIRST,
     note_one_sweep,
@@ -64,6 +65,7 @@ def step_bristles(model, chain, drive, prm, con, jc, ws, out):
     start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
     sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle
     note_one_sweep(model, prm, con, ws)
+    close(ws.sw.near)  # the near lists hold for this step only (``near.py``)
 
 
 @njit(**HOT, inline="always")  # as step_bristles
@@ -82,6 +84,7 @@ def step_bristles_coupled(model, chain, drive, prm, con, jc, ws, out):
     start_sweeps(model, chain, drive, prm, con, ws, out)  # outputs zeroed, start state kept
     sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_FIRST)  # every bristle
     settle_tip_tip(model, chain, drive, prm, con, jc, ws, out)  # re-solves with placed partners
+    close(ws.sw.near)  # the near lists hold for this step only (``near.py``)
 
 
 @njit(**HOT)

@@ -15,6 +15,7 @@ from numba import njit
 from ._kernels import HOT
 from .advance import OK, advance_bristle, scheme_coefficients
 from .coupling import PLACE_OVERLAP, place_partners, store_tip_load
+from .near import build, entry, moved, span
 from .predict import chain_rows, save_chain
 from .records import Bristle
 
@@ -56,10 +57,11 @@ def sweep_bristles(model, chain, drive, prm, con, jc, ws, out, mode):
         n = bstart[b + 1] - b0
         br = Bristle(b, b0, n, b0 + n - 1)
         if mode == SWEEP_AGAIN:
-            if not _partners_moved(b, con, sw.used, prm.tttol):
+            if not _partners_moved(b, con, sw.used, sw.near, prm.tttol):
                 if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
                     for a in range(6):
                         con.tips[b, a] = sw.xs[b, a]
+                    moved(con, sw.near, sw.tips0, b)
                 continue
             sw.count[1] += 1
             save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
@@ -73,17 +75,18 @@ def sweep_bristles(model, chain, drive, prm, con, jc, ws, out, mode):
         advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
         out.iters[b] += prev
         tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
+        moved(con, sw.near, sw.tips0, b)
         if coupled:
             store_tip_load(b, ws.it, sw)
 
 
 @njit(**HOT, inline="always")
-def _max_partner_move(nb, con, used):
+def _max_partner_move(nb, con, used, near):
     """The largest move [mm] of a partner within contact reach of a bristle since that bristle
     was solved (``_partners_moved``), over all bristles."""
     m = 0.0
     for b in range(nb):
-        m = max(m, _partner_move(b, con, used))
+        m = max(m, _partner_move(b, con, used, near))
     return m
 
 
@@ -92,7 +95,7 @@ def note_one_sweep(model, prm, con, ws):
     """The one-sweep step's record (``step.step_bristles``; ``settle_tip_tip`` with one sweep):
     sw.count[2] = 1 if a touching partner moved by more than prm.tttol after its bristle was
     solved (that bristle saw the partner's start-of-step tip: the tip-tip force lags)."""
-    if _max_partner_move(model.bstart.shape[0] - 1, con, ws.sw.used) > prm.tttol:
+    if _max_partner_move(model.bstart.shape[0] - 1, con, ws.sw.used, ws.sw.near) > prm.tttol:
         ws.sw.count[2] = 1
 
 
@@ -116,24 +119,27 @@ def _any_failed(status, nb):
 
 
 @njit(**HOT, inline="always")
-def _partners_moved(b, con, used, tol):
+def _partners_moved(b, con, used, near, tol):
     """True if a partner of bristle b that is (or was, when b was solved) within contact reach
     of b's tip has moved by more than ``tol`` [mm] since b was solved."""
-    return _partner_move(b, con, used) > tol
+    return _partner_move(b, con, used, near) > tol
 
 
 @njit(**HOT)
-def _partner_move(b, con, used):
+def _partner_move(b, con, used, near):
     """The largest move [mm] since bristle b was solved of a partner that is (or was, when b was
     solved) within contact reach of b's tip.  A partner is tested for reach only if it moved
     further than the largest so far (compared squared: sqrt is monotone, so the result is the
     same number): most partners have not moved since b was solved (a later sweep re-solves a
-    few bristles), and this runs for every bristle after every sweep."""
+    few bristles), and this runs for every bristle after every sweep.  Over the near list while
+    no held tip moved by a quarter of its margin (a partner's move and distance are each within
+    2 D of their start: ``near.py``)."""
     tips = con.tips
     rb = tips[b, 6]
     m2 = 0.0
-    for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-        j = con.pair_idx[q]
+    k0, k1, on = span(con, near, b, 4.0 * near.d[0])
+    for k in range(k0, k1):
+        q, j = entry(con, near, k, on)
         m0 = tips[j, 0] - used[q, 0]
         m1 = tips[j, 1] - used[q, 1]
         m2j = tips[j, 2] - used[q, 2]
@@ -254,11 +260,19 @@ def lead_partners(con, sw):
         if con.pair_ptr[b + 1] > con.pair_ptr[b]:
             move = np.sqrt(ext[b, 0] ** 2 + ext[b, 1] ** 2 + ext[b, 2] ** 2)
             lead[b] = min(1.0, LEAD_MAX * tips[b, 6] / move) if move > 0.0 else 0.0
+    # a pair off the near lists cannot come within reach: each tip moves by at most LEAD_MAX of
+    # its radius (``near.py``)
+    near = sw.near
+    rmax = 0.0
+    for b in range(nb):
+        rmax = max(rmax, tips[b, 6])
+    need = 2.0 * near.d[0] + 2.0 * LEAD_MAX * rmax
     for _round in range(LEAD_HALVINGS + 1):
         bad = False
         for b in range(nb):
-            for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
-                j = con.pair_idx[q]
+            k0, k1, on = span(con, near, b, need)
+            for k in range(k0, k1):
+                _q, j = entry(con, near, k, on)
                 if j < b or (lead[b] == 0.0 and lead[j] == 0.0):
                     continue  # each pair once (the lists are symmetric)
                 if _lead_unsafe(b, j, lead[b], lead[j], tips, ext):
@@ -270,6 +284,7 @@ def lead_partners(con, sw):
     for b in range(nb):
         for a in range(6):
             tips[b, a] += lead[b] * ext[b, a]
+        moved(con, near, sw.tips0, b)
 
 
 @njit(**HOT, inline="always")
@@ -301,6 +316,7 @@ def start_sweeps(model, chain, drive, prm, con, ws, out):
         out.iters[b] = 0
         for a in range(6):
             sw.tips0[b, a] = con.tips[b, a]
+    build(con, sw.near, sw.tips0)  # the step's near lists of partners (``near.py``)
     if sweeps > 1:
         _save_all(chain, con, drive, sw)
         if not prm.static:
@@ -341,12 +357,12 @@ def settle_tip_tip(model, chain, drive, prm, con, jc, ws, out):
             sweep_bristles(model, chain, drive, prm, con, jc, ws, out, SWEEP_PLAIN)
             sw.count[0] += 1
             break
-        moved = _max_partner_move(nb, con, sw.used)
-        if moved <= prm.tttol:
+        move = _max_partner_move(nb, con, sw.used, sw.near)
+        if move <= prm.tttol:
             break
         if run == sweeps:
             sw.count[2] = 1  # out of sweeps with partners still moving
-            if sweeps > 1 and moved > FALLBACK_MOVE:
+            if sweeps > 1 and move > FALLBACK_MOVE:
                 # far from settled (the coupled step went astray): the plain sweep instead,
                 # then once more the coupled sweeps from its solution
                 sw.count[2] = 2

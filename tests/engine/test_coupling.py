@@ -16,6 +16,7 @@ import pytest
 
 from brush_env.engine import BrushConfig, Scene, SimSettings, Simulator
 
+from .kernel_args import contact_scene, sweeps_scratch, whole_lists
 from .test_contact import R0, one_bristle
 
 K_TT, M1_TT = 100.0, 1.3  # paper Table 3 (the scene default)
@@ -99,20 +100,16 @@ def test_the_one_sweep_kernel_is_the_coupled_kernels_first_sweep():
 def _lead(tips, pairs, h=DT):
     """sweeps.lead_partners on the tips (nb, 7: position [mm], velocity [mm/s], radius [mm]) with
     the symmetric pair lists of ``pairs``; returns (the moved tips, each tip's lead)."""
-    from collections import namedtuple
-
     from brush_env.engine.sweeps import lead_partners
 
     nb = len(tips)
     lists = [[j for a, b in pairs for i, j in ((a, b), (b, a)) if i == k] for k in range(nb)]
     ptr = np.cumsum([0] + [len(x) for x in lists]).astype(np.int64)
     idx = np.array([j for x in lists for j in x], np.int64)
-    Con = namedtuple("Con", ["tips", "pair_ptr", "pair_idx"])
-    Sw = namedtuple("Sw", ["lead", "ext"])
-    con = Con(np.array(tips, float), ptr, idx)
-    ext = np.zeros((nb, 6))
-    ext[:, 0:3] = h * con.tips[:, 3:6]  # the move h v_n (no history: ``extrapolate_tips``)
-    sw = Sw(np.zeros(nb), ext)
+    con = contact_scene(np.array(tips, float), ptr, idx)
+    sw = sweeps_scratch(nb, len(idx))
+    sw.ext[:, 0:3] = h * con.tips[:, 3:6]  # the move h v_n (no history: ``extrapolate_tips``)
+    sw.tips0[:] = con.tips[:, 0:6]
     lead_partners(con, sw)
     return con.tips, sw.lead
 
@@ -122,27 +119,23 @@ def _extrapolated(hist, h, p, v):
     (``p``, rows; the tip body's centre with half length 0) and velocity v at t_n, ``hist`` whole
     steps of history, BDF2; returns its row of ext (move [mm], velocity change [mm/s]).  A second
     tip without partners must stay unmoved."""
-    from collections import namedtuple
-
-    from brush_env.engine.records import BODY, METHOD_BDF2
+    from brush_env.engine import records as rec
     from brush_env.engine.sweeps import extrapolate_tips
 
-    M = namedtuple("M", ["bstart", "bp"])
-    C = namedtuple("C", ["ppos", "prot", "pppos", "pprot"])
-    D = namedtuple("D", ["hist_ok"])
-    Prm = namedtuple("Prm", ["h", "static", "method"])
-    Con = namedtuple("Con", ["tips", "pair_ptr"])
     R = np.broadcast_to(np.eye(3), (2, 3, 3)).copy()
     tips = np.zeros((2, 7))
     tips[:, 0:3] = p[0]
     tips[:, 3:6] = v
     ext = np.full((2, 6), np.nan)
+    z = np.zeros((2, 3))
     extrapolate_tips(
-        M(np.array([0, 1, 2]), np.zeros(2, BODY)),
-        C(np.array([p[1], p[1]]), R, np.array([p[2], p[2]]), R.copy()),
-        D(np.array([hist, hist])),
-        Prm(h, False, METHOD_BDF2),
-        Con(tips, np.array([0, 1, 1])),
+        rec.ModelArrays(
+            np.array([0, 1, 2]), np.zeros(2, rec.BODY), np.zeros((2, 6, 6)), z, R, np.zeros(2)
+        ),
+        rec.Chain(z, R, z, z, np.array([p[1], p[1]]), R, z, z, np.array([p[2], p[2]]), R),
+        rec.Drive(np.array([hist, hist]), np.zeros((4, 3)), np.zeros((4, 3, 3))),
+        rec.StepParams(h, rec.METHOD_BDF2, False, 1e-9, 10, 3, np.zeros(3), 0, 8, 1e-6),
+        contact_scene(tips, np.array([0, 1, 1]), np.array([1])),
         ext,
     )
     assert np.all(ext[1] == 0.0)
@@ -210,11 +203,8 @@ def test_partner_move_is_the_largest_move_of_a_partner_within_reach():
     """``sweeps._partner_move`` (which skips partners that moved no further than the largest so
     far) against its definition evaluated pair by pair: the largest |x_j - u_q| over the partners
     j of b whose tip, now or where b saw it (u_q), is within reach + that move of b's tip."""
-    from collections import namedtuple
-
     from brush_env.engine.sweeps import _partner_move
 
-    Con = namedtuple("Con", ["tips", "pair_ptr", "pair_idx"])
     rng = np.random.default_rng(7)
     nb = 7
     for _trial in range(20):
@@ -230,7 +220,7 @@ def test_partner_move_is_the_largest_move_of_a_partner_within_reach():
         used = tips[pair_idx, 0:3].copy()
         moved = rng.random(pair_idx.size) < 0.4  # most partners did not move since b was solved
         used[moved] += rng.normal(0.0, 0.05, (int(moved.sum()), 3))
-        con = Con(tips, np.array(ptr, dtype=np.int64), pair_idx)
+        con = contact_scene(tips, np.array(ptr, dtype=np.int64), pair_idx)
         for b in range(nb):
             want = 0.0
             for q in range(ptr[b], ptr[b + 1]):
@@ -241,4 +231,5 @@ def test_partner_move_is_the_largest_move_of_a_partner_within_reach():
                 near_then = np.linalg.norm(tips[b, 0:3] - used[q]) <= reach
                 if near_now or near_then:
                     want = max(want, mv)
-            assert _partner_move(b, con, used) == pytest.approx(want, rel=1e-15, abs=0.0)
+            got = _partner_move(b, con, used, whole_lists(nb, len(idx)))
+            assert got == pytest.approx(want, rel=1e-15, abs=0.0)

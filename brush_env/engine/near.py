@@ -1,0 +1,134 @@
+"""The step's near lists of tip-tip partners: the partner loops of Table 3 over the partners that
+can touch within the step, with the same results as over every listed partner.
+
+A brush's pair list (``chain.scene_tip_pairs``) names every partner a tip could ever touch: ~31
+per tip on the default brush, of which a few are within reach at any moment.  The contact load,
+the penetration limit, the sweeps' test of moved partners, the coupling's groups and the first
+guess's lead looped over all of them, every residual and every sweep (~17 % of a coupled
+bristle-step, docs/benchmarks.md, session 38).
+
+At a step's start (``build``) every tip b keeps, in its pair list's order, the partners j with
+|p_b - p_j| < r_b + r_j + M at the step's start positions p0 (``Sweeps.tips0``; M = ``NEAR_MARGIN``
+[mm]).  During the step D is the largest distance any held tip (``con.tips``) has moved from its
+start (``moved``, after every write of a held tip).  A partner off the near list is then at least
+r_b + r_j + M - D - s from a tip that moved s from its start, so a loop may use the near list
+whenever what it tests stays below that distance (``fits``): the contact load at a tip moved s
+(s + D <= M: no partner off the list is within reach), the penetration limit of a step dp
+(s + |dp| + D <= M), the moved-partner test (4 D <= M: a partner's move and its distance are both
+within 2 D of their start), the coupling's groups (2 D <= M), a placement x (2 max|x| + 2 D <= M)
+and the lead of the first guess (2 D + 2 LEAD_MAX r_max <= M).  Otherwise the loop takes the whole
+list, as it does outside a step (D = inf) and for the reduced model, which never builds one.
+Skipped partners are those that contribute nothing, in the same order, so every sum is the same
+to the bit (``tests/engine/test_near.py``: the paper turn's forces equal with the lists on and off).
+Units: mm.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._kernels import HOT
+from .records import ContactScene
+
+#: [mm] partners within r_b + r_j + NEAR_MARGIN of each other at the step's start are near.  A
+#: 1 ms step of the paper turn moves a tip ~0.02 mm; the moved-partner test keeps the near list
+#: while no held tip moved more than NEAR_MARGIN / 4 from its start
+NEAR_MARGIN = 1.0
+#: [mm] the round-off allowance of the distance tests (positions are < 1e3 mm: ~1e-13 mm)
+NEAR_ROUND = 1e-9
+
+
+@njit(**HOT)
+def build(con, near, tips0):
+    """near <- every tip's partners within r_b + r_j + M at the step's start ``tips0`` (nb, >= 3)
+    (CSR over the pair list: near.ptr (nb + 1), near.q the pair entries, near.idx the partners),
+    D = 0.  With M < 0 (``NearPairs.d[1]``: the lists off) every list is empty and D = inf."""
+    ptr = con.pair_ptr
+    nb = tips0.shape[0]
+    M = near.d[1]
+    n = 0
+    near.ptr[0] = 0
+    for b in range(nb):
+        if M >= 0.0 and ptr.shape[0] > b + 1:
+            rb = con.tips[b, 6]
+            for q in range(ptr[b], ptr[b + 1]):
+                j = con.pair_idx[q]
+                d0 = tips0[b, 0] - tips0[j, 0]
+                d1 = tips0[b, 1] - tips0[j, 1]
+                d2 = tips0[b, 2] - tips0[j, 2]
+                reach = rb + con.tips[j, 6] + M
+                if d0 * d0 + d1 * d1 + d2 * d2 < reach * reach:
+                    near.q[n] = q
+                    near.idx[n] = j
+                    n += 1
+        near.ptr[b + 1] = n
+    near.d[0] = 0.0 if M >= 0.0 else np.inf
+
+
+@njit(**HOT, inline="always")
+def close(near):
+    """After the step: no near list (every loop takes the whole list until the next ``build``)."""
+    near.d[0] = np.inf
+
+
+@njit(**HOT, inline="always")
+def moved(con, near, tips0, b):
+    """D <- max(D, |con.tips[b] - tips0[b]|) after held tip b was written."""
+    d0 = con.tips[b, 0] - tips0[b, 0]
+    d1 = con.tips[b, 1] - tips0[b, 1]
+    d2 = con.tips[b, 2] - tips0[b, 2]
+    d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if d > near.d[0]:
+        near.d[0] = d
+
+
+@njit(**HOT, inline="always")
+def fits(near, need):
+    """True if a loop whose test reaches ``need`` [mm] beyond contact reach may take the near
+    lists (``need`` <= M, less the round-off allowance; D = inf never fits)."""
+    return need <= near.d[1] - NEAR_ROUND
+
+
+@njit(**HOT, inline="always")
+def span(con, near, b, need):
+    """(first, end, near?) of bristle b's partner loop: entries k of near.q / near.idx if
+    ``fits(near, need)``, else of the whole list (pair entry q = k, partner con.pair_idx[k]).
+    ``need`` includes the D term of the loop's test (a multiple of near.d[0]), so that after
+    ``close`` (D = inf) nothing fits."""
+    if fits(near, need):
+        return near.ptr[b], near.ptr[b + 1], True
+    return con.pair_ptr[b], con.pair_ptr[b + 1], False
+
+
+@njit(**HOT, inline="always")
+def entry(con, near, k, on):
+    """(q, j): the pair entry and the partner at loop index k of ``span``."""
+    if on:
+        return near.q[k], near.idx[k]
+    return k, con.pair_idx[k]
+
+
+@njit(**HOT, inline="always")
+def tip_scene(con, near, tips0, b, pt, reach):
+    """The contact scene for tip b evaluated at ``pt`` (3,) [mm] with tests reaching ``reach``
+    [mm] beyond contact: ``con`` with b's near list as its pair list (``contact.tip_load``, the
+    penetration limit) where it fits, else ``con``."""
+    d0 = pt[0] - tips0[b, 0]
+    d1 = pt[1] - tips0[b, 1]
+    d2 = pt[2] - tips0[b, 2]
+    s = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if fits(near, s + reach + near.d[0]):
+        return ContactScene(
+            con.surf,
+            con.cp,
+            con.tips,
+            near.ptr,
+            near.idx,
+            con.mesh,
+            con.tip_args,
+            con.tip_state,
+            con.sdf,
+            con.shaft,
+        )
+    return con
