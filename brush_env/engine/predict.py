@@ -37,56 +37,67 @@ EXTRAP_TRUST = 1.0e5
 
 
 @njit(**HOT, inline="always")
-def _strain_key(k, br, P, Q, pAb, RAb, key, store):
-    """Element k's inputs (node A: the previous body's centre and rotation, or the base node;
-    node B: body k's) against the strain cache's key ``key`` (24 floats); store: write them
-    into it instead.  Returns True if they equal it (a NaN key never does)."""
-    i = br.b0 + k
-    pa = pAb if k == 0 else P[i - 1]
-    Ra = RAb if k == 0 else Q[i - 1]
+def _node_key(p, R, key, at, store):
+    """A node's pose (centre p (3,), rotation R (3, 3)) against the strain cache's key ``key``
+    from entry ``at`` (12 floats); store: write it there instead.  Returns True if it equals the
+    key (a NaN key never does)."""
     if store:
         for a in range(3):
-            key[a] = pa[a]
-            key[12 + a] = P[i, a]
+            key[at + a] = p[a]
             for b in range(3):
-                key[3 + 3 * a + b] = Ra[a, b]
-                key[15 + 3 * a + b] = Q[i, a, b]
+                key[at + 3 + 3 * a + b] = R[a, b]
         return True
     for a in range(3):
-        if key[a] != pa[a] or key[12 + a] != P[i, a]:
+        if key[at + a] != p[a]:
             return False
         for b in range(3):
-            if key[3 + 3 * a + b] != Ra[a, b] or key[15 + 3 * a + b] != Q[i, a, b]:
+            if key[at + 3 + 3 * a + b] != R[a, b]:
                 return False
     return True
 
 
 @njit(**HOT, inline="always")
-def _strain_history(k, br, model, chain, sub, base, hist, el, jc):
-    """hist.ehist[k] <- c1 e_n + c2 e_{n-1} of element k; e_n into the strain cache (jc.E, EK),
-    e_{n-1} from it when its key matches (``_prepare``); the strains alone (``strain_at``)."""
-    i = br.b0 + k
+def _strain_history(br, model, chain, sub, base, hist, el, jc):
+    """hist.ehist[k] <- c1 e_n + c2 e_{n-1} of every element k of the bristle; e_n into the
+    strain cache (jc.E), e_{n-1} from it where the element's nodes match their keys
+    (``_prepare``); the strains alone (``strain_at``).
+
+    The key of element k is its two nodes' poses, each kept once (jc.EK[i, 0:12]: body i's
+    centre and rotation when E[i] was evaluated; jc.EK[b0, 12:24]: the base node's, element 0's
+    node A): element k's node A is element k - 1's node B, so 12 floats a body are compared and
+    stored instead of 24 an element.  Every element of a bristle is stored in one call, so a key
+    pair that matches is one that E[i] was evaluated from.  All look-ups come before the stores
+    (a store overwrites the node B key of the element before it)."""
     e = el.e
     c1 = sub.c1
     c2 = sub.c2
-    for a in range(6):
-        hist.ehist[k, a] = 0.0
-    # c2 e_{n-1} first, then c1 e_n: the sum is the same to the bit (0 + x = x, x + y = y + x),
-    # and e_{n-1} is looked up before e_n's store overwrites the body's cache entry
-    if c2 != 0.0:
-        if _strain_key(k, br, chain.ppos, chain.prot, base.pAp, base.RAp, jc.EK[i], False):
-            for a in range(6):
-                hist.ehist[k, a] += c2 * jc.E[i, a]
-        else:
-            strain_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, e)
-            for a in range(6):
-                hist.ehist[k, a] += c2 * e[a]
-    if c1 != 0.0:
-        strain_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, e)
-        _strain_key(k, br, chain.pos, chain.rot, base.pAs, base.RAs, jc.EK[i], True)
+    b0 = br.b0
+    for k in range(br.n):
         for a in range(6):
-            jc.E[i, a] = e[a]
-            hist.ehist[k, a] += c1 * e[a]
+            hist.ehist[k, a] = 0.0
+    # c2 e_{n-1} first, then c1 e_n: the sum is the same to the bit (0 + x = x, x + y = y + x)
+    if c2 != 0.0:
+        prev = _node_key(base.pAp, base.RAp, jc.EK[b0], 12, False)  # node A of element 0
+        for k in range(br.n):
+            i = b0 + k
+            here = _node_key(chain.ppos[i], chain.prot[i], jc.EK[i], 0, False)
+            if prev and here:
+                for a in range(6):
+                    hist.ehist[k, a] += c2 * jc.E[i, a]
+            else:
+                strain_at(k, br, model, chain.ppos, chain.prot, base.pAp, base.RAp, e)
+                for a in range(6):
+                    hist.ehist[k, a] += c2 * e[a]
+            prev = here
+    if c1 != 0.0:
+        _node_key(base.pAs, base.RAs, jc.EK[b0], 12, True)
+        for k in range(br.n):
+            i = b0 + k
+            strain_at(k, br, model, chain.pos, chain.rot, base.pAs, base.RAs, e)
+            _node_key(chain.pos[i], chain.rot[i], jc.EK[i], 0, True)
+            for a in range(6):
+                jc.E[i, a] = e[a]
+                hist.ehist[k, a] += c1 * e[a]
 
 
 @njit(**HOT, inline="always")
@@ -130,7 +141,7 @@ def _prepare(br, model, chain, sub, base, hist, el, jc):
             local_rot_into(chain.prot[i], chain.rot[i], tmp)
             for a in range(3):
                 hist.thp[k, a] = c2 * tmp[a]
-        _strain_history(k, br, model, chain, sub, base, hist, el, jc)
+    _strain_history(br, model, chain, sub, base, hist, el, jc)
 
 
 @njit(**HOT, inline="always")

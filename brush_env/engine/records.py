@@ -34,7 +34,8 @@ record              fields [unit]
                     piv (N, 6), key (nb,) the c0/h they were built for, age (nb,) steps,
                     S (nb, 6, 6) the tip body's Schur complement without the tip load; E (N, 6)
                     each element's strain at its last (sub)step's start and EK (N, 24) the
-                    poses it came from (``predict._prepare``: e_{n-1} of the next step)
+                    poses it came from: body i's in EK[i, 0:12], the base node's in
+                    EK[b0, 12:24] (``predict._strain_history``: e_{n-1} of the next step)
 ``StepOut``         per bristle: rootw (nb, 6) [N, N mm] root element's load on the head; iters,
                     nsub, status (nb,)
 ``Bristle``         b (index), b0 (first body), n (bodies), il (tip body)

@@ -43,11 +43,20 @@ def _run(sweeps: int, cache: str, dt: float = 2e-3):
     return np.array(rows), st.jac.EK.copy()
 
 
+def _first_bodies(sweeps):
+    """Each bristle's first body (its element 0 has the base node as node A)."""
+    brush = load_brush("tiny")
+    scene = load_scene("flat_plate", brush=brush)
+    return Simulator(scene, SimSettings(tip_tip_sweeps=sweeps)).model.bstart[:-1]
+
+
 @pytest.mark.parametrize("sweeps", [1, 8])
 def test_cached_strains_change_nothing(sweeps):
     kept, keys = _run(sweeps, "kept")
     fresh, _ = _run(sweeps, "emptied")
     wrong, _ = _run(sweeps, "corrupted")
-    assert np.isfinite(keys).all()  # every element's strain was cached
+    # every element's strain was cached: every body's pose and each bristle's base node
+    assert np.isfinite(keys[:, 0:12]).all()
+    assert np.isfinite(keys[_first_bodies(sweeps), 12:24]).all()
     assert np.array_equal(kept, fresh)  # to the bit, every step
     assert not np.array_equal(kept, wrong)  # and the steps do take e_{n-1} from the cache
