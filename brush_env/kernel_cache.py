@@ -13,7 +13,9 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 ENGINE = Path(__file__).resolve().parent / "engine"
+#: the stamp of the cache beside the sources; a ``NUMBA_CACHE_DIR`` cache has its own, in it
 STAMP = ENGINE / "__pycache__" / "brush_env_kernels.stamp"
+STAMP_NAME = "brush_env_kernels.stamp"
 #: The compile profile this machine measured (``engine.compile_progress``), beside numba's cache
 MACHINE_PROFILE = ENGINE / "__pycache__" / "brush_env_compile_profile.json"
 #: ... and the one measured on the project's machine, shipped, until this machine has its own
@@ -39,10 +41,21 @@ def sources_key() -> str:
     return h.hexdigest()
 
 
-def _stamp() -> tuple[str, set[str]]:
-    """(sources key, names of the kernel groups compiled for it) of the stamp; ("", set())."""
+def _stamp_path(cache_dir: Path | None = None) -> Path:
+    """The stamp of the engine's cache in ``cache_dir`` (one of ``engine_cache_dirs``; None: the
+    one numba uses now, under ``NUMBA_CACHE_DIR`` when it is set).  Each cache directory has its
+    own: a process with another ``NUMBA_CACHE_DIR`` must not take this one's stamp for its
+    own (it did: the stamp beside the sources said "current" for a cache under
+    NUMBA_CACHE_DIR that no process had purged after an edit, which then ran stale code)."""
+    d = cache_dir if cache_dir is not None else engine_cache_dirs()[-1]
+    return STAMP if d == ENGINE / "__pycache__" else d / STAMP_NAME
+
+
+def _stamp(cache_dir: Path | None = None) -> tuple[str, set[str]]:
+    """(sources key, names of the kernel groups compiled for it) of the stamp of the cache in
+    ``cache_dir`` (None: the one in use); ("", set())."""
     try:
-        key, *groups = STAMP.read_text().splitlines()
+        key, *groups = _stamp_path(cache_dir).read_text().splitlines()
     except (OSError, ValueError):
         return "", set()
     return key.strip(), {g for g in groups if g}
@@ -68,8 +81,8 @@ def engine_cache_dirs() -> list[Path]:
 
 
 def purge_stale_kernels() -> int:
-    """Delete the engine's cached kernels (``*.nbi``, ``*.nbc`` in ``engine_cache_dirs``) if the
-    engine sources changed since the stamp was written, then stamp the sources as they are now;
+    """Delete the engine's cached kernels (``*.nbi``, ``*.nbc``) in each of
+    ``engine_cache_dirs`` whose stamp is not of the sources as they are now, then stamp it;
     returns the number of files deleted.
 
     numba checks a cached kernel against its own source file's timestamp only.  A kernel that
@@ -79,18 +92,18 @@ def purge_stale_kernels() -> int:
     nothing said (found twice while editing the reduced model; a ``git pull`` into an editable
     install does the same).  The price: any change to the engine's sources compiles every
     engine kernel again."""
-    key, _ = _stamp()
-    if key == sources_key():
-        return 0
+    key_now = sources_key()
     removed = 0
     for d in engine_cache_dirs():
+        if _stamp(d)[0] == key_now:
+            continue
         for p in sorted(d.glob("*.nb[ic]")):
             try:
                 p.unlink()
                 removed += 1
             except OSError:  # another process deleted it, or a read-only install
                 pass
-    write_stamp()
+        _write(_stamp_path(d), [key_now])
     return removed
 
 
@@ -149,10 +162,16 @@ def write_stamp(groups: Iterable[str] = (), profile: dict | None = None) -> None
     key, done = _stamp()
     key_now = sources_key()
     names = (done if key == key_now else set()) | set(groups)
+    _write(_stamp_path(), [key_now, *sorted(names)])
+    if profile:
+        _write(MACHINE_PROFILE, [json.dumps(profile, indent=1)])
+
+
+def _write(path: Path, lines: list[str]) -> None:
+    """Write the lines to ``path`` (its directory made); a read-only install still works, it
+    only compiles again next time."""
     try:
-        STAMP.parent.mkdir(exist_ok=True)
-        STAMP.write_text("\n".join([key_now, *sorted(names)]) + "\n")
-        if profile:
-            MACHINE_PROFILE.write_text(json.dumps(profile, indent=1))
-    except OSError:  # a read-only install still works, it only compiles again next time
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(lines) + "\n")
+    except OSError:
         pass

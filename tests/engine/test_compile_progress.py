@@ -263,3 +263,28 @@ def test_a_full_warm_up_counts_for_the_follow_groups(monkeypatch):
     fake = warmup.KernelGroup(warmup.STEP["bdf2"].name, lambda t: None, warmup.STEP["bdf2"].covers)
     warmup.warm_up((fake,))
     assert written["n"] == [warmup.STEP["bdf2"].name, warmup.FOLLOW["bdf2"].name]
+
+
+def test_a_numba_cache_dir_is_purged_by_its_own_stamp(tmp_path, monkeypatch):
+    """A process without NUMBA_CACHE_DIR purges and stamps the cache beside the sources; a
+    later process with NUMBA_CACHE_DIR set must still purge that directory's stale kernels (its
+    own stamp: the one beside the sources once said "current" for it too, and a benchmark ran a
+    caller's stale machine code after an edit to its callee's module)."""
+    engine = tmp_path / "src" / "engine"
+    (engine / "__pycache__").mkdir(parents=True)
+    (engine / "kernels.py").write_text("x = 1\n")
+    monkeypatch.setattr(kernel_cache, "ENGINE", engine)
+    monkeypatch.setattr(kernel_cache, "STAMP", engine / "__pycache__" / "stamp")
+    user = tmp_path / "numba_cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(user))
+    elsewhere = kernel_cache.engine_cache_dirs()[-1]
+    elsewhere.mkdir(parents=True)
+    assert kernel_cache.purge_stale_kernels() == 0  # both empty, now both stamped
+    (elsewhere / "kernels.g-9.py311.nbi").write_bytes(b"compiled on x = 1")
+    (engine / "kernels.py").write_text("x = 2\n")  # an edit, then a run without the variable
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    assert kernel_cache.purge_stale_kernels() == 0  # nothing cached beside the sources
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(user))  # a run with it: its own stamp is stale
+    assert kernel_cache.purge_stale_kernels() == 1
+    assert not (elsewhere / "kernels.g-9.py311.nbi").exists()
+    assert kernel_cache.purge_stale_kernels() == 0
