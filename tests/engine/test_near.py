@@ -21,10 +21,6 @@ def _all_pairs(nb):
     return np.array(ptr, np.int64), np.array(idx, np.int64)
 
 
-def _lists(nb, npair, margin):
-    return whole_lists(nb, npair, margin)
-
-
 def _scene(rng, nb=9, spread=1.5):
     tips = np.zeros((nb, 7))
     tips[:, 0:3] = rng.uniform(-spread, spread, (nb, 3))
@@ -40,7 +36,7 @@ def test_near_lists_hold_the_partners_within_reach_plus_margin_in_list_order():
         con = _scene(rng)
         nb = con.tips.shape[0]
         tips0 = con.tips[:, 0:6].copy()
-        lists = _lists(nb, len(con.pair_idx), 0.4)
+        lists = whole_lists(nb, len(con.pair_idx), 0.4)
         near.build(con, lists, tips0)
         assert lists.d[0] == 0.0
         for b in range(nb):
@@ -57,7 +53,7 @@ def test_near_lists_hold_the_partners_within_reach_plus_margin_in_list_order():
 def test_a_negative_margin_builds_no_lists_and_every_loop_takes_the_whole_list():
     con = _scene(np.random.default_rng(4))
     nb = con.tips.shape[0]
-    lists = _lists(nb, len(con.pair_idx), -1.0)
+    lists = whole_lists(nb, len(con.pair_idx), -1.0)
     near.build(con, lists, con.tips[:, 0:6].copy())
     assert lists.d[0] == np.inf and not lists.ptr.any()
     for b in range(nb):
@@ -68,7 +64,7 @@ def test_a_held_tip_moved_beyond_the_margin_sends_the_loops_to_the_whole_list():
     con = _scene(np.random.default_rng(5))
     nb = con.tips.shape[0]
     tips0 = con.tips[:, 0:6].copy()
-    lists = _lists(nb, len(con.pair_idx), 0.4)
+    lists = whole_lists(nb, len(con.pair_idx), 0.4)
     near.build(con, lists, tips0)
     assert near.span(con, lists, 0, 4.0 * lists.d[0])[2]
     con.tips[2, 0] += 0.15  # 4 D = 0.6 mm > the margin: the moved-partner test needs all
@@ -92,7 +88,7 @@ def test_partner_move_over_the_near_lists_is_the_whole_lists_to_the_bit():
         con = _scene(rng, nb=10, spread=1.2)
         nb = con.tips.shape[0]
         tips0 = con.tips[:, 0:6].copy()
-        lists = _lists(nb, len(con.pair_idx), margin)
+        lists = whole_lists(nb, len(con.pair_idx), margin)
         near.build(con, lists, tips0)
         # held tips moved within the step; each bristle saw its partners part of the way there
         step = rng.normal(0.0, 0.03, (nb, 3))
