@@ -15,9 +15,10 @@ r_b + r_j + M - D - s from a tip that moved s from its start, so a loop may use 
 whenever what it tests stays below that distance (``fits``): the contact load at a tip moved s
 (s + D <= M: no partner off the list is within reach), the penetration limit of a step dp
 (s + |dp| + D <= M), the moved-partner test (4 D <= M: a partner's move and its distance are both
-within 2 D of their start), the coupling's groups (2 D <= M), a placement x (2 max|x| + 2 D <= M)
-and the lead of the first guess (2 D + 2 LEAD_MAX r_max <= M).  Otherwise the loop takes the whole
-list, as it does outside a step (D = inf) and for the reduced model, which never builds one.
+within 2 D of their start), the coupling's groups (2 D <= M), a placement x
+(2 sqrt(3) max_r |x_r| + 2 D <= M: |x_b| + |x_j| bounded by its components) and the lead of the
+first guess (2 D + 2 LEAD_MAX r_max <= M).  Otherwise the loop takes the whole list, as it does
+outside a step (D = inf) and for the reduced model, which never builds one.
 Skipped partners are those that contribute nothing, in the same order, so every sum is the same
 to the bit (``tests/engine/test_near.py``: the paper turn's forces equal with the lists on and off).
 Units: mm.
