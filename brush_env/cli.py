@@ -12,6 +12,7 @@ A user mistake (bad path, key or value) is reported in one line on stderr with e
 
 from __future__ import annotations
 
+import gc
 import importlib
 import sys
 
@@ -103,8 +104,17 @@ def _main(argv) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``brush-env`` script."""
-    return run_main(_main, argv, prog="brush-env")
+    """Entry point of the ``brush-env`` script (``argv`` None: the process's own arguments)."""
+    code = run_main(_main, argv, prog="brush-env")
+    if argv is None:
+        # The program is done and its files are closed.  The interpreter's exit would now walk
+        # every object numba's typing and matplotlib left (the cyclic collector's last passes:
+        # 0.2-0.4 s of a `brush-env reference`, issue 32); frozen, they are left to the OS.
+        # Nothing else changes: objects still die by reference count, only cycles are not
+        # searched for.  Not when a caller passes ``argv`` (a test, a script): its process
+        # goes on.  (docs/benchmarks.md, "The reference's exit")
+        gc.freeze()
+    return code
 
 
 if __name__ == "__main__":
