@@ -226,7 +226,7 @@ def _solve_group(model, chain, con, jc, ws, m, c0_inv_h):
         for a in range(3):
             tips[b, a] += alpha * x[3 * s + a]
             tips[b, 3 + a] += alpha * c0_inv_h * x[3 * s + a]
-        moved(con, sw.near, sw.tips0, b)
+        moved(con, sw.near, b)
         sw.grouped[b] = 1
     return m
 

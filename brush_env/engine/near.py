@@ -7,15 +7,17 @@ the penetration limit, the sweeps' test of moved partners, the coupling's groups
 guess's lead looped over all of them, every residual and every sweep (~17 % of a coupled
 bristle-step, docs/benchmarks.md, session 38).
 
-At a step's start (``build``) every tip b keeps, in its pair list's order, the partners j with
-|p_b - p_j| < r_b + r_j + M at the step's start positions p0 (``Sweeps.tips0``; M = ``NEAR_MARGIN``
-[mm]).  During the step D is the largest distance any held tip (``con.tips``) has moved from its
-start (``moved``, after every write of a held tip).  A partner off the near list is then at least
-r_b + r_j + M - D - s from a tip that moved s from its start, so a loop may use the near list
+When the lists are built (``build``) every tip b keeps, in its pair list's order, the partners j
+with |a_b - a_j| < r_b + r_j + M at the tips' positions a then, their anchors (``NearPairs.anc``;
+M = ``NEAR_MARGIN`` [mm]).  They are built at a step's start, and kept for the next step while
+no tip has moved more than ``ANCHOR_MOVE`` M from its anchor.  D is the largest distance of any
+held tip (``con.tips``) from its anchor: at a step's start, and after every write of a held tip
+(``moved``).  A partner off the near list is then at least r_b + r_j + M - D - s from a tip s
+from its anchor, so a loop may use the near list
 whenever what it tests stays below that distance (``fits``): the contact load at a tip moved s
 (s + D <= M: no partner off the list is within reach), the penetration limit of a step dp
 (s + |dp| + D <= M), the moved-partner test (4 D <= M: a partner's move and its distance are both
-within 2 D of their start), the coupling's groups (2 D <= M), a placement x
+within 2 D of their anchors), the coupling's groups (2 D <= M), a placement x
 (2 sqrt(3) max_r |x_r| + 2 D <= M: |x_b| + |x_j| bounded by its components) and the lead of the
 first guess (2 D + 2 LEAD_MAX r_max <= M).  Otherwise the loop takes the whole list, as it does
 outside a step (D = inf) and for the reduced model, which never builds one.
@@ -32,25 +34,52 @@ from numba import njit
 from ._kernels import HOT
 from .records import ContactScene
 
-#: [mm] partners within r_b + r_j + NEAR_MARGIN of each other at the step's start are near.  A
+#: [mm] partners within r_b + r_j + NEAR_MARGIN of each other at their anchors are near.  A
 #: 1 ms step of the paper turn moves a tip ~0.02 mm; the moved-partner test keeps the near list
-#: while no held tip moved more than NEAR_MARGIN / 4 from its start
+#: while no held tip is more than NEAR_MARGIN / 4 from its anchor
 NEAR_MARGIN = 1.0
+#: [-] the near lists are kept from one step to the next while no tip is more than this fraction
+#: of NEAR_MARGIN from where they were built (its anchor): D starts a kept step at that distance,
+#: well inside what the loops allow (the tightest, the moved-partner test, 4 D <= M).  A 1 ms step
+#: of the paper turn moves a tip ~0.02 mm: the lists are rebuilt every few steps instead of every
+#: step (~2 % of a one-sweep bristle-step, docs/benchmarks.md, session 39)
+ANCHOR_MOVE = 0.125
 #: [mm] the round-off allowance of the distance tests (positions are < 1e3 mm: ~1e-13 mm)
 NEAR_ROUND = 1e-9
 
 
 @njit(**HOT)
 def build(con, near, tips0):
-    """near <- every tip's partners within r_b + r_j + M at the step's start ``tips0`` (nb, >= 3)
-    (CSR over the pair list: near.ptr (nb + 1), near.q the pair entries, near.idx the partners),
-    D = 0.  With M < 0 (``NearPairs.d[1]``: the lists off) every list is empty and D = inf."""
+    """At a step's start (held tips at ``tips0`` (nb, >= 3)): keep the near lists if no tip is
+    more than ``ANCHOR_MOVE`` x M from its anchor (D <- the largest such distance), else rebuild
+    them: every tip's partners within r_b + r_j + M of it at ``tips0`` (CSR over the pair list:
+    near.ptr (nb + 1), near.q the pair entries, near.idx the partners), the anchors
+    ``near.anc`` <- tips0, D = 0.  With M < 0 (``NearPairs.d[1]``: the lists off) every list is
+    empty and D = inf."""
     ptr = con.pair_ptr
     nb = tips0.shape[0]
     M = near.d[1]
+    if M >= 0.0:
+        keep = True
+        far = 0.0
+        for b in range(nb):
+            d0 = tips0[b, 0] - near.anc[b, 0]
+            d1 = tips0[b, 1] - near.anc[b, 1]
+            d2 = tips0[b, 2] - near.anc[b, 2]
+            d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if not d <= ANCHOR_MOVE * M:  # moved too far, or NaN: never built
+                keep = False
+                break
+            far = max(far, d)
+        if keep:
+            near.d[0] = far
+            return
     n = 0
     near.ptr[0] = 0
     for b in range(nb):
+        if M >= 0.0:
+            for a in range(3):
+                near.anc[b, a] = tips0[b, a]
         if M >= 0.0 and ptr.shape[0] > b + 1:
             rb = con.tips[b, 6]
             for q in range(ptr[b], ptr[b + 1]):
@@ -74,11 +103,11 @@ def close(near):
 
 
 @njit(**HOT, inline="always")
-def moved(con, near, tips0, b):
-    """D <- max(D, |con.tips[b] - tips0[b]|) after held tip b was written."""
-    d0 = con.tips[b, 0] - tips0[b, 0]
-    d1 = con.tips[b, 1] - tips0[b, 1]
-    d2 = con.tips[b, 2] - tips0[b, 2]
+def moved(con, near, b):
+    """D <- max(D, |con.tips[b] - anchor of b|) after held tip b was written."""
+    d0 = con.tips[b, 0] - near.anc[b, 0]
+    d1 = con.tips[b, 1] - near.anc[b, 1]
+    d2 = con.tips[b, 2] - near.anc[b, 2]
     d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if d > near.d[0]:
         near.d[0] = d
@@ -111,13 +140,13 @@ def entry(con, near, k, on):
 
 
 @njit(**HOT, inline="always")
-def tip_scene(con, near, tips0, b, pt, reach):
+def tip_scene(con, near, b, pt, reach):
     """The contact scene for tip b evaluated at ``pt`` (3,) [mm] with tests reaching ``reach``
     [mm] beyond contact: ``con`` with b's near list as its pair list (``contact.tip_load``, the
     penetration limit) where it fits, else ``con``."""
-    d0 = pt[0] - tips0[b, 0]
-    d1 = pt[1] - tips0[b, 1]
-    d2 = pt[2] - tips0[b, 2]
+    d0 = pt[0] - near.anc[b, 0]
+    d1 = pt[1] - near.anc[b, 1]
+    d2 = pt[2] - near.anc[b, 2]
     s = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if fits(near, s + reach + near.d[0]):
         return ContactScene(

@@ -186,7 +186,7 @@ def _step_cap(br, model, chain, sub, con, ws):
     for a in range(3):
         pt[a] = chain.pos[il, a] + hl * rot[il, a, 0]
     # the partners the step can reach: the step's near list where it holds (``near.py``)
-    pcon = tip_scene(con, ws.sw.near, ws.sw.tips0, br.b, pt, dtip)
+    pcon = tip_scene(con, ws.sw.near, br.b, pt, dtip)
     apen = penetration_step_limit(br.b, pt, dp, radius, pcon, ws.tipw, PEN_STEP_MIN)
     if apen < alpha:
         alpha = max(apen, 1e-3)

@@ -395,8 +395,9 @@ Sweeps = namedtuple(
 )
 #: the step's near lists of tip-tip partners (``near.py``): ptr (nb + 1), q and idx (entries of
 #: the pair list and the partners, CSR over the bristles), d (2,) = [D: how far [mm] a held tip
-#: moved from its start this step (inf: no near list), M: the margin [mm] (< 0: lists off)]
-NearPairs = namedtuple("NearPairs", ["ptr", "q", "idx", "d"])
+#: is from its anchor this step (inf: no near list), M: the margin [mm] (< 0: lists off)], anc
+#: (nb, 3): every tip where the lists were last built, its anchor [mm] (NaN: never built)
+NearPairs = namedtuple("NearPairs", ["ptr", "q", "idx", "d", "anc"])
 Work = namedtuple(
     "Work", ["it", "hist", "base", "tp", "tR", "el", "tipw", "blk", "mot", "backup", "sw", "sh"]
 )
@@ -486,6 +487,7 @@ def make_work(
             np.zeros(max(n_pair_entries, 1), np.int64),
             np.zeros(max(n_pair_entries, 1), np.int64),
             np.array([np.inf, near_margin]),
+            np.full((n_bristles, 3), np.nan),
         ),
     )
     sh = ShaftScratch(

@@ -148,7 +148,7 @@ def bristle_residual(br, model, chain, sub, base, con, ws, rootw):
     tipF = it.tipF
     body_node(pos[il], chain.rot[il], model.bp[il].half, pt)
     # the partners that can touch this tip: the step's near list where it holds (``near.py``)
-    tcon = tip_scene(con, ws.sw.near, ws.sw.tips0, br.b, pt, 0.0)
+    tcon = tip_scene(con, ws.sw.near, br.b, pt, 0.0)
     tip_load(br.b, pt, sub, tcon, tipF, it.tipK, ws.tipw)
     rx = pt[0] - pos[il, 0]
     ry = pt[1] - pos[il, 1]

@@ -61,7 +61,7 @@ def sweep_bristles(model, chain, drive, prm, con, jc, ws, out, mode):
                 if sw.grouped[b] != 0:  # placed but held as it is: back to its solution
                     for a in range(6):
                         con.tips[b, a] = sw.xs[b, a]
-                    moved(con, sw.near, sw.tips0, b)
+                    moved(con, sw.near, b)
                 continue
             sw.count[1] += 1
             save_chain(br, chain.pos, chain.rot, sw.warm_pos[b0:], sw.warm_rot[b0:])
@@ -75,7 +75,7 @@ def sweep_bristles(model, chain, drive, prm, con, jc, ws, out, mode):
         advance_bristle(br, model, chain, drive, prm, con, jc, ws, out, mode == SWEEP_AGAIN)
         out.iters[b] += prev
         tip_node_state(b, br.il, model.bp, chain.pos, chain.rot, chain.vel, chain.omg, con.tips)
-        moved(con, sw.near, sw.tips0, b)
+        moved(con, sw.near, b)
         if coupled:
             store_tip_load(b, ws.it, sw)
 
@@ -284,7 +284,7 @@ def lead_partners(con, sw):
     for b in range(nb):
         for a in range(6):
             tips[b, a] += lead[b] * ext[b, a]
-        moved(con, near, sw.tips0, b)
+        moved(con, near, b)
 
 
 @njit(**HOT, inline="always")

@@ -40,7 +40,13 @@ def whole_lists(nb: int, npair: int, margin: float = -1.0) -> rec.NearPairs:
     """A ``records.NearPairs`` with no near list built (D = inf: every partner loop takes the
     whole list, as outside a step); ``margin`` [mm] for ``near.build``."""
     z = np.zeros(max(npair, 1), np.int64)
-    return rec.NearPairs(np.zeros(nb + 1, np.int64), z, z.copy(), np.array([np.inf, margin]))
+    return rec.NearPairs(
+        np.zeros(nb + 1, np.int64),
+        z,
+        z.copy(),
+        np.array([np.inf, margin]),
+        np.full((nb, 3), np.nan),
+    )
 
 
 def sweeps_scratch(nb: int, npair: int) -> rec.Sweeps:

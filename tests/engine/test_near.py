@@ -68,12 +68,57 @@ def test_a_held_tip_moved_beyond_the_margin_sends_the_loops_to_the_whole_list():
     near.build(con, lists, tips0)
     assert near.span(con, lists, 0, 4.0 * lists.d[0])[2]
     con.tips[2, 0] += 0.15  # 4 D = 0.6 mm > the margin: the moved-partner test needs all
-    near.moved(con, lists, tips0, 2)
+    near.moved(con, lists, 2)
     assert lists.d[0] == pytest.approx(0.15)
     assert near.span(con, lists, 0, 2.0 * lists.d[0])[2]
     assert not near.span(con, lists, 0, 4.0 * lists.d[0])[2]
     near.close(lists)  # after the step: D = inf, no test fits
     assert not near.span(con, lists, 0, 2.0 * lists.d[0])[2]
+
+
+def test_lists_are_kept_while_every_tip_stays_near_its_anchor_and_rebuilt_past_it():
+    """``build`` at the next step's start: tips within ANCHOR_MOVE x M of where the lists were
+    built keep them (D starts at the farthest tip's distance, so every loop's test still
+    bounds what is off the lists); one tip past it, or lists never built (NaN anchors),
+    rebuild them at the new positions."""
+    rng = np.random.default_rng(8)
+    margin = 0.4
+    con = _scene(rng)
+    nb = con.tips.shape[0]
+    lists = whole_lists(nb, len(con.pair_idx), margin)
+    assert np.isnan(lists.anc).all()
+    tips0 = con.tips[:, 0:6].copy()
+    near.build(con, lists, tips0)
+    assert lists.d[0] == 0.0 and np.array_equal(lists.anc, tips0[:, 0:3])
+    built = (lists.ptr.copy(), lists.q.copy(), lists.idx.copy())
+    near.close(lists)
+    # the next step's start: every tip moved a little, the farthest 0.9 x ANCHOR_MOVE x M
+    move = rng.normal(0.0, 1.0, (nb, 3))
+    move *= (0.9 * near.ANCHOR_MOVE * margin) / np.linalg.norm(move, axis=1).max()
+    tips1 = tips0.copy()
+    tips1[:, 0:3] += move
+    near.build(con, lists, tips1)
+    assert lists.d[0] == pytest.approx(np.linalg.norm(move, axis=1).max(), rel=1e-12)
+    assert np.array_equal(lists.anc, tips0[:, 0:3])  # anchors and lists as built
+    for a, b in zip(built, (lists.ptr, lists.q, lists.idx)):
+        assert np.array_equal(a, b)
+    # what the kept lists promise: no partner off them within r_b + r_j + M - 2 D
+    for b in range(nb):
+        on = set(lists.idx[lists.ptr[b] : lists.ptr[b + 1]])
+        for q in range(con.pair_ptr[b], con.pair_ptr[b + 1]):
+            j = con.pair_idx[q]
+            gap = np.linalg.norm(tips1[b, 0:3] - tips1[j, 0:3]) - con.tips[b, 6] - con.tips[j, 6]
+            assert j in on or gap >= margin - 2.0 * lists.d[0]
+    # one tip past ANCHOR_MOVE x M: rebuilt where the tips are now
+    tips2 = tips1.copy()
+    tips2[4, 0] = tips0[4, 0] + 1.1 * near.ANCHOR_MOVE * margin
+    near.close(lists)
+    near.build(con, lists, tips2)
+    assert lists.d[0] == 0.0 and np.array_equal(lists.anc, tips2[:, 0:3])
+    fresh = whole_lists(nb, len(con.pair_idx), margin)
+    near.build(con, fresh, tips2)
+    for a, b in zip((fresh.ptr, fresh.q, fresh.idx), (lists.ptr, lists.q, lists.idx)):
+        assert np.array_equal(a, b)
 
 
 def test_partner_move_over_the_near_lists_is_the_whole_lists_to_the_bit():
@@ -94,7 +139,7 @@ def test_partner_move_over_the_near_lists_is_the_whole_lists_to_the_bit():
         step = rng.normal(0.0, 0.03, (nb, 3))
         con.tips[:, 0:3] += step
         for b in range(nb):
-            near.moved(con, lists, tips0, b)
+            near.moved(con, lists, b)
         frac = rng.uniform(0.0, 1.0, len(con.pair_idx))[:, None]
         used = tips0[con.pair_idx, 0:3] + frac * step[con.pair_idx]
         whole = whole_lists(nb, len(con.pair_idx))
