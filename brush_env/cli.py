@@ -112,7 +112,7 @@ def main(argv=None) -> int:
         # 0.2-0.4 s of a `brush-env reference`, issue 32); frozen, they are left to the OS.
         # Nothing else changes: objects still die by reference count, only cycles are not
         # searched for.  Not when a caller passes ``argv`` (a test, a script): its process
-        # goes on.  (docs/benchmarks.md, "The reference's exit")
+        # goes on.  (docs/benchmarks.md, session 39, "The program's exit")
         gc.freeze()
     return code
 
