@@ -13,9 +13,9 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 ENGINE = Path(__file__).resolve().parent / "engine"
-#: the stamp of the cache beside the sources; a ``NUMBA_CACHE_DIR`` cache has its own, in it
-STAMP = ENGINE / "__pycache__" / "brush_env_kernels.stamp"
 STAMP_NAME = "brush_env_kernels.stamp"
+#: the stamp of the cache beside the sources; a ``NUMBA_CACHE_DIR`` cache has its own, in it
+STAMP = ENGINE / "__pycache__" / STAMP_NAME
 #: The compile profile this machine measured (``engine.compile_progress``), beside numba's cache
 MACHINE_PROFILE = ENGINE / "__pycache__" / "brush_env_compile_profile.json"
 #: ... and the one measured on the project's machine, shipped, until this machine has its own

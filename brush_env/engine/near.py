@@ -48,6 +48,15 @@ ANCHOR_MOVE = 0.125
 NEAR_ROUND = 1e-9
 
 
+@njit(**HOT, inline="always")
+def from_anchor(near, b, x):
+    """|x[0:3] - anchor of tip b| [mm]: how far the point x is from where b's list was built."""
+    d0 = x[0] - near.anc[b, 0]
+    d1 = x[1] - near.anc[b, 1]
+    d2 = x[2] - near.anc[b, 2]
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
 @njit(**HOT)
 def build(con, near, tips0):
     """At a step's start (held tips at ``tips0`` (nb, >= 3)): keep the near lists if no tip is
@@ -63,10 +72,7 @@ def build(con, near, tips0):
         keep = True
         far = 0.0
         for b in range(nb):
-            d0 = tips0[b, 0] - near.anc[b, 0]
-            d1 = tips0[b, 1] - near.anc[b, 1]
-            d2 = tips0[b, 2] - near.anc[b, 2]
-            d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            d = from_anchor(near, b, tips0[b])
             if not d <= ANCHOR_MOVE * M:  # moved too far, or NaN: never built
                 keep = False
                 break
@@ -105,10 +111,7 @@ def close(near):
 @njit(**HOT, inline="always")
 def moved(con, near, b):
     """D <- max(D, |con.tips[b] - anchor of b|) after held tip b was written."""
-    d0 = con.tips[b, 0] - near.anc[b, 0]
-    d1 = con.tips[b, 1] - near.anc[b, 1]
-    d2 = con.tips[b, 2] - near.anc[b, 2]
-    d = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    d = from_anchor(near, b, con.tips[b])
     if d > near.d[0]:
         near.d[0] = d
 
@@ -144,10 +147,7 @@ def tip_scene(con, near, b, pt, reach):
     """The contact scene for tip b evaluated at ``pt`` (3,) [mm] with tests reaching ``reach``
     [mm] beyond contact: ``con`` with b's near list as its pair list (``contact.tip_load``, the
     penetration limit) where it fits, else ``con``."""
-    d0 = pt[0] - near.anc[b, 0]
-    d1 = pt[1] - near.anc[b, 1]
-    d2 = pt[2] - near.anc[b, 2]
-    s = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    s = from_anchor(near, b, pt)
     if fits(near, s + reach + near.d[0]):
         return ContactScene(
             con.surf,
